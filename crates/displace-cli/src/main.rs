@@ -1,0 +1,27 @@
+//! `displace`: bake distance maps, trace rays, render displaced scenes, and
+//! measure it all. Each subcommand lives in its own module; errors are
+//! reported with context and a non-zero exit code.
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "displace", version, about = "Per-pixel displacement mapping with distance functions")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result: anyhow::Result<()> = match cli.command {};
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! The one source of truth for the conventions that CPU and GPU share
+//! (`shared/DESIGN.md`, "Conventions").
+//!
+//! **Map space.** `x` runs along the face tangent (texture `u`), `y` along the
+//! bitangent (`v`), `z` along the normal. Lengths are measured in units of the
+//! shell depth, so the shell of one tile is the box
+//! `[0, ax] x [0, ay] x [0, 1]` where `(ax, ay) = extent.aspect()`, and the
+//! displaced surface is `z = h(x / ax, y / ay)`. A step `p += d * dir` with a
+//! stored distance `d` is safe when `dir` is unit length in this metric: this
+//! is Donnelly's "normalization factor" (section 8.5.2) made explicit.
+//!
+//! **Texel centres.** Height texel `(i, j)` of a `W x H` map sits at texture
+//! coordinate `((i + 0.5) / W, (j + 0.5) / H)`; distance voxel `(i, j, k)` at
+//! `((i + 0.5) / W, (j + 0.5) / H, (k + 0.5) / D)`. Interpolation is bilinear
+//! (height) and trilinear (distance) between those centres, exactly as a GPU's
+//! linear sampler does it, with clamp-to-edge or repeat addressing.
+
+use crate::{Error, Result};
+
+/// Texture addressing outside `[0, 1]`, as a GPU sampler's address mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Address {
+    /// Clamp to the edge texel: the face is one tile and the surface stops at
+    /// its border.
+    #[default]
+    Clamp,
+    /// The height map tiles; the distance map is baked periodic so that rays
+    /// crossing a tile border are traced as safely as anywhere else.
+    Repeat,
+}
+
+impl Address {
+    /// Index of texel `i` in a row of `n` texels under this addressing.
+    #[inline]
+    pub fn texel_index(self, i: i64, n: usize) -> usize {
+        match self {
+            Address::Clamp => i.clamp(0, n as i64 - 1) as usize,
+            Address::Repeat => i.rem_euclid(n as i64) as usize,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Address::Clamp => "clamp",
+            Address::Repeat => "repeat",
+        }
+    }
+}
+
+impl std::str::FromStr for Address {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "clamp" => Ok(Address::Clamp),
+            "repeat" => Ok(Address::Repeat),
+            other => Err(Error::InvalidSize(format!(
+                "unknown addressing `{other}` (expected clamp or repeat)"
+            ))),
+        }
+    }
+}
+
+/// Physical size of one displaced tile: width `sx` (along `u`), height `sy`
+/// (along `v`) and displacement depth `sz`, in any one unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Extent {
+    pub sx: f32,
+    pub sy: f32,
+    pub sz: f32,
+}
+
+impl Extent {
+    /// Refuses zero, negative and non-finite sizes.
+    pub fn new(sx: f32, sy: f32, sz: f32) -> Result<Self> {
+        for (name, v) in [("width", sx), ("height", sy), ("depth", sz)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::InvalidExtent(format!(
+                    "{name} must be a positive finite number, got {v}"
+                )));
+            }
+        }
+        let aspect = (sx / sz).max(sy / sz);
+        if aspect > 1.0e6 || (sz / sx.min(sy)) > 1.0e6 {
+            return Err(Error::InvalidExtent(format!(
+                "proportions {sx}:{sy}:{sz} are too extreme (ratio above 1e6)"
+            )));
+        }
+        Ok(Self { sx, sy, sz })
+    }
+
+    /// Width and height of one tile in units of the shell depth.
+    #[inline]
+    pub fn aspect(&self) -> [f32; 2] {
+        [self.sx / self.sz, self.sy / self.sz]
+    }
+}
+
+/// Texture coordinate of texel centre `i` of `n`.
+#[inline]
+pub fn texel_centre(i: usize, n: usize) -> f32 {
+    (i as f32 + 0.5) / n as f32
+}
+
+/// Splits a texture coordinate into the lower texel index of the bilinear
+/// footprint and the interpolation weight of the upper one, for `n` texels.
+#[inline]
+pub fn texel_lerp(t: f32, n: usize) -> (i64, f32) {
+    let x = t * n as f32 - 0.5;
+    let i = x.floor();
+    (i as i64, x - i)
+}
+
+/// Largest allocation one bake, map or image may ask for. Requests above it
+/// are refused before any memory is touched.
+pub const MAX_ALLOCATION_BYTES: u128 = 8 << 30;
+
+/// Refuses `count` elements of `bytes_each` when that exceeds
+/// [`MAX_ALLOCATION_BYTES`].
+pub fn check_allocation(what: &str, size: &str, count: u128, bytes_each: u128) -> Result<()> {
+    let bytes = count.saturating_mul(bytes_each);
+    if bytes > MAX_ALLOCATION_BYTES {
+        return Err(Error::TooLarge {
+            what: what.to_string(),
+            size: size.to_string(),
+            bytes,
+            limit: MAX_ALLOCATION_BYTES,
+        });
+    }
+    Ok(())
+}
+
+/// Parses `WxH` or `WxHxD` sizes as the CLI and scene files write them.
+pub fn parse_size<const N: usize>(s: &str) -> Result<[usize; N]> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    if parts.len() != N {
+        return Err(Error::InvalidSize(format!(
+            "`{s}`: expected {N} numbers separated by `x`"
+        )));
+    }
+    let mut out = [0usize; N];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .trim()
+            .parse()
+            .map_err(|_| Error::InvalidSize(format!("`{s}`: `{p}` is not a whole number")))?;
+        if *o == 0 {
+            return Err(Error::InvalidSize(format!("`{s}`: sizes must be positive")));
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texel_lerp_hits_centres() {
+        for n in [2usize, 3, 16] {
+            for i in 0..n {
+                let (j, w) = texel_lerp(texel_centre(i, n), n);
+                assert_eq!(j, i as i64);
+                assert!(w.abs() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn sizes_parse_and_refuse() {
+        assert_eq!(parse_size::<3>("256x128x16").unwrap(), [256, 128, 16]);
+        assert!(parse_size::<3>("256x128").is_err());
+        assert!(parse_size::<2>("0x4").is_err());
+        assert!(parse_size::<2>("ax4").is_err());
+    }
+
+    #[test]
+    fn extents_refuse_nonsense() {
+        assert!(Extent::new(1.0, 1.0, 0.0).is_err());
+        assert!(Extent::new(-1.0, 1.0, 1.0).is_err());
+        assert!(Extent::new(f32::NAN, 1.0, 1.0).is_err());
+        assert!(Extent::new(1.0, 1.0, 0.1).is_ok());
+    }
+}

@@ -1,0 +1,172 @@
+//! The bake (height map -> normal map + conservative distance map) and the
+//! baked [`DisplacementMap`] that renderers trace.
+
+use crate::convention::{texel_centre, Extent};
+use crate::distance_map::DistanceMap;
+use crate::edt::{transform_2d, LineScratch};
+use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
+use crate::{Address, Error, HeightMap, NormalMap, Result};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
+
+/// Called with `(slices done, slices in all)` as the bake progresses.
+pub type Progress = Arc<dyn Fn(usize, usize) + Send + Sync>;
+
+#[derive(Clone)]
+pub struct BakeOptions {
+    /// Distance-map voxels `[W, H, D]`. Donnelly used 256x256x16.
+    pub size: [usize; 3],
+    /// Physical size of one tile of the face.
+    pub extent: Extent,
+    pub progress: Option<Progress>,
+    /// Set to stop a bake early; [`bake`] then returns [`Error::Cancelled`].
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        Self {
+            size: [256, 256, 16],
+            extent: Extent {
+                sx: 1.0,
+                sy: 1.0,
+                sz: 0.1,
+            },
+            progress: None,
+            cancel: None,
+        }
+    }
+}
+
+impl std::fmt::Debug for BakeOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BakeOptions")
+            .field("size", &self.size)
+            .field("extent", &self.extent)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Everything a renderer needs to trace one displaced surface: shared by
+/// every face with the same height source, resolution and proportions.
+#[derive(Clone, Debug)]
+pub struct DisplacementMap {
+    pub height: HeightMap,
+    pub normals: NormalMap,
+    pub distance: DistanceMap,
+    pub extent: Extent,
+}
+
+impl DisplacementMap {
+    /// Tile width and height in shell depths.
+    pub fn aspect(&self) -> [f32; 2] {
+        self.distance.aspect()
+    }
+
+    pub fn address(&self) -> Address {
+        self.height.address()
+    }
+
+    /// First hit of a map-space ray. Faces of a clamped map are one tile.
+    pub fn trace(&self, ray: &MapRay, opts: &TraceOptions) -> Option<MapHit> {
+        sphere_trace::trace(&self.height, &self.distance, ray, opts)
+    }
+
+    /// Checks that `opts` makes sense for this map before tracing many rays.
+    pub fn check_trace(&self, opts: &TraceOptions) -> Result<()> {
+        if !(opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0)) {
+            return Err(Error::InvalidTrace(format!("tiles {:?} must be positive", opts.tiles)));
+        }
+        if self.address() == Address::Clamp && opts.tiles != [1.0, 1.0] {
+            return Err(Error::InvalidTrace(
+                "a clamped map covers exactly one tile; bake with repeat addressing to tile it".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Shading normal at texture coordinate `uv` (tiles), map space.
+    pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
+        self.normals.sample(uv.x, uv.y)
+    }
+}
+
+/// Bakes the normal map and the conservative distance map of `height` for
+/// one tile of `opts.extent`.
+///
+/// Cost: `O(W H D)` for the distance transform (two 1D passes of the lower
+/// envelope per depth slice, slices in parallel) plus the exact height range
+/// of every column footprint. Memory: the output plus two `W x H` slices per
+/// thread.
+pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
+    let size = opts.size;
+    DistanceMap::check_size(size)?;
+    let extent = Extent::new(opts.extent.sx, opts.extent.sy, opts.extent.sz)?;
+    let [ax, ay] = extent.aspect();
+    let [w, h, d] = size;
+    let address = height.address();
+    let periodic = address == Address::Repeat;
+    let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
+    let cancelled = || opts.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed));
+
+    // Exact height range over each column's footprint, and the height at the
+    // column centre (for the sign).
+    let columns: Vec<(f32, f32, f32)> = (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            let (v0, v1) = (j as f32 / h as f32, (j + 1) as f32 / h as f32);
+            (0..w).map(move |i| {
+                let (u0, u1) = (i as f32 / w as f32, (i + 1) as f32 / w as f32);
+                let (lo, hi) = height.range(u0, u1, v0, v1);
+                (lo, hi, height.sample(texel_centre(i, w), texel_centre(j, h)))
+            })
+        })
+        .collect();
+    if cancelled() {
+        return Err(Error::Cancelled);
+    }
+
+    let r_xy = 0.5 * (hx * hx + hy * hy).sqrt();
+    let slack = 0.5 * (hx * hx + hy * hy + hz * hz).sqrt();
+    let done = AtomicUsize::new(0);
+    let mut data = vec![0.0f32; w * h * d];
+    data.par_chunks_mut(w * h)
+        .enumerate()
+        .try_for_each_init(
+            || (Vec::new(), LineScratch::default()),
+            |(transposed, scratch), (k, slice)| {
+                if cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let z = texel_centre(k, d);
+                for (g, &(lo, hi, _)) in slice.iter_mut().zip(&columns) {
+                    let dz = (lo - z).max(z - hi).max(0.0);
+                    *g = dz * dz;
+                }
+                transform_2d(slice, w, h, [hx, hy], [periodic, periodic], transposed, scratch);
+                for (v, &(_, _, hc)) in slice.iter_mut().zip(&columns) {
+                    let dist = v.sqrt();
+                    let lower = if z < hc {
+                        -(dist + r_xy).min(hc - z)
+                    } else {
+                        dist - r_xy
+                    };
+                    *v = lower - slack;
+                }
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(p) = &opts.progress {
+                    p(n, d);
+                }
+                Ok(())
+            },
+        )?;
+    let distance = DistanceMap::from_raw(size, [ax, ay], address, data, 2.0 * r_xy + 2.0 * slack)?;
+    Ok(DisplacementMap {
+        normals: NormalMap::from_height(height, extent),
+        height: height.clone(),
+        distance,
+        extent,
+    })
+}

@@ -1,0 +1,302 @@
+//! The conservative 3D distance map (DESIGN.md "Conservative"): for every
+//! point `p` of the shell, the trilinear interpolation of the stored values is
+//! at most the true signed distance from `p` to the continuous bilinear
+//! surface, so a sphere-tracing step can never cross the surface.
+//!
+//! Values are signed distances in units of the shell depth (negative under
+//! the surface), over map space as [`crate::convention`] defines it.
+//!
+//! # Why the stored values are safe
+//! The bake ([`crate::displacement::bake`]) proves it in two steps:
+//! 1. **Lower bound at voxel centres.** Column `(i, j)` of the map covers a
+//!    footprint of `hx x hy`; over it the surface spans exactly
+//!    `[hmin, hmax]` ([`HeightMap::range`]). The transform gives the exact
+//!    distance `D` from a voxel centre `c` to the set of vertical segments
+//!    `{column centre} x [hmin, hmax]`. Every surface point lies within
+//!    `r = |(hx, hy)| / 2` of one of those segments and every segment point
+//!    within `r` of the surface, so `D - r <= dist(c) <= D + r`.
+//! 2. **Trilinear slack.** The signed distance is 1-Lipschitz, and for
+//!    trilinear weights `sum w_c |p - c| <= |(hx, hy, hz)| / 2` (Jensen, with
+//!    `sum w_c (p - c)_x^2 = x (1 - x) hx^2 <= hx^2 / 4`). Subtracting that
+//!    half diagonal from every lower bound makes the interpolant a lower bound
+//!    everywhere.
+//!
+//! Both margins together keep the stored value within about one voxel
+//! diagonal of the truth ([`DistanceMap::max_underestimate`]).
+
+use crate::convention::{check_allocation, texel_lerp, Address};
+use crate::{Error, Result};
+use glam::Vec3;
+
+/// Storage format of a distance map in a texture file.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// 8-bit unsigned normalised, decoded with the map's [`R8Range`].
+    /// Donnelly's 256x256x16 maps were 8-bit.
+    #[default]
+    R8,
+    /// IEEE half float, depth units.
+    R16F,
+    /// IEEE single float, depth units.
+    R32F,
+}
+
+impl Format {
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::R8 => "r8",
+            Format::R16F => "r16f",
+            Format::R32F => "r32f",
+        }
+    }
+    pub fn bytes_per_voxel(self) -> usize {
+        match self {
+            Format::R8 => 1,
+            Format::R16F => 2,
+            Format::R32F => 4,
+        }
+    }
+}
+
+impl std::str::FromStr for Format {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "r8" => Ok(Format::R8),
+            "r16f" => Ok(Format::R16F),
+            "r32f" => Ok(Format::R32F),
+            other => Err(Error::InvalidSize(format!(
+                "unknown distance format `{other}` (expected r8, r16f or r32f)"
+            ))),
+        }
+    }
+}
+
+/// Decoding of an R8 map: `value = min + code / 255 * (max - min)` in depth
+/// units. `min` is the map's lowest value (so nothing is clamped upwards,
+/// which would break conservativeness) and the span is [`R8_SPAN`]: larger
+/// distances clamp down to `max`, which stays safe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct R8Range {
+    pub min: f32,
+    pub max: f32,
+}
+
+/// Span of an R8 map in depth units: a step of up to about three shell
+/// depths, with a resolution of 1/64 depth.
+pub const R8_SPAN: f32 = 4.0;
+
+impl R8Range {
+    /// The range for a map's values: its minimum, rounded down to 1/64.
+    pub fn for_values(values: &[f32]) -> Self {
+        let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
+        let min = if lo.is_finite() { (lo * 64.0).floor() / 64.0 } else { -1.0 };
+        Self {
+            min,
+            max: min + R8_SPAN,
+        }
+    }
+
+    /// Code of the largest representable value not above `v`.
+    pub fn encode(&self, v: f32) -> u8 {
+        let x = (v - self.min) / (self.max - self.min) * 255.0;
+        let mut c = x.floor().clamp(0.0, 255.0) as u8;
+        while c > 0 && self.decode(c) > v {
+            c -= 1;
+        }
+        c
+    }
+
+    pub fn decode(&self, c: u8) -> f32 {
+        self.min + c as f32 / 255.0 * (self.max - self.min)
+    }
+
+    pub fn quantum(&self) -> f32 {
+        (self.max - self.min) / 255.0
+    }
+}
+
+/// The largest half float not above `v`.
+pub fn f16_round_down(v: f32) -> half::f16 {
+    let h = half::f16::from_f32(v);
+    if h.to_f32() <= v {
+        return h;
+    }
+    let bits = h.to_bits();
+    let down = if bits & 0x7fff == 0 {
+        0x8001 // below +-0: the smallest negative subnormal
+    } else if bits & 0x8000 == 0 {
+        bits - 1
+    } else {
+        bits + 1
+    };
+    half::f16::from_bits(down)
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DistanceMap {
+    size: [usize; 3],
+    aspect: [f32; 2],
+    address: Address,
+    data: Vec<f32>,
+    max_underestimate: f32,
+}
+
+impl DistanceMap {
+    /// Wraps stored values (`[k][j][i]`, depth units). `max_underestimate`
+    /// bounds `true distance - interpolated value` over the shell; the tracer
+    /// uses it to know how far a converged ray may still be from the surface.
+    pub fn from_raw(
+        size: [usize; 3],
+        aspect: [f32; 2],
+        address: Address,
+        data: Vec<f32>,
+        max_underestimate: f32,
+    ) -> Result<Self> {
+        Self::check_size(size)?;
+        if data.len() != size[0] * size[1] * size[2] {
+            return Err(Error::InvalidSize(format!(
+                "distance map {}x{}x{} needs {} values, got {}",
+                size[0],
+                size[1],
+                size[2],
+                size[0] * size[1] * size[2],
+                data.len()
+            )));
+        }
+        if let Some(v) = data.iter().find(|v| v.is_nan()) {
+            return Err(Error::InvalidSize(format!("distance map holds {v}")));
+        }
+        if !(aspect[0] > 0.0 && aspect[1] > 0.0 && aspect.iter().all(|a| a.is_finite())) {
+            return Err(Error::InvalidExtent(format!("aspect {aspect:?}")));
+        }
+        Ok(Self {
+            size,
+            aspect,
+            address,
+            data,
+            max_underestimate,
+        })
+    }
+
+    /// Refuses empty sizes and sizes whose allocation would exceed
+    /// [`crate::convention::MAX_ALLOCATION_BYTES`], before allocating.
+    pub fn check_size(size: [usize; 3]) -> Result<()> {
+        if size.iter().any(|&n| n < 2) {
+            return Err(Error::InvalidSize(format!(
+                "distance map {}x{}x{}: every dimension needs at least 2 voxels",
+                size[0], size[1], size[2]
+            )));
+        }
+        let n = size.iter().map(|&n| n as u128).product::<u128>();
+        check_allocation(
+            "distance map",
+            &format!("{}x{}x{}", size[0], size[1], size[2]),
+            n,
+            4,
+        )
+    }
+
+    pub fn size(&self) -> [usize; 3] {
+        self.size
+    }
+    pub fn aspect(&self) -> [f32; 2] {
+        self.aspect
+    }
+    pub fn address(&self) -> Address {
+        self.address
+    }
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    pub fn max_underestimate(&self) -> f32 {
+        self.max_underestimate
+    }
+
+    /// Voxel spacing in map space (depth units).
+    pub fn voxel_size(&self) -> Vec3 {
+        Vec3::new(
+            self.aspect[0] / self.size[0] as f32,
+            self.aspect[1] / self.size[1] as f32,
+            1.0 / self.size[2] as f32,
+        )
+    }
+
+    #[inline]
+    pub fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.data[(k * self.size[1] + j) * self.size[0] + i]
+    }
+
+    /// Trilinear interpolation at map-space point `p`, as a GPU's linear
+    /// sampler does it (clamp-to-edge in depth; the map's addressing across).
+    #[inline]
+    pub fn sample(&self, p: Vec3) -> f32 {
+        let [w, h, d] = self.size;
+        let (i, fx) = texel_lerp(p.x / self.aspect[0], w);
+        let (j, fy) = texel_lerp(p.y / self.aspect[1], h);
+        let (k, fz) = texel_lerp(p.z, d);
+        let i0 = self.address.texel_index(i, w);
+        let i1 = self.address.texel_index(i + 1, w);
+        let j0 = self.address.texel_index(j, h);
+        let j1 = self.address.texel_index(j + 1, h);
+        let k0 = Address::Clamp.texel_index(k, d);
+        let k1 = Address::Clamp.texel_index(k + 1, d);
+        let at = |ii: usize, jj: usize, kk: usize| self.data[(kk * h + jj) * w + ii];
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let c00 = lerp(at(i0, j0, k0), at(i1, j0, k0), fx);
+        let c10 = lerp(at(i0, j1, k0), at(i1, j1, k0), fx);
+        let c01 = lerp(at(i0, j0, k1), at(i1, j0, k1), fx);
+        let c11 = lerp(at(i0, j1, k1), at(i1, j1, k1), fx);
+        lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
+    }
+
+    /// The same map rounded down to what `format` can store: still
+    /// conservative, with the largest rounding added to the underestimate
+    /// bound. For R8 the range used is returned too.
+    pub fn quantized(&self, format: Format) -> (Self, Option<R8Range>) {
+        let (data, extra, range): (Vec<f32>, f32, _) = match format {
+            Format::R32F => (self.data.clone(), 0.0, None),
+            Format::R16F => {
+                let data: Vec<f32> = self.data.iter().map(|&v| f16_round_down(v).to_f32()).collect();
+                let extra = self
+                    .data
+                    .iter()
+                    .zip(&data)
+                    .map(|(a, b)| a - b)
+                    .fold(0.0f32, f32::max);
+                (data, extra, None)
+            }
+            Format::R8 => {
+                let r = R8Range::for_values(&self.data);
+                let data = self.data.iter().map(|&v| r.decode(r.encode(v))).collect();
+                (data, r.quantum(), Some(r))
+            }
+        };
+        let map = Self {
+            data,
+            max_underestimate: self.max_underestimate + extra,
+            ..self.clone()
+        };
+        (map, range)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rounding_down_never_rounds_up() {
+        let values: Vec<f32> = (0..20000).map(|k| -1.2 + k as f32 * 0.00031).collect();
+        let r = R8Range::for_values(&values);
+        for &v in &values {
+            let q = r.decode(r.encode(v));
+            assert!(q <= v, "r8 {v} -> {q}");
+            if v <= r.max {
+                assert!(v - q <= r.quantum() + 1e-6, "r8 {v} -> {q}");
+            }
+            let h = f16_round_down(v).to_f32();
+            assert!(h <= v && v - h < 2e-3, "f16 {v} -> {h}");
+        }
+    }
+}

@@ -1,0 +1,190 @@
+//! The exact reference intersector: the ray against each bilinear patch of
+//! the height map, solved in closed form, walking the patches the ray crosses
+//! with a 2D DDA. It is the ground truth that tests and benchmarks compare
+//! the sphere tracer against, and the sphere tracer's refinement step
+//! (`shared/DESIGN.md`, "Hit refinement") over the short segment where the
+//! distance map can no longer tell the ray from the surface.
+
+use crate::HeightMap;
+use glam::{DVec3, Vec3};
+
+/// A hit found on the bilinear surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    pub t: f64,
+    /// Geometric normal of the bilinear patch, map space, unit length.
+    pub normal: Vec3,
+    /// Patches visited (the cost of the walk).
+    pub cells: u32,
+}
+
+/// Outcome of walking a segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Walk {
+    Hit(SurfaceHit),
+    /// The ray was already under the surface at the segment's start.
+    StartsInside { cells: u32 },
+    Miss { cells: u32 },
+}
+
+/// First point of `o + t d`, `t` in `[t0, t1]`, on the surface
+/// `z = h(x / aspect.x, y / aspect.y)` (map space, depth units).
+pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1: f32) -> Walk {
+    let o = o.as_dvec3();
+    let d = d.as_dvec3();
+    let (w, h) = (height.width() as f64, height.height() as f64);
+    // Cell coordinates: s = u * n - 0.5, so texel centres sit at integers
+    // and cell c spans [c, c + 1].
+    let sx = w / aspect[0] as f64;
+    let sy = h / aspect[1] as f64;
+    let cx = |t: f64| (o.x + d.x * t) * sx - 0.5;
+    let cy = |t: f64| (o.y + d.y * t) * sy - 0.5;
+    let (t0, t1) = (t0 as f64, t1 as f64);
+    if t1 < t0 {
+        return Walk::Miss { cells: 0 };
+    }
+    let p0 = o + d * t0;
+    if p0.z < height.sample((p0.x / aspect[0] as f64) as f32, (p0.y / aspect[1] as f64) as f32) as f64 - 1e-7 {
+        return Walk::StartsInside { cells: 0 };
+    }
+    let mut ci = cx(t0).floor() as i64;
+    let mut cj = cy(t0).floor() as i64;
+    let dsx = d.x * sx;
+    let dsy = d.y * sy;
+    let step_i: i64 = if dsx > 0.0 { 1 } else { -1 };
+    let step_j: i64 = if dsy > 0.0 { 1 } else { -1 };
+    let next_boundary = |c: i64, ds: f64, at: &dyn Fn(f64) -> f64| -> f64 {
+        if ds == 0.0 {
+            return f64::INFINITY;
+        }
+        let b = if ds > 0.0 { (c + 1) as f64 } else { c as f64 };
+        t0 + (b - at(t0)) / ds
+    };
+    let mut tx = next_boundary(ci, dsx, &cx);
+    let mut ty = next_boundary(cj, dsy, &cy);
+    let dtx = if dsx == 0.0 { f64::INFINITY } else { 1.0 / dsx.abs() };
+    let dty = if dsy == 0.0 { f64::INFINITY } else { 1.0 / dsy.abs() };
+    let mut ta = t0;
+    let mut cells = 0u32;
+    loop {
+        let tb = tx.min(ty).min(t1);
+        cells += 1;
+        if let Some((t, n)) = patch_hit(height, ci, cj, o, d, sx, sy, ta, tb) {
+            return Walk::Hit(SurfaceHit {
+                t,
+                normal: n,
+                cells,
+            });
+        }
+        if tb >= t1 {
+            return Walk::Miss { cells };
+        }
+        ta = tb;
+        if tx < ty {
+            ci += step_i;
+            tx += dtx;
+        } else {
+            cj += step_j;
+            ty += dty;
+        }
+    }
+}
+
+/// First root of `z(t) - h(x(t), y(t))` in `[ta, tb]` on bilinear cell
+/// `(ci, cj)`: a quadratic in `t`, solved relative to `ta` in double
+/// precision.
+#[allow(clippy::too_many_arguments)]
+fn patch_hit(
+    height: &HeightMap,
+    ci: i64,
+    cj: i64,
+    o: DVec3,
+    d: DVec3,
+    sx: f64,
+    sy: f64,
+    ta: f64,
+    tb: f64,
+) -> Option<(f64, Vec3)> {
+    let [h00, h10, h01, h11] = height.cell(ci, cj).map(|v| v as f64);
+    let a = h10 - h00;
+    let b = h01 - h00;
+    let c = h00 - h10 - h01 + h11;
+    let p = o + d * ta;
+    let px = p.x * sx - 0.5 - ci as f64;
+    let py = p.y * sy - 0.5 - cj as f64;
+    let qx = d.x * sx;
+    let qy = d.y * sy;
+    // f(s) = k0 + k1 s + k2 s^2, s = t - ta.
+    let k0 = p.z - h00 - a * px - b * py - c * px * py;
+    let k1 = d.z - a * qx - b * qy - c * (px * qy + qx * py);
+    let k2 = -c * qx * qy;
+    let len = tb - ta;
+    let eps = 1e-9 * (1.0 + len);
+    let root = smallest_root(k0, k1, k2, -eps, len + eps)?;
+    let s = root.clamp(0.0, len);
+    let fx = (px + qx * s).clamp(0.0, 1.0);
+    let fy = (py + qy * s).clamp(0.0, 1.0);
+    let dhdx = (a + c * fy) * sx;
+    let dhdy = (b + c * fx) * sy;
+    let n = DVec3::new(-dhdx, -dhdy, 1.0).normalize().as_vec3();
+    Some((ta + s, n))
+}
+
+/// Smallest root of `k0 + k1 s + k2 s^2` in `[lo, hi]`, where the function
+/// goes from non-negative to non-positive (a ray entering the surface from
+/// above, or touching it).
+fn smallest_root(k0: f64, k1: f64, k2: f64, lo: f64, hi: f64) -> Option<f64> {
+    if k0 <= 0.0 {
+        return Some(0.0f64.max(lo));
+    }
+    let scale = k0.abs().max(k1.abs()).max(k2.abs());
+    if k2.abs() <= 1e-12 * scale {
+        if k1 >= 0.0 {
+            return None;
+        }
+        let s = -k0 / k1;
+        return (s >= lo && s <= hi).then_some(s);
+    }
+    let disc = k1 * k1 - 4.0 * k2 * k0;
+    if disc < 0.0 {
+        return None;
+    }
+    // Numerically stable pair (Numerical Recipes 5.6).
+    let q = -0.5 * (k1 + k1.signum() * disc.sqrt());
+    let r1 = q / k2;
+    let r2 = if q != 0.0 { k0 / q } else { r1 };
+    let (r1, r2) = if r1 < r2 { (r1, r2) } else { (r2, r1) };
+    [r1, r2].into_iter().find(|&s| s >= lo && s <= hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Address;
+
+    #[test]
+    fn roots_in_order() {
+        // (s - 1)(s - 2) = 2 - 3s + s^2
+        assert_eq!(smallest_root(2.0, -3.0, 1.0, 0.0, 5.0), Some(1.0));
+        assert!((smallest_root(2.0, -3.0, 1.0, 1.5, 5.0).unwrap() - 2.0).abs() < 1e-12);
+        assert_eq!(smallest_root(2.0, -3.0, 1.0, 2.5, 5.0), None);
+        assert_eq!(smallest_root(1.0, 0.0, 1.0, 0.0, 5.0), None);
+        assert_eq!(smallest_root(1.0, -1.0, 0.0, 0.0, 5.0), Some(1.0));
+    }
+
+    #[test]
+    fn vertical_ray_lands_on_the_bilinear_surface() {
+        let m = HeightMap::new(4, 4, (0..16).map(|k| (k % 5) as f32 / 4.0).collect(), Address::Clamp).unwrap();
+        let aspect = [2.0, 3.0];
+        for &(x, y) in &[(0.3f32, 0.4f32), (1.0, 1.5), (1.9, 2.9), (0.01, 0.01)] {
+            let o = Vec3::new(x, y, 1.5);
+            match walk(&m, aspect, o, Vec3::new(0.0, 0.0, -1.0), 0.0, 2.0) {
+                Walk::Hit(h) => {
+                    let want = 1.5 - m.sample(x / aspect[0], y / aspect[1]) as f64;
+                    assert!((h.t - want).abs() < 1e-5, "{} vs {want}", h.t);
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+}

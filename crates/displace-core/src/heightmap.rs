@@ -1,0 +1,231 @@
+//! The height map and the continuous surface it defines: the bilinear
+//! interpolation of its texels (texel centres and addressing from
+//! [`crate::convention`]), with values in `[0, 1]` (0 = base surface, 1 = top
+//! of the shell).
+
+use crate::convention::{check_allocation, texel_lerp, Address};
+use crate::{Error, Result};
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeightMap {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+    address: Address,
+}
+
+impl HeightMap {
+    /// Row-major texels, `data[j * width + i]`, row `j = 0` at `v = 0`.
+    /// Refuses maps smaller than 2x2, non-finite values and values outside
+    /// `[0, 1]`.
+    pub fn new(width: usize, height: usize, data: Vec<f32>, address: Address) -> Result<Self> {
+        if width < 2 || height < 2 {
+            return Err(Error::InvalidHeightMap(format!(
+                "{width}x{height} is too small: a height map needs at least 2x2 texels"
+            )));
+        }
+        if data.len() != width * height {
+            return Err(Error::InvalidHeightMap(format!(
+                "{width}x{height} needs {} texels, got {}",
+                width * height,
+                data.len()
+            )));
+        }
+        if let Some((k, v)) = data
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite() || **v < 0.0 || **v > 1.0)
+        {
+            return Err(Error::InvalidHeightMap(format!(
+                "texel ({}, {}) is {v}: heights must be finite and in [0, 1]",
+                k % width,
+                k / width
+            )));
+        }
+        Ok(Self {
+            width,
+            height,
+            data,
+            address,
+        })
+    }
+
+    /// Checks a requested size before anything is allocated for it.
+    pub fn check_size(width: usize, height: usize) -> Result<()> {
+        if width < 2 || height < 2 {
+            return Err(Error::InvalidHeightMap(format!(
+                "{width}x{height} is too small: a height map needs at least 2x2 texels"
+            )));
+        }
+        check_allocation(
+            "height map",
+            &format!("{width}x{height}"),
+            width as u128 * height as u128,
+            4,
+        )
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    pub fn address(&self) -> Address {
+        self.address
+    }
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    pub fn with_address(mut self, address: Address) -> Self {
+        self.address = address;
+        self
+    }
+
+    /// Texel `(i, j)` with addressing applied to out-of-range indices.
+    #[inline]
+    pub fn texel(&self, i: i64, j: i64) -> f32 {
+        let i = self.address.texel_index(i, self.width);
+        let j = self.address.texel_index(j, self.height);
+        self.data[j * self.width + i]
+    }
+
+    /// The four corners of bilinear cell `(ci, cj)`: the cell whose lower
+    /// corner is texel centre `(ci, cj)`; cells `-1` and `W - 1` are the
+    /// half-cells at the borders. Order: `h00, h10, h01, h11`.
+    #[inline]
+    pub fn cell(&self, ci: i64, cj: i64) -> [f32; 4] {
+        [
+            self.texel(ci, cj),
+            self.texel(ci + 1, cj),
+            self.texel(ci, cj + 1),
+            self.texel(ci + 1, cj + 1),
+        ]
+    }
+
+    /// The continuous surface `h(u, v)`: bilinear between texel centres.
+    #[inline]
+    pub fn sample(&self, u: f32, v: f32) -> f32 {
+        let (i, fx) = texel_lerp(u, self.width);
+        let (j, fy) = texel_lerp(v, self.height);
+        let [h00, h10, h01, h11] = self.cell(i, j);
+        let a = h00 + (h10 - h00) * fx;
+        let b = h01 + (h11 - h01) * fx;
+        a + (b - a) * fy
+    }
+
+    /// `(dh/du, dh/dv)` of the bilinear surface, in height per texture unit.
+    #[inline]
+    pub fn gradient(&self, u: f32, v: f32) -> [f32; 2] {
+        let (i, fx) = texel_lerp(u, self.width);
+        let (j, fy) = texel_lerp(v, self.height);
+        let [h00, h10, h01, h11] = self.cell(i, j);
+        let dfx = (h10 - h00) * (1.0 - fy) + (h11 - h01) * fy;
+        let dfy = (h01 - h00) * (1.0 - fx) + (h11 - h10) * fx;
+        [dfx * self.width as f32, dfy * self.height as f32]
+    }
+
+    /// Exact minimum and maximum of the continuous surface over the texture
+    /// rectangle `[u0, u1] x [v0, v1]`. A bilinear patch takes its extremes
+    /// over a rectangle at the rectangle's corners, so it is enough to look at
+    /// the corners of every piece the texel-centre grid cuts the rectangle
+    /// into. This is what makes the bake conservative against the continuous
+    /// surface, not just its texels (the flaw of seed 002, section 2.3).
+    pub fn range(&self, u0: f32, u1: f32, v0: f32, v1: f32) -> (f32, f32) {
+        let us = grid_cuts(u0, u1, self.width);
+        let vs = grid_cuts(v0, v1, self.height);
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for &v in &vs {
+            for &u in &us {
+                let h = self.sample(u, v);
+                lo = lo.min(h);
+                hi = hi.max(h);
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// `t0`, `t1` and every texel-centre coordinate strictly between them.
+fn grid_cuts(t0: f32, t1: f32, n: usize) -> Vec<f32> {
+    let mut out = vec![t0];
+    let first = (t0 * n as f32 - 0.5).floor() as i64 + 1;
+    let mut i = first;
+    loop {
+        let t = (i as f32 + 0.5) / n as f32;
+        if t >= t1 {
+            break;
+        }
+        if t > t0 {
+            out.push(t);
+        }
+        i += 1;
+    }
+    out.push(t1);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(address: Address) -> HeightMap {
+        HeightMap::new(3, 2, vec![0.0, 0.5, 1.0, 0.25, 0.75, 0.0], address).unwrap()
+    }
+
+    #[test]
+    fn samples_texel_centres_exactly() {
+        let m = map(Address::Clamp);
+        for j in 0..2 {
+            for i in 0..3 {
+                let u = (i as f32 + 0.5) / 3.0;
+                let v = (j as f32 + 0.5) / 2.0;
+                assert!((m.sample(u, v) - m.texel(i, j)).abs() < 1e-6);
+            }
+        }
+        // Clamp: the border half-texel is flat.
+        assert!((m.sample(0.0, 0.25) - 0.0).abs() < 1e-6);
+        // Repeat: the border interpolates towards the opposite edge.
+        let r = map(Address::Repeat);
+        assert!((r.sample(0.0, 0.25) - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn refuses_bad_maps() {
+        assert!(HeightMap::new(1, 1, vec![0.0], Address::Clamp).is_err());
+        assert!(HeightMap::new(2, 2, vec![0.0; 3], Address::Clamp).is_err());
+        assert!(HeightMap::new(2, 2, vec![0.0, f32::NAN, 0.0, 0.0], Address::Clamp).is_err());
+        assert!(HeightMap::new(2, 2, vec![0.0, 1.5, 0.0, 0.0], Address::Clamp).is_err());
+    }
+
+    #[test]
+    fn range_is_exact_on_a_dense_sampling() {
+        let m = map(Address::Repeat);
+        let (u0, u1, v0, v1) = (0.1, 0.9, 0.2, 0.7);
+        let (lo, hi) = m.range(u0, u1, v0, v1);
+        let mut slo = f32::INFINITY;
+        let mut shi = f32::NEG_INFINITY;
+        for a in 0..=200 {
+            for b in 0..=200 {
+                let h = m.sample(u0 + (u1 - u0) * a as f32 / 200.0, v0 + (v1 - v0) * b as f32 / 200.0);
+                slo = slo.min(h);
+                shi = shi.max(h);
+            }
+        }
+        assert!(lo <= slo + 1e-6 && lo >= slo - 1e-2);
+        assert!(hi >= shi - 1e-6 && hi <= shi + 1e-2);
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let m = map(Address::Repeat);
+        let (u, v) = (0.4, 0.6);
+        let e = 1e-3;
+        let g = m.gradient(u, v);
+        let du = (m.sample(u + e, v) - m.sample(u - e, v)) / (2.0 * e);
+        let dv = (m.sample(u, v + e) - m.sample(u, v - e)) / (2.0 * e);
+        assert!((g[0] - du).abs() < 1e-2, "{g:?} vs {du}");
+        assert!((g[1] - dv).abs() < 1e-2, "{g:?} vs {dv}");
+    }
+}

@@ -1,0 +1,1 @@
+//! File formats. OWNED BY HELPER: to be implemented.

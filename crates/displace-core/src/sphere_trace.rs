@@ -1,0 +1,288 @@
+//! Map-space ray tracing: Donnelly's sphere tracing of the distance map
+//! (GPU Gems 2 ch. 8, section 8.3, listing 8-2), an early-out variant (the
+//! chapter's future work, section 8.7), refinement to the exact hit
+//! (`shared/DESIGN.md`, "Hit refinement") and the exact reference.
+//!
+//! Rays live in map space ([`crate::convention`]): lengths in shell depths,
+//! the shell of a face of `tiles` tiles is `[0, tiles.x * ax] x [0, tiles.y *
+//! ay] x [0, 1]`. A ray that enters the shell under the surface (through a
+//! side or the bottom) hits the solid at its entry point: a displaced face is
+//! the top of a solid slab, so its silhouette is that of the slab.
+
+use crate::exact::{self, Walk};
+use crate::{DistanceMap, Error, HeightMap, Result};
+use glam::{Vec2, Vec3};
+
+/// A ray in map space; `dir` is unit length in that metric.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapRay {
+    pub origin: Vec3,
+    pub dir: Vec3,
+}
+
+impl MapRay {
+    /// Normalises `dir` (Donnelly's "normalization factor" is this step).
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir: dir.normalize(),
+        }
+    }
+}
+
+/// How the hit is found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Sphere tracing with early out when the stored distance says the ray is
+    /// at the surface, then exact refinement: always the exact hit.
+    #[default]
+    Sphere,
+    /// Donnelly's loop: a fixed number of steps, then the same refinement
+    /// over the short segment the map cannot resolve. With too few steps the
+    /// ray stops short and the hit is wrong, as in the paper.
+    SphereFixed,
+    /// The reference: every bilinear patch along the ray, solved exactly.
+    Exact,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Sphere => "sphere",
+            Method::SphereFixed => "sphere-fixed",
+            Method::Exact => "exact",
+        }
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "sphere" => Ok(Method::Sphere),
+            "sphere-fixed" => Ok(Method::SphereFixed),
+            "exact" => Ok(Method::Exact),
+            other => Err(Error::InvalidTrace(format!(
+                "unknown method `{other}` (expected sphere, sphere-fixed or exact)"
+            ))),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceOptions {
+    pub method: Method,
+    /// [`Method::SphereFixed`]: the number of steps. [`Method::Sphere`]: the
+    /// most steps before the rest of the ray is walked exactly.
+    pub iterations: u32,
+    /// Only hits with `t` in `[t_min, t_max]` count.
+    pub t_min: f32,
+    pub t_max: f32,
+    /// How many tiles of the map the face spans (1 x 1 unless the map
+    /// repeats).
+    pub tiles: [f32; 2],
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        Self {
+            method: Method::Sphere,
+            iterations: 64,
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+            tiles: [1.0, 1.0],
+        }
+    }
+}
+
+/// What the ray hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HitKind {
+    /// The displaced surface.
+    Surface,
+    /// A side or the bottom of the shell, entered under the surface.
+    Wall,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapHit {
+    pub t: f32,
+    /// Map space, depth units.
+    pub position: Vec3,
+    /// Texture coordinate of the hit (in tiles: `[0, tiles]`).
+    pub uv: Vec2,
+    /// Geometric normal in map space, unit length.
+    pub normal: Vec3,
+    pub kind: HitKind,
+    /// Distance-map steps plus patches walked.
+    pub iterations: u32,
+    /// False only for [`Method::SphereFixed`] when its steps ran out before
+    /// the ray reached the surface.
+    pub converged: bool,
+}
+
+/// The shell's box, and where the ray crosses it.
+struct Clip {
+    t_in: f32,
+    t_out: f32,
+    /// Outward normal of the face the ray entered through (zero if the ray
+    /// starts inside).
+    entry_normal: Vec3,
+}
+
+fn clip(ray: &MapRay, hi: Vec3, t_min: f32, t_max: f32) -> Option<Clip> {
+    let mut t_in = t_min;
+    let mut t_out = t_max;
+    let mut entry_normal = Vec3::ZERO;
+    for a in 0..3 {
+        let o = ray.origin[a];
+        let d = ray.dir[a];
+        if d == 0.0 {
+            if o < 0.0 || o > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (mut t0, mut t1) = ((0.0 - o) / d, (hi[a] - o) / d);
+        let mut n = Vec3::ZERO;
+        n[a] = -1.0;
+        if t0 > t1 {
+            std::mem::swap(&mut t0, &mut t1);
+            n[a] = 1.0;
+        }
+        if t0 > t_in {
+            t_in = t0;
+            entry_normal = n;
+        }
+        t_out = t_out.min(t1);
+    }
+    (t_in <= t_out).then_some(Clip {
+        t_in,
+        t_out,
+        entry_normal,
+    })
+}
+
+/// Traces `ray` against the displaced surface of `height` (aspect `aspect`),
+/// with `distance` as the conservative distance map.
+pub fn trace(
+    height: &HeightMap,
+    distance: &DistanceMap,
+    ray: &MapRay,
+    opts: &TraceOptions,
+) -> Option<MapHit> {
+    let aspect = distance.aspect();
+    let hi = Vec3::new(aspect[0] * opts.tiles[0], aspect[1] * opts.tiles[1], 1.0);
+    let clip = clip(ray, hi, opts.t_min, opts.t_max)?;
+    let at = |t: f32| ray.origin + ray.dir * t;
+    let uv_of = |p: Vec3| Vec2::new(p.x / aspect[0], p.y / aspect[1]);
+    let surface = |t: f64, normal: Vec3, iterations: u32, converged: bool| {
+        let t = t as f32;
+        let p = at(t);
+        MapHit {
+            t,
+            position: p,
+            uv: uv_of(p),
+            normal,
+            kind: HitKind::Surface,
+            iterations,
+            converged,
+        }
+    };
+    let wall = |t: f32, iterations: u32| {
+        let p = at(t);
+        let normal = if clip.entry_normal == Vec3::ZERO {
+            -ray.dir
+        } else {
+            clip.entry_normal
+        };
+        MapHit {
+            t,
+            position: p,
+            uv: uv_of(p),
+            normal,
+            kind: HitKind::Wall,
+            iterations,
+            converged: true,
+        }
+    };
+    let walk = |t0: f32, t1: f32| exact::walk(height, aspect, ray.origin, ray.dir, t0, t1);
+
+    // Under the surface where the ray enters: the wall of the slab.
+    if let Walk::StartsInside { .. } = walk(clip.t_in, clip.t_in) {
+        return Some(wall(clip.t_in, 0));
+    }
+    if opts.method == Method::Exact {
+        return match walk(clip.t_in, clip.t_out) {
+            Walk::Hit(h) => Some(surface(h.t, h.normal, h.cells, true)),
+            Walk::StartsInside { cells } => Some(wall(clip.t_in, cells)),
+            Walk::Miss { .. } => None,
+        };
+    }
+
+    // Within `band` of the surface the stored distance cannot tell the ray
+    // from it: walk that stretch exactly instead of crawling towards the
+    // map's zero level set (which sits up to `max_underestimate` above the
+    // surface).
+    let voxel = distance.voxel_size();
+    let tau = 0.25 * voxel.min_element();
+    let band = distance.max_underestimate() + tau;
+    let mut t = clip.t_in;
+    let mut iterations = 0u32;
+    let fixed = opts.method == Method::SphereFixed;
+    let max_steps = opts.iterations.max(1);
+    let mut steps = 0u32;
+    while t <= clip.t_out {
+        if steps >= max_steps {
+            if fixed {
+                // Donnelly's loop ends here: refine what the map can no longer
+                // resolve, and accept an unconverged hit otherwise.
+                return match walk(t, (t + band).min(clip.t_out)) {
+                    Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
+                    Walk::StartsInside { cells } => Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, false)),
+                    Walk::Miss { cells } => {
+                        let p = at(t);
+                        Some(surface(t as f64, shading_normal(height, aspect, p), iterations + cells, false))
+                    }
+                };
+            }
+            // Out of steps: finish exactly, which is always right.
+            return match walk(t, clip.t_out) {
+                Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
+                Walk::StartsInside { cells } => Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, true)),
+                Walk::Miss { .. } => None,
+            };
+        }
+        let s = distance.sample(at(t));
+        steps += 1;
+        iterations += 1;
+        if !fixed && s < tau {
+            let t1 = (t + band).min(clip.t_out);
+            match walk(t, t1) {
+                Walk::Hit(h) => return Some(surface(h.t, h.normal, iterations + h.cells, true)),
+                Walk::StartsInside { cells } => {
+                    return Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, true))
+                }
+                Walk::Miss { cells } => {
+                    iterations += cells;
+                    if t1 >= clip.t_out {
+                        return None;
+                    }
+                    t = t1;
+                }
+            }
+        } else {
+            // A negative value steps back along the ray, over points already
+            // known to be free: `t` never passes the first hit.
+            t = (t + s).max(clip.t_in);
+        }
+    }
+    None
+}
+
+/// Normal of the bilinear surface at map-space point `p` (used where a hit
+/// has no patch of its own: an unconverged fixed-step hit).
+fn shading_normal(height: &HeightMap, aspect: [f32; 2], p: Vec3) -> Vec3 {
+    let g = height.gradient(p.x / aspect[0], p.y / aspect[1]);
+    Vec3::new(-g[0] / aspect[0], -g[1] / aspect[1], 1.0).normalize()
+}
