@@ -111,19 +111,7 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
     let cancelled = || opts.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed));
 
-    // Exact height range over each column's footprint, and the height at the
-    // column centre (for the sign).
-    let columns: Vec<(f32, f32, f32)> = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|j| {
-            let (v0, v1) = (j as f32 / h as f32, (j + 1) as f32 / h as f32);
-            (0..w).map(move |i| {
-                let (u0, u1) = (i as f32 / w as f32, (i + 1) as f32 / w as f32);
-                let (lo, hi) = height.range(u0, u1, v0, v1);
-                (lo, hi, height.sample(texel_centre(i, w), texel_centre(j, h)))
-            })
-        })
-        .collect();
+    let columns = column_ranges(height, w, h);
     if cancelled() {
         return Err(Error::Cancelled);
     }
@@ -169,4 +157,90 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
         distance,
         extent,
     })
+}
+
+/// Cut points along one axis: the `n` column boundaries `i / n` merged with
+/// the texel centres of a `texels`-wide map, and for each column the index
+/// range of its cuts.
+fn axis_cuts(n: usize, texels: usize) -> (Vec<f32>, Vec<(usize, usize)>) {
+    let mut cuts = Vec::with_capacity(n + texels + 1);
+    let mut spans = Vec::with_capacity(n);
+    let mut t = 0usize;
+    let centre = |t: usize| (t as f32 + 0.5) / texels as f32;
+    for i in 0..=n {
+        let b = i as f32 / n as f32;
+        while t < texels && centre(t) < b {
+            cuts.push(centre(t));
+            t += 1;
+        }
+        if i > 0 {
+            spans.push((0, cuts.len()));
+        }
+        cuts.push(b);
+    }
+    // Each column runs from its lower boundary to its upper one.
+    let mut lower = 0;
+    for span in spans.iter_mut() {
+        let upper = span.1;
+        *span = (lower, upper);
+        lower = upper;
+    }
+    (cuts, spans)
+}
+
+/// For every distance-map column `(i, j)`: the exact minimum and maximum of
+/// the surface over its footprint (via [`HeightMap::range`]'s argument: the
+/// extremes of a bilinear patch lie at the corners of the pieces the texel
+/// grid cuts the footprint into), and the height at its centre. The surface
+/// is evaluated once on the grid of all cuts, shared by neighbouring columns.
+fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Vec<(f32, f32, f32)> {
+    let (us, uspan) = axis_cuts(w, height.width());
+    let (vs, vspan) = axis_cuts(h, height.height());
+    let grid: Vec<f32> = vs
+        .par_iter()
+        .flat_map_iter(|&v| us.iter().map(move |&u| height.sample(u, v)))
+        .collect();
+    let nu = us.len();
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            let (grid, uspan) = (&grid, &uspan);
+            let (v0, v1) = vspan[j];
+            (0..w).map(move |i| {
+                let (u0, u1) = uspan[i];
+                let mut lo = f32::INFINITY;
+                let mut hi = f32::NEG_INFINITY;
+                for row in grid[v0 * nu..(v1 + 1) * nu].chunks(nu) {
+                    for &x in &row[u0..=u1] {
+                        lo = lo.min(x);
+                        hi = hi.max(x);
+                    }
+                }
+                (lo, hi, height.sample(texel_centre(i, w), texel_centre(j, h)))
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn column_ranges_match_the_direct_range() {
+        let data: Vec<f32> = (0..7 * 5).map(|k| ((k * 37) % 11) as f32 / 10.0).collect();
+        for address in [Address::Clamp, Address::Repeat] {
+            let hm = HeightMap::new(7, 5, data.clone(), address).unwrap();
+            for (w, h) in [(3, 4), (7, 5), (16, 9)] {
+                let got = column_ranges(&hm, w, h);
+                for j in 0..h {
+                    for i in 0..w {
+                        let want = hm.range(i as f32 / w as f32, (i + 1) as f32 / w as f32, j as f32 / h as f32, (j + 1) as f32 / h as f32);
+                        let (lo, hi, _) = got[j * w + i];
+                        assert!((lo - want.0).abs() < 1e-6 && (hi - want.1).abs() < 1e-6, "{w}x{h} ({i},{j}): {lo},{hi} vs {want:?}");
+                    }
+                }
+            }
+        }
+    }
 }

@@ -14,7 +14,9 @@
 pub struct LineScratch {
     v: Vec<usize>,
     z: Vec<f64>,
+    key: Vec<f64>,
     f: Vec<f32>,
+    lines: Vec<f32>,
 }
 
 /// `out[q] = min_p (spacing * (q - p))^2 + f[p]` for a sampled function `f`
@@ -43,58 +45,68 @@ pub fn transform_line(f: &[f32], spacing: f32, periodic: bool, out: &mut [f32], 
 
 fn envelope(f: &[f32], spacing: f32, out: &mut [f32], s: &mut LineScratch) {
     let n = f.len();
+    let sp = spacing as f64;
+    // Parabola p's key: f(p) + (p spacing)^2, its position p spacing; two
+    // parabolas p < q meet at (key(q) - key(p)) / (2 (pos(q) - pos(p))).
+    s.key.clear();
+    s.key.extend(f.iter().enumerate().map(|(q, &fq)| {
+        let x = q as f64 * sp;
+        fq as f64 + x * x
+    }));
     s.v.clear();
     s.z.clear();
     s.v.resize(n, 0);
     s.z.resize(n + 1, 0.0);
-    let sp = spacing as f64;
-    let sq = |q: usize| (q as f64 * sp).powi(2);
+    let (v, z, key) = (&mut s.v[..], &mut s.z[..], &s.key[..]);
+    let Some(q0) = f.iter().position(|x| x.is_finite()) else {
+        out.fill(f32::INFINITY);
+        return;
+    };
     let mut k: usize = 0;
-    let mut found = false;
-    for q in 0..n {
+    v[0] = q0;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    for q in q0 + 1..n {
         if !f[q].is_finite() {
             continue;
         }
-        if !found {
-            found = true;
-            s.v[0] = q;
-            s.z[0] = f64::NEG_INFINITY;
-            s.z[1] = f64::INFINITY;
-            continue;
-        }
-        // z[0] is -inf, so the search always stops at k = 0 at the latest.
-        let inter = loop {
-            let p = s.v[k];
-            let inter = ((f[q] as f64 + sq(q)) - (f[p] as f64 + sq(p))) / (2.0 * sp * sp * (q - p) as f64);
-            if inter <= s.z[k] {
+        let kq = key[q];
+        let xq = q as f64 * sp;
+        // Pop while the new parabola is below the top one at the top one's
+        // left boundary; compared by cross-multiplication, so only the final
+        // intersection needs a division. z[0] = -inf stops the loop.
+        loop {
+            let p = v[k];
+            let den = 2.0 * (xq - p as f64 * sp);
+            let num = kq - key[p];
+            if num <= z[k] * den {
                 k -= 1;
             } else {
-                break inter;
+                k += 1;
+                v[k] = q;
+                z[k] = num / den;
+                z[k + 1] = f64::INFINITY;
+                break;
             }
-        };
-        k += 1;
-        s.v[k] = q;
-        s.z[k] = inter;
-        s.z[k + 1] = f64::INFINITY;
-    }
-    if !found {
-        out.fill(f32::INFINITY);
-        return;
+        }
     }
     let mut k = 0;
     for (q, o) in out.iter_mut().enumerate() {
-        while s.z[k + 1] < q as f64 {
+        let x = q as f64 * sp;
+        while z[k + 1] < x {
             k += 1;
         }
-        let p = s.v[k];
-        *o = (spacing * (q as f32 - p as f32)).powi(2) + f[p];
+        let p = v[k];
+        let d = spacing * (q as f32 - p as f32);
+        *o = d * d + f[p];
     }
 }
 
 /// 2D transform of a sampled function `g` (`w x h`, row-major), in place:
 /// `g'(i, j) = min (hx (i - i'))^2 + (hy (j - j'))^2 + g(i', j')`.
 /// Rows first, then columns through a transposed buffer so that both passes
-/// read memory in order.
+/// read memory in order; lines go in blocks of [`BLOCK`] so that the
+/// transposing writes fill whole cache lines.
 pub fn transform_2d(
     g: &mut [f32],
     w: usize,
@@ -105,22 +117,39 @@ pub fn transform_2d(
     s: &mut LineScratch,
 ) {
     transposed.resize(w * h, 0.0);
-    let mut line = vec![0.0f32; w.max(h)];
-    for j in 0..h {
-        let row = &g[j * w..(j + 1) * w];
-        transform_line(row, spacing[0], periodic[0], &mut line[..w], s);
+    let mut lines = std::mem::take(&mut s.lines);
+    lines.resize(BLOCK * w.max(h), 0.0);
+    for j0 in (0..h).step_by(BLOCK) {
+        let nb = BLOCK.min(h - j0);
+        for b in 0..nb {
+            let j = j0 + b;
+            transform_line(&g[j * w..(j + 1) * w], spacing[0], periodic[0], &mut lines[b * w..(b + 1) * w], s);
+        }
         for i in 0..w {
-            transposed[i * h + j] = line[i];
+            let dst = &mut transposed[i * h + j0..i * h + j0 + nb];
+            for (b, d) in dst.iter_mut().enumerate() {
+                *d = lines[b * w + i];
+            }
         }
     }
-    for i in 0..w {
-        let col = &transposed[i * h..(i + 1) * h];
-        transform_line(col, spacing[1], periodic[1], &mut line[..h], s);
+    for i0 in (0..w).step_by(BLOCK) {
+        let nb = BLOCK.min(w - i0);
+        for b in 0..nb {
+            let i = i0 + b;
+            transform_line(&transposed[i * h..(i + 1) * h], spacing[1], periodic[1], &mut lines[b * h..(b + 1) * h], s);
+        }
         for j in 0..h {
-            g[j * w + i] = line[j];
+            let dst = &mut g[j * w + i0..j * w + i0 + nb];
+            for (b, d) in dst.iter_mut().enumerate() {
+                *d = lines[b * h + j];
+            }
         }
     }
+    s.lines = lines;
 }
+
+/// Lines transformed together before their results are transposed.
+const BLOCK: usize = 16;
 
 /// Classic binary EDT of a 3D volume (`[k][j][i]`, `size = [w, h, d]`):
 /// for every voxel, the Euclidean distance (physical units, `spacing` per
