@@ -106,8 +106,21 @@ pub fn texel_centre(i: usize, n: usize) -> f32 {
 #[inline]
 pub fn texel_lerp(t: f32, n: usize) -> (i64, f32) {
     let x = t * n as f32 - 0.5;
-    let i = x.floor();
-    (i as i64, x - i)
+    let i = floor_i64(x);
+    (i, x - i as f32)
+}
+
+/// `floor` as an integer without a libm call (baseline x86-64 has no
+/// rounding instruction, and this sits in every texture fetch). Values
+/// beyond the `i64` range saturate, which no texel index reaches.
+#[inline]
+pub fn floor_i64(x: f32) -> i64 {
+    let i = x as i64;
+    if (i as f32) > x {
+        i - 1
+    } else {
+        i
+    }
 }
 
 /// Largest allocation one bake, map or image may ask for. Requests above it

@@ -47,8 +47,8 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
     if p0.z < height.sample((p0.x / aspect[0] as f64) as f32, (p0.y / aspect[1] as f64) as f32) as f64 - 1e-7 {
         return Walk::StartsInside { cells: 0 };
     }
-    let mut ci = cx(t0).floor() as i64;
-    let mut cj = cy(t0).floor() as i64;
+    let mut ci = floor_f64(cx(t0));
+    let mut cj = floor_f64(cy(t0));
     let dsx = d.x * sx;
     let dsy = d.y * sy;
     let step_i: i64 = if dsx > 0.0 { 1 } else { -1 };
@@ -87,6 +87,17 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
             cj += step_j;
             ty += dty;
         }
+    }
+}
+
+/// `floor` without a libm call (see [`crate::convention::floor_i64`]).
+#[inline]
+fn floor_f64(x: f64) -> i64 {
+    let i = x as i64;
+    if (i as f64) > x {
+        i - 1
+    } else {
+        i
     }
 }
 

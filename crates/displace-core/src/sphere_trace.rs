@@ -209,7 +209,8 @@ pub fn trace(
     let walk = |t0: f32, t1: f32| exact::walk(height, aspect, ray.origin, ray.dir, t0, t1);
 
     // Under the surface where the ray enters: the wall of the slab.
-    if let Walk::StartsInside { .. } = walk(clip.t_in, clip.t_in) {
+    let entry = at(clip.t_in);
+    if entry.z < height.sample(entry.x / aspect[0], entry.y / aspect[1]) {
         return Some(wall(clip.t_in, 0));
     }
     if opts.method == Method::Exact {
