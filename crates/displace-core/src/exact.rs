@@ -130,7 +130,10 @@ fn patch_hit(
     let k1 = d.z - a * qx - b * qy - c * (px * qy + qx * py);
     let k2 = -c * qx * qy;
     let len = tb - ta;
-    let eps = 1e-9 * (1.0 + len);
+    // Segment ends come from single-precision ray parameters (the shell's
+    // exit, a band's end): a root a few f32 ulps past the end is this
+    // segment's, or a hit exactly on the shell's floor is lost.
+    let eps = 1e-6 * (1.0 + tb.abs());
     let root = smallest_root(k0, k1, k2, -eps, len + eps)?;
     let s = root.clamp(0.0, len);
     let fx = (px + qx * s).clamp(0.0, 1.0);

@@ -112,3 +112,26 @@ fn thin_features_are_not_stepped_over() {
     }
     assert_eq!(hits, 50);
 }
+
+/// Rays aimed at the floor of a two-level map meet the surface exactly on
+/// the shell's bottom face, at the shell's exit parameter: a hit that single
+/// precision puts a hair beyond the segment must still count.
+#[test]
+fn hits_on_the_shell_floor_are_found() {
+    let n = 64;
+    let data: Vec<f32> = (0..n * n).map(|k| if ((k % n) / 8 + (k / n) / 8) % 2 == 0 { 1.0 } else { 0.0 }).collect();
+    let height = displace_core::HeightMap::new(n, n, data, Address::Clamp).unwrap();
+    let map = bake(&height, &BakeOptions { size: [64, 64, 8], extent: Extent::new(1.0, 1.0, 0.1).unwrap(), ..BakeOptions::default() }).unwrap();
+    let aspect = map.aspect();
+    let mut rng = Rng(99);
+    for _ in 0..20_000 {
+        let target = Vec3::new(rng.next_f64() as f32 * aspect[0], rng.next_f64() as f32 * aspect[1], 0.0);
+        let elevation = (5.0 + rng.next_f64() * 85.0).to_radians() as f32;
+        let azimuth = (rng.next_f64() * std::f64::consts::TAU) as f32;
+        let dir = -Vec3::new(elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin());
+        let ray = MapRay::new(target - dir * (1.2 / elevation.sin()), dir);
+        for method in [Method::Exact, Method::Sphere] {
+            assert!(map.trace(&ray, &TraceOptions { method, ..TraceOptions::default() }).is_some(), "{method:?} missed {ray:?}");
+        }
+    }
+}
