@@ -227,7 +227,7 @@ pub fn trace(
     // surface).
     let voxel = distance.voxel_size();
     let tau = 0.25 * voxel.min_element();
-    let band = distance.max_underestimate() + tau;
+    let band = 1.5 * distance.max_underestimate() + tau;
     let mut t = clip.t_in;
     let mut iterations = 0u32;
     let fixed = opts.method == Method::SphereFixed;

@@ -51,7 +51,7 @@ proptest! {
             prop_assert!(truth - stored <= map.distance.max_underestimate() as f64 + 1e-4,
                 "underestimate {} above bound {}", truth - stored, map.distance.max_underestimate());
             let diag = map.distance.voxel_size().length() as f64;
-            prop_assert!(map.distance.max_underestimate() as f64 <= 2.0 * diag + 1e-6);
+            prop_assert!(map.distance.data_underestimate() as f64 <= 2.0 * diag + 1e-6);
         }
     }
 }
