@@ -1,0 +1,422 @@
+//! Height maps in (from a *source string*: a generator spec or a PNG/EXR
+//! path), and the maps derived from them out (normal maps, 16-bit heights).
+//!
+//! Heights are data, not colour: PNG values are used as stored (no sRGB
+//! decoding), normalised by the bit depth, 16-bit kept at full precision.
+//! Colour images reduce to one value by Rec. 709 luma weights on the stored
+//! values, unless a channel is chosen. EXR heights must already lie in
+//! `[0, 1]`: the shell depth is given by the extent, not by the data, so an
+//! out-of-range map is refused rather than silently rescaled.
+
+use crate::{generators, Address, Error, HeightMap, NormalMap, Result};
+use std::path::Path;
+
+/// Which channel of a colour image holds the height.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channel {
+    R,
+    G,
+    B,
+    A,
+}
+
+impl std::str::FromStr for Channel {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "r" => Ok(Channel::R),
+            "g" => Ok(Channel::G),
+            "b" => Ok(Channel::B),
+            "a" => Ok(Channel::A),
+            other => Err(Error::InvalidHeightMap(format!("unknown channel `{other}` (expected r, g, b or a)"))),
+        }
+    }
+}
+
+impl Channel {
+    fn letter(self) -> &'static str {
+        match self {
+            Channel::R => "R",
+            Channel::G => "G",
+            Channel::B => "B",
+            Channel::A => "A",
+        }
+    }
+}
+
+/// How to turn a source string into a height map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HeightOptions {
+    /// Channel of a colour image; `None`: luminance (or the only channel).
+    pub channel: Option<Channel>,
+    /// Texels of a generated map (`gen:...`); files have their own size.
+    pub size: [usize; 2],
+    pub address: Address,
+}
+
+impl Default for HeightOptions {
+    fn default() -> Self {
+        Self {
+            channel: None,
+            size: [256, 256],
+            address: Address::Clamp,
+        }
+    }
+}
+
+/// Rec. 709 luma weights.
+const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Loads the height map `source` names: `gen:NAME?params` (a built-in
+/// generator at `opts.size`), a `.png` (8/16-bit grey or colour) or an
+/// `.exr` (float) file.
+pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
+    if source.starts_with("gen:") {
+        return generators::generate(source, opts.size[0], opts.size[1], opts.address);
+    }
+    let path = Path::new(source);
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => load_png(path, opts),
+        Some("exr") => load_exr(path, opts),
+        _ => Err(Error::Image {
+            path: path.to_path_buf(),
+            message: "unsupported height map: expected gen:NAME, a .png or an .exr file".into(),
+        }),
+    }
+}
+
+fn image_err(path: &Path, what: impl std::fmt::Display) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message: what.to_string(),
+    }
+}
+
+/// Makes the map, naming the file in any complaint about its texels.
+fn finish(path: &Path, w: usize, h: usize, data: Vec<f32>, address: Address) -> Result<HeightMap> {
+    HeightMap::new(w, h, data, address).map_err(|e| image_err(path, e))
+}
+
+fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
+    use image::{DynamicImage, ImageDecoder};
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let decoder = image::codecs::png::PngDecoder::new(std::io::BufReader::new(file))
+        .map_err(|e| image_err(path, format!("cannot read PNG: {e}")))?;
+    let (w, h) = decoder.dimensions();
+    HeightMap::check_size(w as usize, h as usize).map_err(|e| image_err(path, e))?;
+    let img = DynamicImage::from_decoder(decoder).map_err(|e| image_err(path, format!("cannot decode PNG: {e}")))?;
+    let (w, h) = (w as usize, h as usize);
+    // Samples normalised to [0, 1] with their channel layout.
+    let (channels, grey, samples): (usize, bool, Vec<f32>) = match img {
+        DynamicImage::ImageLuma8(b) => (1, true, norm8(b.into_raw())),
+        DynamicImage::ImageLumaA8(b) => (2, true, norm8(b.into_raw())),
+        DynamicImage::ImageRgb8(b) => (3, false, norm8(b.into_raw())),
+        DynamicImage::ImageRgba8(b) => (4, false, norm8(b.into_raw())),
+        DynamicImage::ImageLuma16(b) => (1, true, norm16(b.into_raw())),
+        DynamicImage::ImageLumaA16(b) => (2, true, norm16(b.into_raw())),
+        DynamicImage::ImageRgb16(b) => (3, false, norm16(b.into_raw())),
+        DynamicImage::ImageRgba16(b) => (4, false, norm16(b.into_raw())),
+        other => return Err(image_err(path, format!("unsupported PNG colour type {:?}", other.color()))),
+    };
+    let has_alpha = channels == 2 || channels == 4;
+    let pick = |c: usize| -> Vec<f32> { samples.iter().skip(c).step_by(channels).copied().collect() };
+    let data = match (opts.channel, grey) {
+        (Some(Channel::A), _) if !has_alpha => {
+            return Err(image_err(path, "has no alpha channel (--channel a)"));
+        }
+        (Some(Channel::A), _) => pick(channels - 1),
+        // Grey: r, g and b are all the grey value.
+        (_, true) => pick(0),
+        (Some(c), false) => pick(c as usize),
+        (None, false) => samples
+            .chunks_exact(channels)
+            .map(|p| (LUMA[0] * p[0] + LUMA[1] * p[1] + LUMA[2] * p[2]).min(1.0))
+            .collect(),
+    };
+    finish(path, w, h, data, opts.address)
+}
+
+fn norm8(v: Vec<u8>) -> Vec<f32> {
+    v.into_iter().map(|c| c as f32 / 255.0).collect()
+}
+
+fn norm16(v: Vec<u16>) -> Vec<f32> {
+    v.into_iter().map(|c| c as f32 / 65535.0).collect()
+}
+
+fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
+    use exr::prelude::*;
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| image_err(path, format!("cannot read EXR: {e}")))?;
+    let header = meta.headers.first().ok_or_else(|| image_err(path, "EXR file has no layers"))?;
+    let size = header.layer_size;
+    HeightMap::check_size(size.width(), size.height()).map_err(|e| image_err(path, e))?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| image_err(path, format!("cannot decode EXR: {e}")))?;
+    let layer = image.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    HeightMap::check_size(w, h).map_err(|e| image_err(path, e))?;
+    let channels: Vec<(String, Vec<f32>)> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    // Channel names may carry a layer prefix (`height.R`).
+    let find = |letter: &str| {
+        channels
+            .iter()
+            .find(|(n, _)| n.rsplit('.').next().is_some_and(|s| s.eq_ignore_ascii_case(letter)))
+    };
+    let names = || channels.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ");
+    let used: Vec<(&(String, Vec<f32>), f32)> = match opts.channel {
+        Some(c) => {
+            let ch = find(c.letter())
+                .ok_or_else(|| image_err(path, format!("has no {} channel (channels: {})", c.letter(), names())))?;
+            vec![(ch, 1.0)]
+        }
+        None => match (find("R"), find("G"), find("B"), find("Y")) {
+            (Some(r), Some(g), Some(b), _) => vec![(r, LUMA[0]), (g, LUMA[1]), (b, LUMA[2])],
+            (_, _, _, Some(y)) => vec![(y, 1.0)],
+            _ => vec![(channels.first().ok_or_else(|| image_err(path, "EXR layer has no channels"))?, 1.0)],
+        },
+    };
+    for ((name, values), _) in &used {
+        if values.len() != w * h {
+            return Err(image_err(path, format!("channel {name} is subsampled, which is not supported")));
+        }
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(image_err(
+                path,
+                format!("texel ({}, {}) of channel {name} is {}: heights must be finite", k % w, k / w, values[k]),
+            ));
+        }
+    }
+    let mut data = vec![0.0f32; w * h];
+    for ((_, values), weight) in &used {
+        for (d, v) in data.iter_mut().zip(values) {
+            *d += weight * v;
+        }
+    }
+    if let Some(k) = data.iter().position(|v| !(0.0..=1.0).contains(v)) {
+        let (lo, hi) = data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        return Err(image_err(
+            path,
+            format!(
+                "texel ({}, {}) is {}: heights must lie in [0, 1] (this map spans {lo} to {hi}); \
+                 normalise it first, e.g. (h - {lo}) / ({hi} - {lo}), and set the depth with --extent",
+                k % w,
+                k / w,
+                data[k]
+            ),
+        ));
+    }
+    finish(path, w, h, data, opts.address)
+}
+
+fn encode_png(w: &mut dyn std::io::Write, width: usize, height: usize, bytes: &[u8], ty: image::ExtendedColorType) -> std::io::Result<()> {
+    use image::ImageEncoder;
+    image::codecs::png::PngEncoder::new(w)
+        .write_image(bytes, width as u32, height as u32, ty)
+        .map_err(std::io::Error::other)
+}
+
+/// Writes a tangent-space normal map as an 8-bit RGB PNG, `rgb = n * 0.5 +
+/// 0.5`, +Y up (OpenGL convention: green grows along `+v`, the direction the
+/// height map's rows advance). Row `j` of the image is texel row `j`, as the
+/// height map was read, so the two line up pixel for pixel.
+pub fn write_normal_map_png(path: &Path, normals: &NormalMap) -> Result<()> {
+    let (w, h) = (normals.width, normals.height);
+    let bytes: Vec<u8> = normals
+        .data
+        .iter()
+        .flat_map(|n| n.to_array().map(|c| ((c * 0.5 + 0.5).clamp(0.0, 1.0) * 255.0).round() as u8))
+        .collect();
+    super::atomic::write_atomic(path, |out| encode_png(out, w, h, &bytes, image::ExtendedColorType::Rgb8))
+}
+
+/// Writes a height map as a 16-bit greyscale PNG (`round(h * 65535)`),
+/// which [`load`] reads back to within `0.5 / 65535`.
+pub fn write_height_png16(path: &Path, height: &HeightMap) -> Result<()> {
+    let (w, h) = (height.width(), height.height());
+    let bytes: Vec<u8> = height
+        .data()
+        .iter()
+        .flat_map(|&v| (((v * 65535.0).round()) as u16).to_ne_bytes())
+        .collect();
+    super::atomic::write_atomic(path, |out| encode_png(out, w, h, &bytes, image::ExtendedColorType::L16))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::{ImageBuffer, Luma, LumaA, Rgb, Rgba};
+
+    fn opts() -> HeightOptions {
+        HeightOptions::default()
+    }
+
+    fn load_path(p: &Path, o: &HeightOptions) -> Result<HeightMap> {
+        load(p.to_str().unwrap(), o)
+    }
+
+    #[test]
+    fn png16_keeps_full_precision() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("h.png");
+        let img: ImageBuffer<Luma<u16>, Vec<u16>> =
+            ImageBuffer::from_fn(5, 3, |x, y| Luma([(x * 13_107 + y * 3 + 1) as u16]));
+        img.save(&p).unwrap();
+        let m = load_path(&p, &opts()).unwrap();
+        assert_eq!((m.width(), m.height()), (5, 3));
+        for y in 0..3 {
+            for x in 0..5 {
+                let expect = (x * 13_107 + y * 3 + 1) as f32 / 65535.0;
+                assert_eq!(m.texel(x as i64, y as i64), expect);
+            }
+        }
+        // Neighbouring 16-bit codes stay distinct (no 8-bit truncation).
+        assert_ne!(m.texel(0, 0), m.texel(0, 1));
+    }
+
+    #[test]
+    fn png8_grey_alpha_and_colour_channels() {
+        let dir = tempfile::tempdir().unwrap();
+        let grey = dir.path().join("g.png");
+        ImageBuffer::<Luma<u8>, _>::from_fn(2, 2, |x, y| Luma([(x * 100 + y * 50) as u8])).save(&grey).unwrap();
+        let m = load_path(&grey, &opts()).unwrap();
+        assert_eq!(m.texel(1, 1), 150.0 / 255.0);
+        let e = load_path(&grey, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap_err();
+        assert!(e.to_string().contains("no alpha") && e.to_string().contains("g.png"), "{e}");
+
+        let la = dir.path().join("la.png");
+        ImageBuffer::<LumaA<u8>, _>::from_fn(2, 2, |_, _| LumaA([10, 200])).save(&la).unwrap();
+        let m = load_path(&la, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap();
+        assert_eq!(m.texel(0, 0), 200.0 / 255.0);
+        assert_eq!(load_path(&la, &opts()).unwrap().texel(0, 0), 10.0 / 255.0);
+
+        let rgb = dir.path().join("c.png");
+        ImageBuffer::<Rgb<u8>, _>::from_fn(2, 2, |_, _| Rgb([255, 0, 51])).save(&rgb).unwrap();
+        let m = load_path(&rgb, &opts()).unwrap();
+        assert!((m.texel(0, 0) - (0.2126 + 0.0722 * 0.2)).abs() < 1e-6);
+        let m = load_path(&rgb, &HeightOptions { channel: Some(Channel::B), ..opts() }).unwrap();
+        assert_eq!(m.texel(0, 0), 0.2);
+        assert!(load_path(&rgb, &HeightOptions { channel: Some(Channel::A), ..opts() }).is_err());
+
+        let rgba16 = dir.path().join("c16.png");
+        ImageBuffer::<Rgba<u16>, _>::from_fn(2, 2, |_, _| Rgba([65535, 65535, 65535, 1])).save(&rgba16).unwrap();
+        assert_eq!(load_path(&rgba16, &opts()).unwrap().texel(1, 0), 1.0);
+        let m = load_path(&rgba16, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap();
+        assert_eq!(m.texel(1, 0), 1.0 / 65535.0);
+    }
+
+    #[test]
+    fn bad_pngs_give_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.png");
+        std::fs::write(&p, b"").unwrap();
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("bad.png") && e.contains("PNG"), "{e}");
+
+        std::fs::write(&p, b"this is not a png at all").unwrap();
+        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("bad.png"));
+
+        ImageBuffer::<Luma<u8>, _>::from_fn(1, 1, |_, _| Luma([3])).save(&p).unwrap();
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("1x1") && e.contains("bad.png"), "{e}");
+
+        ImageBuffer::<Luma<u16>, _>::from_fn(64, 64, |x, y| Luma([(x * y) as u16])).save(&p).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("bad.png"), "{e}");
+
+        let e = load("missing.png", &opts()).unwrap_err().to_string();
+        assert!(e.contains("missing.png"), "{e}");
+        let e = load("height.jpg", &opts()).unwrap_err().to_string();
+        assert!(e.contains("height.jpg") && e.contains("gen:NAME"), "{e}");
+    }
+
+    fn write_exr(p: &Path, w: usize, h: usize, channels: Vec<(&str, Vec<f32>)>) {
+        use exr::prelude::*;
+        let list: Vec<AnyChannel<FlatSamples>> =
+            channels.into_iter().map(|(n, v)| AnyChannel::new(n, FlatSamples::F32(v))).collect();
+        let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
+        Image::from_layer(layer).write().to_file(p).unwrap();
+    }
+
+    #[test]
+    fn exr_channels_and_refusals() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("h.exr");
+        let vals: Vec<f32> = (0..12).map(|i| i as f32 / 11.0).collect();
+        write_exr(&p, 4, 3, vec![("Y", vals.clone())]);
+        let m = load_path(&p, &opts()).unwrap();
+        assert_eq!(m.data(), &vals[..]);
+
+        write_exr(&p, 4, 3, vec![("R", vals.clone()), ("G", vec![0.5; 12]), ("B", vec![0.0; 12])]);
+        let m = load_path(&p, &opts()).unwrap();
+        assert!((m.texel(3, 2) - (0.2126 + 0.7152 * 0.5)).abs() < 1e-6);
+        let m = load_path(&p, &HeightOptions { channel: Some(Channel::G), ..opts() }).unwrap();
+        assert_eq!(m.texel(0, 0), 0.5);
+        let e = load_path(&p, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap_err().to_string();
+        assert!(e.contains("no A channel"), "{e}");
+
+        let mut nan = vals.clone();
+        nan[6] = f32::NAN;
+        write_exr(&p, 4, 3, vec![("Y", nan)]);
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("(2, 1)") && e.contains("NaN") && e.contains("h.exr"), "{e}");
+        let mut inf = vals.clone();
+        inf[0] = f32::INFINITY;
+        write_exr(&p, 4, 3, vec![("Y", inf)]);
+        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("inf"));
+
+        let big: Vec<f32> = vals.iter().map(|v| v * 10.0).collect();
+        write_exr(&p, 4, 3, vec![("Y", big)]);
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("normalise") && e.contains("[0, 1]"), "{e}");
+
+        write_exr(&p, 1, 1, vec![("Y", vec![0.5])]);
+        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("1x1"));
+
+        std::fs::write(&p, b"v/1\x01garbage").unwrap();
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("h.exr") && e.contains("EXR"), "{e}");
+    }
+
+    #[test]
+    fn png_writers_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = HeightMap::new(3, 2, vec![0.0, 0.25, 1.0, 0.5, 0.123_456, 0.999], Address::Clamp).unwrap();
+        let p = dir.path().join("h16.png");
+        write_height_png16(&p, &m).unwrap();
+        let back = load_path(&p, &opts()).unwrap();
+        for (a, b) in back.data().iter().zip(m.data()) {
+            assert!((a - b).abs() <= 0.5 / 65535.0 + 1e-7);
+        }
+
+        let extent = crate::Extent::new(1.0, 1.0, 0.2).unwrap();
+        let normals = NormalMap::from_height(&m, extent);
+        let p = dir.path().join("n.png");
+        write_normal_map_png(&p, &normals).unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (3, 2));
+        for (px, n) in img.pixels().zip(&normals.data) {
+            for c in 0..3 {
+                let decoded = px[c] as f32 / 255.0 * 2.0 - 1.0;
+                assert!((decoded - n[c]).abs() <= 1.0 / 255.0 + 1e-6);
+            }
+        }
+    }
+}
