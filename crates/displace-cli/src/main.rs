@@ -2,6 +2,8 @@
 //! measure it all. Each subcommand lives in its own module; errors are
 //! reported with context and a non-zero exit code.
 
+mod render;
+
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -12,11 +14,16 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Ray trace a scene (or the built-in studded Cornell box) to PNG/EXR.
+    Render(render::RenderArgs),
+}
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let result: anyhow::Result<()> = match cli.command {};
+    let result: anyhow::Result<()> = match cli.command {
+        Command::Render(args) => render::run(args),
+    };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -1,1 +1,44 @@
-pub fn placeholder_render() {}
+//! # displace-render
+//!
+//! A CPU ray tracer after seed 002: Whitted ray tracing with the distributed
+//! soft shadows and glossy reflections of Cook, Porter and Carpenter (1984),
+//! whose intersection routine knows displaced faces. A displaced quad or
+//! triangle is a shell (seed 002, section 2.4): a ray that meets it is carried
+//! into the face's map space and sphere traced through the conservative
+//! distance map of `displace-core`, so shadows and reflections on and of
+//! displaced surfaces come for free.
+//!
+//! Modules, one job each (after pbrt-v4's layout): [`scene`] (TOML, checks,
+//! construction), [`camera`], [`shapes`], [`displaced`], [`bvh`],
+//! [`material`], [`light`], [`sampler`], [`integrator`], [`render`] (tiles,
+//! threads, crops, AOVs), [`output`] (PNG/EXR/npy, atomic), [`bake_cache`].
+//!
+//! ```no_run
+//! use displace_render::{render, RenderOptions, Scene, SceneOptions};
+//! let scene = Scene::default_scene(&SceneOptions::default()).unwrap();
+//! let out = render(&scene, &RenderOptions::default()).unwrap();
+//! displace_render::output::write_image(std::path::Path::new("out.png"), &out.image).unwrap();
+//! ```
+
+pub mod bake_cache;
+pub mod bvh;
+pub mod camera;
+pub mod displaced;
+pub mod error;
+pub mod geometry;
+mod heights;
+pub mod integrator;
+pub mod light;
+pub mod material;
+pub mod mesh;
+pub mod output;
+pub mod render;
+pub mod sampler;
+pub mod scene;
+pub mod shapes;
+pub mod texture;
+
+pub use bake_cache::{default_cache_dir, CacheStats};
+pub use error::{Error, Result};
+pub use render::{render, Aov, AovImage, Crop, Image, RenderOptions, Rendered};
+pub use scene::{Scene, SceneOptions};

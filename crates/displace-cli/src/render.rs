@@ -1,0 +1,173 @@
+//! `displace render`: ray trace a scene file (or the built-in studded Cornell
+//! box) to PNG/EXR, with optional AOVs. Ctrl-C stops the render and writes
+//! nothing; every file is written atomically.
+
+use anyhow::{bail, Context, Result};
+use displace_render::output::{aov_paths, write_aov, write_image, ImageFile};
+use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file (TOML, see docs/scenes.md). Without one, the built-in
+    /// studded Cornell box with soft shadows.
+    pub scene: Option<PathBuf>,
+    /// Output image: .png (sRGB) or .exr (linear).
+    #[arg(short, long, default_value = "out.png")]
+    pub output: PathBuf,
+    /// Samples per pixel (overrides the scene).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Image size WxH (overrides the scene).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Render only the region x,y,w,h of the full image.
+    #[arg(long)]
+    pub crop: Option<String>,
+    /// AOVs to write next to the output, comma separated: depth, normal, uv,
+    /// position, iterations (each as OUT.NAME.npy and OUT.NAME.png).
+    #[arg(long, value_delimiter = ',')]
+    pub aov: Vec<String>,
+    /// Override every displaced face's tracing method: sphere,
+    /// sphere-fixed or exact.
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Do not read or write the on-disk bake cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    // Everything that can be refused is refused before any work.
+    ImageFile::from_path(&args.output)?;
+    let size = args
+        .size
+        .as_deref()
+        .map(|s| displace_core::convention::parse_size::<2>(s).map(|[w, h]| [w as u32, h as u32]))
+        .transpose()
+        .context("--size")?;
+    let crop: Option<Crop> = args.crop.as_deref().map(str::parse).transpose()?;
+    let aovs: Vec<Aov> = args
+        .aov
+        .iter()
+        .map(|a| a.trim().parse())
+        .collect::<Result<_, _>>()?;
+    let method = args
+        .method
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .context("--method")?;
+    if args.threads == Some(0) {
+        bail!("--threads must be at least 1");
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start the worker threads")?;
+
+    let opts = SceneOptions {
+        spp: args.spp,
+        size,
+        method,
+        cache_dir: if args.no_cache {
+            None
+        } else {
+            displace_render::default_cache_dir()
+        },
+    };
+    let start = Instant::now();
+    let scene = pool.install(|| match &args.scene {
+        Some(p) => Scene::load(p, &opts),
+        None => Scene::default_scene(&opts),
+    })?;
+    let setup = start.elapsed();
+    let stats = scene.cache_stats();
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        // Ignore failure: another subcommand may own the handler in tests.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(0);
+        b.set_style(
+            ProgressStyle::with_template(
+                "{spinner} rendering [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta_precise}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        b
+    };
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let render_start = Instant::now();
+    let result = pool.install(|| {
+        render(
+            &scene,
+            &RenderOptions {
+                crop,
+                aovs,
+                progress: Some(&progress),
+                cancel: Some(&cancel),
+            },
+        )
+    });
+    bar.finish_and_clear();
+    let rendered = match result {
+        Err(displace_render::Error::Cancelled) => bail!("interrupted: nothing was written"),
+        other => other?,
+    };
+    let render_time = render_start.elapsed();
+
+    write_image(&args.output, &rendered.image)?;
+    for a in &rendered.aovs {
+        write_aov(&args.output, a)?;
+    }
+    let name = args
+        .scene
+        .as_ref()
+        .map_or("built-in default scene".to_string(), |p| {
+            p.display().to_string()
+        });
+    eprintln!(
+        "{name}: {}x{} at {} spp, {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
+        rendered.image.width,
+        rendered.image.height,
+        scene.spp(),
+        scene.primitive_count(),
+        pool.current_num_threads(),
+        setup.as_secs_f64(),
+        stats.baked,
+        stats.loaded,
+        stats.shared,
+        render_time.as_secs_f64(),
+        args.output.display()
+    );
+    for a in &rendered.aovs {
+        let (npy, png) = aov_paths(&args.output, a.aov);
+        eprintln!(
+            "  {}: {} and {}",
+            a.aov.name(),
+            npy.display(),
+            png.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,282 @@
+//! One bake per height source, resolution and proportions, shared by every
+//! face that asks for it (seed 002 had to bake per face, section 2.3), kept
+//! in memory for the scene and on disk across runs, keyed by a hash of
+//! everything the bake depends on.
+//!
+//! Disk format (`<key>.dmap`, little endian): magic `DSPLDM01`, `u32` width,
+//! height, depth, `f32` aspect x, aspect y, `u8` addressing (0 clamp, 1
+//! repeat), `f32` max underestimate, then `width * height * depth` `f32`
+//! values in the core's `[k][j][i]` order. The normal map is rebuilt from the
+//! height map (cheap); only the distance transform is cached.
+
+use crate::error::Result;
+use crate::sampler::hash;
+use displace_core::io::atomic::write_atomic;
+use displace_core::{
+    bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, HeightMap, NormalMap,
+};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+const MAGIC: &[u8; 8] = b"DSPLDM01";
+/// Bumped whenever the bake's output for the same inputs could change.
+const BAKE_VERSION: u64 = 1;
+
+/// The cache directory: `$DISPLACE_CACHE` if set (an empty value disables
+/// the disk cache), else `$XDG_CACHE_HOME/displace`, else
+/// `~/.cache/displace`.
+pub fn default_cache_dir() -> Option<PathBuf> {
+    if let Some(v) = std::env::var_os("DISPLACE_CACHE") {
+        return (!v.is_empty()).then(|| PathBuf::from(v));
+    }
+    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|v| !v.is_empty()) {
+        return Some(PathBuf::from(x).join("displace"));
+    }
+    std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache").join("displace"))
+}
+
+#[derive(Default)]
+pub struct BakeCache {
+    dir: Option<PathBuf>,
+    memory: Mutex<HashMap<u64, Arc<DisplacementMap>>>,
+    baked: AtomicUsize,
+    loaded: AtomicUsize,
+    shared: AtomicUsize,
+}
+
+/// Counts of what the cache did, for reports and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CacheStats {
+    /// Bakes computed.
+    pub baked: usize,
+    /// Bakes read from disk.
+    pub loaded: usize,
+    /// Requests answered from memory (faces sharing a bake).
+    pub shared: usize,
+}
+
+/// Aspects equal to 6 significant digits share a bake: faces built from the
+/// same numbers in different orders must not differ by a rounding.
+fn aspect_key(a: f32) -> u64 {
+    let digits = 6 - a.abs().log10().floor() as i32;
+    ((a as f64 * 10f64.powi(digits)).round() as i64) as u64 ^ (digits as u64) << 56
+}
+
+impl BakeCache {
+    pub fn new(dir: Option<PathBuf>) -> Self {
+        Self {
+            dir,
+            ..Self::default()
+        }
+    }
+
+    pub fn stats(&self) -> CacheStats {
+        CacheStats {
+            baked: self.baked.load(Ordering::Relaxed),
+            loaded: self.loaded.load(Ordering::Relaxed),
+            shared: self.shared.load(Ordering::Relaxed),
+        }
+    }
+
+    /// The map for `height` baked at `size` for tile proportions `extent`.
+    pub fn get(
+        &self,
+        height: &HeightMap,
+        size: [usize; 3],
+        extent: Extent,
+    ) -> Result<Arc<DisplacementMap>> {
+        let [ax, ay] = extent.aspect();
+        let mut words = vec![
+            BAKE_VERSION,
+            height.width() as u64,
+            height.height() as u64,
+            (height.address() == Address::Repeat) as u64,
+            size[0] as u64,
+            size[1] as u64,
+            size[2] as u64,
+            aspect_key(ax),
+            aspect_key(ay),
+        ];
+        words.extend(height.data().iter().map(|v| v.to_bits() as u64));
+        let key = hash(&words);
+        // The lock is held during a bake on purpose: two faces asking for the
+        // same map at once must not bake it twice.
+        let mut memory = self.memory.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(m) = memory.get(&key) {
+            self.shared.fetch_add(1, Ordering::Relaxed);
+            return Ok(m.clone());
+        }
+        // A canonical extent, so that equal keys give bit-equal bakes.
+        let extent = Extent::new(ax, ay, 1.0)?;
+        let path = self
+            .dir
+            .as_ref()
+            .map(|d| d.join(format!("{key:016x}.dmap")));
+        let map = match path
+            .as_deref()
+            .and_then(|p| read_map(p, height, size, extent))
+        {
+            Some(m) => {
+                self.loaded.fetch_add(1, Ordering::Relaxed);
+                m
+            }
+            None => {
+                let m = bake(
+                    height,
+                    &BakeOptions {
+                        size,
+                        extent,
+                        ..BakeOptions::default()
+                    },
+                )?;
+                self.baked.fetch_add(1, Ordering::Relaxed);
+                if let Some(p) = &path {
+                    // A cache that cannot be written only costs time next run.
+                    if std::fs::create_dir_all(self.dir.as_ref().expect("dir")).is_ok() {
+                        let _ = write_map(p, &m.distance);
+                    }
+                }
+                m
+            }
+        };
+        let map = Arc::new(map);
+        memory.insert(key, map.clone());
+        Ok(map)
+    }
+}
+
+fn write_map(path: &Path, map: &DistanceMap) -> displace_core::Result<()> {
+    write_atomic(path, |w| {
+        w.write_all(MAGIC)?;
+        for n in map.size() {
+            w.write_all(&(n as u32).to_le_bytes())?;
+        }
+        for a in map.aspect() {
+            w.write_all(&a.to_le_bytes())?;
+        }
+        w.write_all(&[(map.address() == Address::Repeat) as u8])?;
+        w.write_all(&map.max_underestimate().to_le_bytes())?;
+        let mut buf = Vec::with_capacity(map.data().len() * 4);
+        for v in map.data() {
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+        w.write_all(&buf)
+    })
+}
+
+/// The cached map, or `None` if absent, unreadable or not the one asked for
+/// (then it is baked again and overwritten).
+fn read_map(
+    path: &Path,
+    height: &HeightMap,
+    size: [usize; 3],
+    extent: Extent,
+) -> Option<DisplacementMap> {
+    let bytes = std::fs::read(path).ok()?;
+    let header = 8 + 12 + 8 + 1 + 4;
+    if bytes.len() < header || &bytes[..8] != MAGIC {
+        return None;
+    }
+    let u32_at =
+        |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes")) as usize;
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
+    let stored = [u32_at(8), u32_at(12), u32_at(16)];
+    let aspect = [f32_at(20), f32_at(24)];
+    let address = if bytes[28] == 1 {
+        Address::Repeat
+    } else {
+        Address::Clamp
+    };
+    let under = f32_at(29);
+    let n = size.iter().product::<usize>();
+    if stored != size
+        || address != height.address()
+        || aspect != extent.aspect()
+        || bytes.len() != header + 4 * n
+    {
+        return None;
+    }
+    let data = bytes[header..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+        .collect();
+    let distance = DistanceMap::from_raw(size, aspect, address, data, under).ok()?;
+    Some(DisplacementMap {
+        height: height.clone(),
+        normals: NormalMap::from_height(height, extent),
+        distance,
+        extent,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn height() -> HeightMap {
+        displace_core::generators::generate("gen:gaussian", 16, 16, Address::Clamp).unwrap()
+    }
+
+    #[test]
+    fn shares_in_memory_and_reloads_from_disk_bit_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let h = height();
+        let cache = BakeCache::new(Some(dir.path().to_path_buf()));
+        let a = cache
+            .get(&h, [8, 8, 4], Extent::new(2.0, 2.0, 0.5).unwrap())
+            .unwrap();
+        // Same proportions, other scale: the same bake.
+        let b = cache
+            .get(&h, [8, 8, 4], Extent::new(4.0, 4.0, 1.0).unwrap())
+            .unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert_eq!(
+            cache.stats(),
+            CacheStats {
+                baked: 1,
+                loaded: 0,
+                shared: 1
+            }
+        );
+
+        let again = BakeCache::new(Some(dir.path().to_path_buf()));
+        let c = again
+            .get(&h, [8, 8, 4], Extent::new(2.0, 2.0, 0.5).unwrap())
+            .unwrap();
+        assert_eq!(
+            again.stats(),
+            CacheStats {
+                baked: 0,
+                loaded: 1,
+                shared: 0
+            }
+        );
+        assert_eq!(a.distance, c.distance);
+
+        // Other proportions: another bake.
+        again
+            .get(&h, [8, 8, 4], Extent::new(2.0, 1.0, 0.5).unwrap())
+            .unwrap();
+        assert_eq!(again.stats().baked, 1);
+    }
+
+    #[test]
+    fn corrupt_cache_files_are_rebaked() {
+        let dir = tempfile::tempdir().unwrap();
+        let h = height();
+        let cache = BakeCache::new(Some(dir.path().to_path_buf()));
+        cache
+            .get(&h, [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap();
+        for e in std::fs::read_dir(dir.path()).unwrap() {
+            std::fs::write(e.unwrap().path(), b"DSPLDM01garbage").unwrap();
+        }
+        let again = BakeCache::new(Some(dir.path().to_path_buf()));
+        again
+            .get(&h, [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap();
+        assert_eq!(again.stats().baked, 1);
+    }
+}

@@ -1,0 +1,173 @@
+//! Pinhole camera with an optional thin lens (depth of field as in Cook,
+//! Porter and Carpenter 1984: rays distributed over the lens aperture, all
+//! meeting on the plane of focus).
+
+use crate::geometry::Ray;
+use crate::sampler::concentric_disk;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    position: Vec3,
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    /// `tan(vfov / 2)`.
+    tan_half: f32,
+    aspect: f32,
+    /// Lens radius in world units; 0 is a pinhole.
+    lens_radius: f32,
+    focus_distance: f32,
+}
+
+/// Why a camera cannot be built.
+#[derive(Debug, PartialEq)]
+pub enum CameraError {
+    LooksNowhere,
+    UpParallel,
+    BadFov(f32),
+    BadLens(String),
+}
+
+impl std::fmt::Display for CameraError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CameraError::LooksNowhere => write!(
+                f,
+                "camera.position equals camera.look_at: the camera looks nowhere"
+            ),
+            CameraError::UpParallel => write!(
+                f,
+                "camera.up is parallel to the viewing direction (or zero)"
+            ),
+            CameraError::BadFov(v) => write!(f, "camera.vfov must be in (0, 180) degrees, got {v}"),
+            CameraError::BadLens(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl Camera {
+    /// `vfov` in degrees; `aspect` = width / height of the full image.
+    pub fn new(
+        position: Vec3,
+        look_at: Vec3,
+        up: Vec3,
+        vfov: f32,
+        aspect: f32,
+        aperture: f32,
+        focus_distance: Option<f32>,
+    ) -> Result<Self, CameraError> {
+        let view = look_at - position;
+        if view.length() <= 1e-6 * (1.0 + position.length()) {
+            return Err(CameraError::LooksNowhere);
+        }
+        let forward = view.normalize();
+        let right = forward.cross(up);
+        if right.length() <= 1e-6 * up.length().max(1e-30) || up.length() == 0.0 {
+            return Err(CameraError::UpParallel);
+        }
+        let right = right.normalize();
+        let up = right.cross(forward);
+        if !(vfov > 0.0 && vfov < 180.0) {
+            return Err(CameraError::BadFov(vfov));
+        }
+        if !(aperture >= 0.0 && aperture.is_finite()) {
+            return Err(CameraError::BadLens(format!(
+                "camera.aperture must be a finite number >= 0, got {aperture}"
+            )));
+        }
+        let focus_distance = focus_distance.unwrap_or(view.length());
+        if !(focus_distance > 0.0 && focus_distance.is_finite()) {
+            return Err(CameraError::BadLens(format!(
+                "camera.focus_distance must be positive, got {focus_distance}"
+            )));
+        }
+        Ok(Self {
+            position,
+            forward,
+            right,
+            up,
+            tan_half: (vfov.to_radians() * 0.5).tan(),
+            aspect,
+            lens_radius: 0.5 * aperture,
+            focus_distance,
+        })
+    }
+
+    /// The ray through film point `film` (`[0,1]^2`, y down) and lens sample
+    /// `lens` (`[0,1]^2`, ignored by a pinhole).
+    pub fn ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let sx = (2.0 * film.x - 1.0) * self.tan_half * self.aspect;
+        let sy = (1.0 - 2.0 * film.y) * self.tan_half;
+        let dir = self.forward + sx * self.right + sy * self.up;
+        if self.lens_radius == 0.0 {
+            return Ray::new(self.position, dir);
+        }
+        let focus = self.position + dir * self.focus_distance;
+        let l = concentric_disk(lens) * self.lens_radius;
+        let origin = self.position + l.x * self.right + l.y * self.up;
+        Ray::new(origin, focus - origin)
+    }
+
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centre_ray_looks_at_target() {
+        let c = Camera::new(
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, -5.0),
+            Vec3::Y,
+            60.0,
+            1.0,
+            0.0,
+            None,
+        )
+        .unwrap();
+        let r = c.ray(Vec2::splat(0.5), Vec2::ZERO);
+        assert!((r.dir - Vec3::NEG_Z).length() < 1e-6);
+        // Top edge of the film is vfov/2 above the axis.
+        let top = c.ray(Vec2::new(0.5, 0.0), Vec2::ZERO);
+        assert!((top.dir.angle_between(Vec3::NEG_Z).to_degrees() - 30.0).abs() < 1e-3);
+        assert!(top.dir.y > 0.0);
+    }
+
+    #[test]
+    fn refuses_degenerate_views() {
+        assert_eq!(
+            Camera::new(Vec3::ONE, Vec3::ONE, Vec3::Y, 40.0, 1.0, 0.0, None).unwrap_err(),
+            CameraError::LooksNowhere
+        );
+        assert_eq!(
+            Camera::new(Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0, 1.0, 0.0, None).unwrap_err(),
+            CameraError::UpParallel
+        );
+        assert!(Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Y, 180.0, 1.0, 0.0, None).is_err());
+    }
+
+    #[test]
+    fn thin_lens_rays_meet_on_the_focal_plane() {
+        let c = Camera::new(
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, -10.0),
+            Vec3::Y,
+            40.0,
+            1.0,
+            1.0,
+            Some(4.0),
+        )
+        .unwrap();
+        let film = Vec2::new(0.3, 0.6);
+        let a = c.ray(film, Vec2::new(0.1, 0.9));
+        let b = c.ray(film, Vec2::new(0.8, 0.2));
+        let pa = a.at((-4.0 - a.origin.z) / a.dir.z);
+        let pb = b.at((-4.0 - b.origin.z) / b.dir.z);
+        assert!((pa - pb).length() < 1e-4, "{pa} {pb}");
+    }
+}

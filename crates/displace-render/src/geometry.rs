@@ -1,0 +1,130 @@
+//! Rays, boxes and small vector helpers shared by every shape.
+
+use glam::Vec3;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    /// Unit length.
+    pub dir: Vec3,
+    pub inv_dir: Vec3,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        let dir = dir.normalize();
+        Self {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+        }
+    }
+
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
+        points.into_iter().fold(Self::EMPTY, Self::grow)
+    }
+
+    #[inline]
+    pub fn grow(self, p: Vec3) -> Self {
+        Self {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    #[inline]
+    pub fn union(self, o: Aabb) -> Self {
+        Self {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    #[inline]
+    pub fn centroid(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Surface area, the cost model of the SAH.
+    #[inline]
+    pub fn area(&self) -> f32 {
+        let e = (self.max - self.min).max(Vec3::ZERO);
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x
+    }
+
+    /// Entry distance of `ray` into the box if it meets it within
+    /// `[t_min, t_max]` (slab test; NaN-safe through `min`/`max` ordering).
+    #[inline]
+    pub fn hit(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<f32> {
+        let t0 = (self.min - ray.origin) * ray.inv_dir;
+        let t1 = (self.max - ray.origin) * ray.inv_dir;
+        let tn = t0.min(t1);
+        let tf = t0.max(t1);
+        let t_in = tn.max_element().max(t_min);
+        let t_out = tf.min_element().min(t_max);
+        (t_in <= t_out).then_some(t_in)
+    }
+}
+
+/// An orthonormal basis around unit `n` (Duff et al., "Building an
+/// Orthonormal Basis, Revisited", JCGT 2017).
+pub fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+#[inline]
+pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for n in [Vec3::X, Vec3::NEG_Z, Vec3::new(0.3, -0.4, 0.5).normalize()] {
+            let (t, b) = basis(n);
+            assert!(t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6 && t.dot(b).abs() < 1e-6);
+            assert!((t.length() - 1.0).abs() < 1e-6 && (b.length() - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn box_slab_test() {
+        let b = Aabb::from_points([Vec3::ZERO, Vec3::ONE]);
+        let r = Ray::new(Vec3::new(0.5, 0.5, -1.0), Vec3::Z);
+        assert_eq!(b.hit(&r, 0.0, 10.0), Some(1.0));
+        assert_eq!(b.hit(&r, 0.0, 0.5), None);
+        let axis = Ray::new(Vec3::new(0.5, 2.0, -1.0), Vec3::Z);
+        assert_eq!(b.hit(&axis, 0.0, 10.0), None);
+    }
+}

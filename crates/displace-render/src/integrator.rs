@@ -1,0 +1,100 @@
+//! Whitted ray tracing (Whitted 1980) with the distributed rays of Cook,
+//! Porter and Carpenter (1984): at each hit, direct light from every light
+//! (one shadow ray for a point light, `shadow_samples` stratified ones over
+//! an area light), plus one recursive reflection ray for mirror and glossy
+//! materials (glossy rays spread around the mirror direction; the spread is
+//! integrated over the pixel's many samples, as the paper distributes it).
+//! Displaced faces are ordinary primitives here: shadows and reflections on
+//! and of them need nothing special (seed 002, section 1.2).
+
+use crate::geometry::Ray;
+use crate::light::Light;
+use crate::sampler::Rng;
+use crate::scene::{Interaction, Scene};
+use glam::Vec3;
+
+/// Which of a pixel's `count` samples this is: at the first hit, area-light
+/// samples are stratified over all the pixel's shadow rays together (`count
+/// x shadow_samples` strata), not each sample's few.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSample {
+    pub index: u32,
+    pub count: u32,
+}
+
+/// Radiance arriving along `ray` (linear RGB).
+pub fn radiance(
+    scene: &Scene,
+    ray: &Ray,
+    depth: u32,
+    sample: Option<PixelSample>,
+    rng: &mut Rng,
+) -> Vec3 {
+    match scene.intersect(ray, 0.0, f32::INFINITY) {
+        Some(hit) => shade(scene, ray, &hit, depth, sample, rng),
+        None => scene.background,
+    }
+}
+
+fn shade(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Interaction,
+    depth: u32,
+    sample: Option<PixelSample>,
+    rng: &mut Rng,
+) -> Vec3 {
+    let mut l = Vec3::ZERO;
+    if let Some(e) = hit.emitter {
+        if let Light::Area { quad, radiance } = &scene.lights[e as usize] {
+            if quad.normal.dot(ray.dir) < 0.0 {
+                l += *radiance;
+            }
+        }
+    }
+    let mat = &scene.materials[hit.material as usize];
+    let wo = -ray.dir;
+    // Surfaces are two-sided: shade the side the ray arrived on.
+    let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
+    if ng.dot(wo) < 0.0 {
+        ng = -ng;
+        ns = -ns;
+    }
+    let p = hit.position + ng * scene.epsilon;
+    let albedo = mat.albedo(hit.uv, hit.tint);
+    if albedo != Vec3::ZERO || mat.specular != Vec3::ZERO {
+        for light in &scene.lights {
+            let n = light.samples(scene.shadow_samples);
+            let mut sum = Vec3::ZERO;
+            let (first, strata) = match sample {
+                Some(ps) => (ps.index * n, ps.count * n),
+                None => (0, n),
+            };
+            for i in 0..n {
+                let Some(s) = light.sample(p, first + i, strata, rng) else {
+                    continue;
+                };
+                let to = s.point - p;
+                let dist = to.length();
+                let wi = to / dist;
+                let cos = ns.dot(wi);
+                if cos <= 0.0 || ng.dot(wi) <= 0.0 {
+                    continue;
+                }
+                let shadow = Ray::new(p, wi);
+                if scene.occluded(&shadow, 0.0, dist * (1.0 - 1e-4) - scene.epsilon) {
+                    continue;
+                }
+                sum += mat.brdf(albedo, ns, wo, wi) * s.weight * cos;
+            }
+            l += sum / n as f32;
+        }
+    }
+    if mat.reflects() && depth < scene.max_depth {
+        let dir = mat.reflection_dir(ray.dir, ns, rng);
+        if dir.dot(ng) > 0.0 {
+            l += mat.reflect * radiance(scene, &Ray::new(p, dir), depth + 1, None, rng);
+        }
+    }
+    l
+}

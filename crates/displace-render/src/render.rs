@@ -1,0 +1,273 @@
+//! The render loop: tiles in parallel (rayon), each pixel's samples seeded
+//! from `(seed, x, y, sample)` alone so the image does not depend on thread
+//! count or tiling and crops stitch bit-exactly; a progress callback and a
+//! cancellation flag for the CLI.
+
+use crate::error::{Error, Result};
+use crate::integrator::{radiance, PixelSample};
+use crate::sampler::{jittered, Rng};
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+/// A rectangle of the full image, in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Crop {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl std::str::FromStr for Crop {
+    type Err = Error;
+    /// `x,y,w,h`.
+    fn from_str(s: &str) -> Result<Self> {
+        let v: Vec<&str> = s.split(',').map(str::trim).collect();
+        let bad = || {
+            Error::Option(format!(
+                "crop `{s}`: expected x,y,width,height (whole numbers)"
+            ))
+        };
+        if v.len() != 4 {
+            return Err(bad());
+        }
+        let n: Vec<u32> = v
+            .iter()
+            .map(|p| p.parse().map_err(|_| bad()))
+            .collect::<Result<_>>()?;
+        Ok(Crop {
+            x: n[0],
+            y: n[1],
+            width: n[2],
+            height: n[3],
+        })
+    }
+}
+
+/// Arbitrary output variables, one primary ray through each pixel centre.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Aov {
+    /// World distance along the camera ray; +inf where nothing is hit.
+    Depth,
+    /// World shading normal (0 on misses).
+    Normal,
+    /// Texture coordinate (tiles).
+    Uv,
+    /// World position (0 on misses).
+    Position,
+    /// Map-space steps of a displaced hit (0 elsewhere).
+    Iterations,
+}
+
+impl Aov {
+    pub const ALL: [Aov; 5] = [
+        Aov::Depth,
+        Aov::Normal,
+        Aov::Uv,
+        Aov::Position,
+        Aov::Iterations,
+    ];
+
+    pub fn channels(self) -> usize {
+        match self {
+            Aov::Depth | Aov::Iterations => 1,
+            Aov::Uv => 2,
+            Aov::Normal | Aov::Position => 3,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Aov::Depth => "depth",
+            Aov::Normal => "normal",
+            Aov::Uv => "uv",
+            Aov::Position => "position",
+            Aov::Iterations => "iterations",
+        }
+    }
+}
+
+impl std::str::FromStr for Aov {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Aov::ALL.into_iter().find(|a| a.name() == s).ok_or_else(|| {
+            Error::Option(format!(
+                "unknown AOV `{s}` (known: depth, normal, uv, position, iterations)"
+            ))
+        })
+    }
+}
+
+#[derive(Default)]
+pub struct RenderOptions<'a> {
+    pub crop: Option<Crop>,
+    pub aovs: Vec<Aov>,
+    /// `(tiles done, tiles in all)`.
+    pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// Set to stop; the render then returns [`Error::Cancelled`].
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+/// Linear RGB pixels, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+/// An AOV as an `(height, width, channels)` float array.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AovImage {
+    pub aov: Aov,
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub image: Image,
+    pub aovs: Vec<AovImage>,
+}
+
+const TILE: u32 = 16;
+
+/// Renders `scene` in the current rayon pool.
+pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
+    let (fw, fh) = (scene.width, scene.height);
+    let crop = opts.crop.unwrap_or(Crop {
+        x: 0,
+        y: 0,
+        width: fw,
+        height: fh,
+    });
+    if crop.width == 0
+        || crop.height == 0
+        || crop.x as u64 + crop.width as u64 > fw as u64
+        || crop.y as u64 + crop.height as u64 > fh as u64
+    {
+        return Err(Error::Option(format!(
+            "crop {},{},{},{} does not fit in the {fw}x{fh} image (or is empty)",
+            crop.x, crop.y, crop.width, crop.height
+        )));
+    }
+    let tiles: Vec<(u32, u32)> = (0..crop.height.div_ceil(TILE))
+        .flat_map(|ty| (0..crop.width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
+        .collect();
+    let done = AtomicUsize::new(0);
+    let total = tiles.len();
+    let results: Vec<(Vec<Vec3>, Vec<Vec<f32>>)> = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return Err(Error::Cancelled);
+            }
+            let w = TILE.min(crop.width - tx);
+            let h = TILE.min(crop.height - ty);
+            let mut px = Vec::with_capacity((w * h) as usize);
+            let mut aov: Vec<Vec<f32>> = opts
+                .aovs
+                .iter()
+                .map(|a| Vec::with_capacity((w * h) as usize * a.channels()))
+                .collect();
+            for y in 0..h {
+                for x in 0..w {
+                    let (gx, gy) = (crop.x + tx + x, crop.y + ty + y);
+                    px.push(pixel(scene, gx, gy));
+                    if !opts.aovs.is_empty() {
+                        aov_pixel(scene, gx, gy, &opts.aovs, &mut aov);
+                    }
+                }
+            }
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if let Some(p) = opts.progress {
+                p(n, total);
+            }
+            Ok((px, aov))
+        })
+        .collect::<Result<_>>()?;
+
+    let (cw, ch) = (crop.width as usize, crop.height as usize);
+    let mut pixels = vec![Vec3::ZERO; cw * ch];
+    let mut aovs: Vec<AovImage> = opts
+        .aovs
+        .iter()
+        .map(|&a| AovImage {
+            aov: a,
+            width: crop.width,
+            height: crop.height,
+            data: vec![0.0; cw * ch * a.channels()],
+        })
+        .collect();
+    for (&(tx, ty), (px, aov)) in tiles.iter().zip(&results) {
+        let w = TILE.min(crop.width - tx) as usize;
+        for (k, p) in px.iter().enumerate() {
+            let (x, y) = (tx as usize + k % w, ty as usize + k / w);
+            pixels[y * cw + x] = *p;
+            for (img, src) in aovs.iter_mut().zip(aov) {
+                let c = img.aov.channels();
+                img.data[(y * cw + x) * c..(y * cw + x + 1) * c]
+                    .copy_from_slice(&src[k * c..(k + 1) * c]);
+            }
+        }
+    }
+    Ok(Rendered {
+        image: Image {
+            width: crop.width,
+            height: crop.height,
+            pixels,
+        },
+        aovs,
+    })
+}
+
+/// The mean of the pixel's stratified samples.
+fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    for s in 0..scene.spp {
+        let mut rng = Rng::for_sample(scene.seed, x, y, s);
+        let j = jittered(s, scene.spp, &mut rng);
+        let film = Vec2::new(
+            (x as f32 + j.x) / scene.width as f32,
+            (y as f32 + j.y) / scene.height as f32,
+        );
+        let lens = rng.next_2d();
+        let ray = scene.camera.ray(film, lens);
+        sum += radiance(
+            scene,
+            &ray,
+            0,
+            Some(PixelSample {
+                index: s,
+                count: scene.spp,
+            }),
+            &mut rng,
+        );
+    }
+    sum / scene.spp as f32
+}
+
+fn aov_pixel(scene: &Scene, x: u32, y: u32, aovs: &[Aov], out: &mut [Vec<f32>]) {
+    let film = Vec2::new(
+        (x as f32 + 0.5) / scene.width as f32,
+        (y as f32 + 0.5) / scene.height as f32,
+    );
+    let ray = scene.camera.ray(film, Vec2::splat(0.5));
+    let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
+    for (a, o) in aovs.iter().zip(out.iter_mut()) {
+        match (a, &hit) {
+            (Aov::Depth, Some(h)) => o.push(h.t),
+            (Aov::Depth, None) => o.push(f32::INFINITY),
+            (Aov::Normal, Some(h)) => o.extend(h.shading_normal.to_array()),
+            (Aov::Position, Some(h)) => o.extend(h.position.to_array()),
+            (Aov::Normal | Aov::Position, None) => o.extend([0.0; 3]),
+            (Aov::Uv, Some(h)) => o.extend(h.uv.to_array()),
+            (Aov::Uv, None) => o.extend([0.0; 2]),
+            (Aov::Iterations, Some(h)) => o.push(h.iterations as f32),
+            (Aov::Iterations, None) => o.push(0.0),
+        }
+    }
+}

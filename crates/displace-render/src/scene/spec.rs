@@ -1,0 +1,213 @@
+//! The scene file as written (TOML), before validation. Every table denies
+//! unknown keys: a misspelt key is an error, never silently ignored.
+//! `docs/scenes.md` documents each key, its units and its default.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+pub type V3 = [f32; 3];
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    pub image: ImageSpec,
+    pub camera: CameraSpec,
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialSpec>,
+    #[serde(default)]
+    pub lights: Vec<LightSpec>,
+    #[serde(default)]
+    pub shapes: Vec<ShapeSpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSpec {
+    pub width: i64,
+    pub height: i64,
+    #[serde(default = "default_spp")]
+    pub spp: i64,
+    #[serde(default = "default_max_depth")]
+    pub max_depth: i64,
+    #[serde(default)]
+    pub seed: u64,
+    #[serde(default = "default_shadow_samples")]
+    pub shadow_samples: i64,
+    #[serde(default)]
+    pub background: V3,
+}
+
+fn default_spp() -> i64 {
+    16
+}
+fn default_max_depth() -> i64 {
+    4
+}
+fn default_shadow_samples() -> i64 {
+    16
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    pub position: V3,
+    pub look_at: V3,
+    #[serde(default = "default_up")]
+    pub up: V3,
+    /// Degrees.
+    #[serde(default = "default_vfov")]
+    pub vfov: f32,
+    /// Lens diameter, world units; 0 is a pinhole.
+    #[serde(default)]
+    pub aperture: f32,
+    pub focus_distance: Option<f32>,
+}
+
+fn default_up() -> V3 {
+    [0.0, 1.0, 0.0]
+}
+fn default_vfov() -> f32 {
+    40.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum MaterialSpec {
+    Lambert {
+        color: V3,
+        texture: Option<String>,
+    },
+    Phong {
+        color: V3,
+        texture: Option<String>,
+        specular: V3,
+        shininess: f32,
+    },
+    Mirror {
+        #[serde(default = "one")]
+        color: V3,
+        #[serde(default)]
+        diffuse: V3,
+    },
+    Glossy {
+        #[serde(default = "one")]
+        color: V3,
+        roughness: f32,
+        #[serde(default)]
+        diffuse: V3,
+    },
+}
+
+fn one() -> V3 {
+    [1.0; 3]
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LightSpec {
+    Point {
+        position: V3,
+        intensity: V3,
+    },
+    Area {
+        origin: V3,
+        edge_u: V3,
+        edge_v: V3,
+        radiance: V3,
+        #[serde(default = "yes")]
+        visible: bool,
+    },
+}
+
+fn yes() -> bool {
+    true
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ShapeSpec {
+    Quad {
+        origin: V3,
+        edge_u: V3,
+        edge_v: V3,
+        material: String,
+        displacement: Option<DisplacementSpec>,
+    },
+    Triangle {
+        vertices: [V3; 3],
+        uvs: Option<[[f32; 2]; 3]>,
+        material: String,
+        displacement: Option<DisplacementSpec>,
+    },
+    Sphere {
+        center: V3,
+        radius: f32,
+        material: String,
+    },
+    Box {
+        min: V3,
+        max: V3,
+        #[serde(default)]
+        rotate_y: f32,
+        material: String,
+    },
+    Mesh {
+        path: String,
+        #[serde(default)]
+        translate: V3,
+        #[serde(default = "unit_scale")]
+        scale: f32,
+        #[serde(default)]
+        rotate_y: f32,
+        material: String,
+        displacement: Option<DisplacementSpec>,
+    },
+}
+
+fn unit_scale() -> f32 {
+    1.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisplacementSpec {
+    /// A height file (PNG/EXR, relative to the scene file) or a generator
+    /// (`gen:studded?period=8`).
+    pub height: String,
+    /// Texels of a generated height map.
+    #[serde(default = "default_height_size")]
+    pub height_size: [i64; 2],
+    /// World units along the face normal; 0 means no displacement.
+    pub depth: f32,
+    #[serde(default = "default_map_size")]
+    pub map_size: [i64; 3],
+    #[serde(default = "default_address")]
+    pub address: String,
+    #[serde(default = "default_tiles")]
+    pub tiles: [f32; 2],
+    #[serde(default = "default_method")]
+    pub method: String,
+    #[serde(default = "default_iterations")]
+    pub iterations: i64,
+    pub color_texture: Option<String>,
+    pub normal_map: Option<String>,
+}
+
+fn default_height_size() -> [i64; 2] {
+    [256, 256]
+}
+fn default_map_size() -> [i64; 3] {
+    [128, 128, 16]
+}
+fn default_address() -> String {
+    "clamp".into()
+}
+fn default_tiles() -> [f32; 2] {
+    [1.0, 1.0]
+}
+fn default_method() -> String {
+    "sphere".into()
+}
+fn default_iterations() -> i64 {
+    64
+}

@@ -1,0 +1,168 @@
+//! The primitives of a built scene and the two queries the integrator asks
+//! of them: nearest hit, and whether anything blocks a segment.
+
+use super::Scene;
+use crate::displaced::DisplacedFace;
+use crate::geometry::{Aabb, Ray};
+use crate::shapes::{Quad, Sphere, Triangle};
+use displace_core::MapHit;
+use glam::{Vec2, Vec3};
+
+/// Per-triangle attributes of meshes and textured triangles.
+#[derive(Clone, Copy, Debug)]
+pub struct TriAttr {
+    pub normals: Option<[Vec3; 3]>,
+    pub uvs: [Vec2; 3],
+}
+
+#[derive(Clone, Debug)]
+pub enum Shape {
+    Quad(Quad),
+    Triangle { tri: Triangle, attr: u32 },
+    Sphere(Sphere),
+    Displaced(Box<DisplacedFace>),
+}
+
+pub const NO_ATTR: u32 = u32::MAX;
+
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    pub shape: Shape,
+    pub material: u32,
+    /// Index of the light this primitive is the visible emitter of.
+    pub emitter: Option<u32>,
+}
+
+impl Primitive {
+    pub fn bounds(&self) -> Aabb {
+        match &self.shape {
+            Shape::Quad(q) => q.bounds(),
+            Shape::Triangle { tri, .. } => tri.bounds(),
+            Shape::Sphere(s) => s.bounds(),
+            Shape::Displaced(d) => d.bounds(),
+        }
+    }
+}
+
+/// A hit before its surface description is worked out.
+#[derive(Clone, Copy, Debug)]
+enum Local {
+    Param(Vec2),
+    Sphere,
+    Map(MapHit),
+}
+
+/// Everything shading needs at a hit, world space.
+#[derive(Clone, Copy, Debug)]
+pub struct Interaction {
+    pub t: f32,
+    pub position: Vec3,
+    /// Unit, as the shape defines it (not flipped towards the ray).
+    pub geometric_normal: Vec3,
+    pub shading_normal: Vec3,
+    pub uv: Vec2,
+    pub material: u32,
+    pub emitter: Option<u32>,
+    /// Map-space tracing cost (0 for plain shapes).
+    pub iterations: u32,
+    /// Colour of a displaced face's own texture (white when none).
+    pub tint: Vec3,
+}
+
+impl Scene {
+    fn hit_prim(&self, i: u32, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, Local)> {
+        match &self.prims[i as usize].shape {
+            Shape::Quad(q) => q
+                .intersect(ray, t_min, t_max)
+                .map(|(t, uv)| (t, Local::Param(uv))),
+            Shape::Triangle { tri, .. } => tri
+                .intersect(ray, t_min, t_max)
+                .map(|(t, b)| (t, Local::Param(b))),
+            Shape::Sphere(s) => s.intersect(ray, t_min, t_max).map(|t| (t, Local::Sphere)),
+            Shape::Displaced(d) => d
+                .intersect(ray, t_min, t_max)
+                .map(|(t, h)| (t, Local::Map(h))),
+        }
+    }
+
+    /// Nearest hit with `t` in `[t_min, t_max]`.
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Interaction> {
+        let mut best: Option<(u32, f32, Local)> = None;
+        self.bvh.traverse(ray, t_min, t_max, false, |i, t_max| {
+            let (t, local) = self.hit_prim(i, ray, t_min, t_max)?;
+            best = Some((i, t, local));
+            Some(t)
+        });
+        let (i, t, local) = best?;
+        Some(self.resolve(i, ray, t, local))
+    }
+
+    /// Whether anything lies on the ray within `[t_min, t_max]`.
+    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.bvh.traverse(ray, t_min, t_max, true, |i, t_max| {
+            self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t)
+        })
+    }
+
+    fn resolve(&self, i: u32, ray: &Ray, t: f32, local: Local) -> Interaction {
+        let prim = &self.prims[i as usize];
+        let mut out = Interaction {
+            t,
+            position: ray.at(t),
+            geometric_normal: Vec3::Z,
+            shading_normal: Vec3::Z,
+            uv: Vec2::ZERO,
+            material: prim.material,
+            emitter: prim.emitter,
+            iterations: 0,
+            tint: Vec3::ONE,
+        };
+        match (&prim.shape, local) {
+            (Shape::Quad(q), Local::Param(uv)) => {
+                out.position = q.point(uv);
+                out.geometric_normal = q.normal;
+                out.shading_normal = q.normal;
+                out.uv = uv;
+            }
+            (Shape::Triangle { tri, attr }, Local::Param(b)) => {
+                let n = tri.normal();
+                out.position = tri.p0 + b.x * tri.e1 + b.y * tri.e2;
+                out.geometric_normal = n;
+                out.shading_normal = n;
+                let w = Vec3::new(1.0 - b.x - b.y, b.x, b.y);
+                if *attr != NO_ATTR {
+                    let a = &self.attrs[*attr as usize];
+                    out.uv = a.uvs[0] * w.x + a.uvs[1] * w.y + a.uvs[2] * w.z;
+                    if let Some(ns) = a.normals {
+                        let s = (ns[0] * w.x + ns[1] * w.y + ns[2] * w.z).normalize_or_zero();
+                        if s != Vec3::ZERO {
+                            // Keep the interpolated normal on the geometric side.
+                            out.shading_normal = if s.dot(n) < 0.0 { -s } else { s };
+                        }
+                    }
+                } else {
+                    out.uv = b;
+                }
+            }
+            (Shape::Sphere(s), Local::Sphere) => {
+                let n = (out.position - s.center) / s.radius;
+                out.geometric_normal = n;
+                out.shading_normal = n;
+                out.uv = Sphere::uv(n);
+            }
+            (Shape::Displaced(d), Local::Map(h)) => {
+                let r = d.resolve(&h);
+                out.position = r.position;
+                out.geometric_normal = r.geometric_normal;
+                out.shading_normal = r.shading_normal;
+                out.uv = r.uv;
+                out.iterations = r.iterations;
+                if let Some(tex) = &d.color {
+                    out.tint = tex.sample(r.uv);
+                }
+            }
+            _ => unreachable!("a hit is resolved by the shape that produced it"),
+        }
+        out
+    }
+}

@@ -1,0 +1,233 @@
+//! Plain (undisplaced) shapes and their ray intersections.
+
+use crate::geometry::{Aabb, Ray};
+use glam::{Vec2, Vec3};
+
+/// A parallelogram `origin + a edge_u + b edge_v`, `a, b` in `[0, 1]`.
+#[derive(Clone, Copy, Debug)]
+pub struct Quad {
+    pub origin: Vec3,
+    pub edge_u: Vec3,
+    pub edge_v: Vec3,
+    /// Unit normal, `edge_u x edge_v` normalised.
+    pub normal: Vec3,
+    /// `n / (n . n)` with `n = edge_u x edge_v`: turns cross products into
+    /// parallelogram coordinates (Shirley, "Ray Tracing: The Next Week").
+    w: Vec3,
+}
+
+impl Quad {
+    /// `None` for a degenerate (zero-area) parallelogram.
+    pub fn new(origin: Vec3, edge_u: Vec3, edge_v: Vec3) -> Option<Self> {
+        let n = edge_u.cross(edge_v);
+        let nn = n.dot(n);
+        if !(nn > 0.0) || !nn.is_finite() {
+            return None;
+        }
+        Some(Self {
+            origin,
+            edge_u,
+            edge_v,
+            normal: n / nn.sqrt(),
+            w: n / nn,
+        })
+    }
+
+    pub fn area(&self) -> f32 {
+        self.edge_u.cross(self.edge_v).length()
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        let (o, u, v) = (self.origin, self.edge_u, self.edge_v);
+        Aabb::from_points([o, o + u, o + v, o + u + v])
+    }
+
+    /// Distance and parallelogram coordinates of the hit.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, Vec2)> {
+        let denom = self.normal.dot(ray.dir);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let t = self.normal.dot(self.origin - ray.origin) / denom;
+        if !(t >= t_min && t <= t_max) {
+            return None;
+        }
+        let hp = ray.at(t) - self.origin;
+        let a = self.w.dot(hp.cross(self.edge_v));
+        let b = self.w.dot(self.edge_u.cross(hp));
+        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some((t, Vec2::new(a, b)))
+    }
+
+    pub fn point(&self, uv: Vec2) -> Vec3 {
+        self.origin + uv.x * self.edge_u + uv.y * self.edge_v
+    }
+}
+
+/// A triangle `p0, p0 + e1, p0 + e2`.
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle {
+    pub p0: Vec3,
+    pub e1: Vec3,
+    pub e2: Vec3,
+}
+
+impl Triangle {
+    pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
+        Self {
+            p0,
+            e1: p1 - p0,
+            e2: p2 - p0,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points([self.p0, self.p0 + self.e1, self.p0 + self.e2])
+    }
+
+    pub fn normal(&self) -> Vec3 {
+        self.e1.cross(self.e2).normalize_or_zero()
+    }
+
+    /// Möller-Trumbore: distance and barycentrics `(b1, b2)` of the hit.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, Vec2)> {
+        let p = ray.dir.cross(self.e2);
+        let det = self.e1.dot(p);
+        if det.abs() < 1e-20 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = ray.origin - self.p0;
+        let b1 = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&b1) {
+            return None;
+        }
+        let q = s.cross(self.e1);
+        let b2 = ray.dir.dot(q) * inv;
+        if b2 < 0.0 || b1 + b2 > 1.0 {
+            return None;
+        }
+        let t = self.e2.dot(q) * inv;
+        (t >= t_min && t <= t_max).then_some((t, Vec2::new(b1, b2)))
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+impl Sphere {
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.center - Vec3::splat(self.radius),
+            max: self.center + Vec3::splat(self.radius),
+        }
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<f32> {
+        let oc = ray.origin - self.center;
+        let half_b = oc.dot(ray.dir);
+        // Hearn-Baker form of the discriminant: stable far from the origin
+        // (Haines et al., "Precision Improvements for Ray/Sphere
+        // Intersection", Ray Tracing Gems ch. 7).
+        let f = oc - half_b * ray.dir;
+        let disc = self.radius * self.radius - f.dot(f);
+        if disc < 0.0 {
+            return None;
+        }
+        let c = oc.dot(oc) - self.radius * self.radius;
+        let q = -half_b - half_b.signum() * disc.sqrt();
+        let (mut t0, mut t1) = (c / q, q);
+        if q == 0.0 {
+            t0 = 0.0;
+            t1 = 0.0;
+        }
+        if t0 > t1 {
+            std::mem::swap(&mut t0, &mut t1);
+        }
+        [t0, t1].into_iter().find(|&t| t >= t_min && t <= t_max)
+    }
+
+    /// Longitude/latitude texture coordinate of unit normal `n`.
+    pub fn uv(n: Vec3) -> Vec2 {
+        Vec2::new(
+            0.5 + n.z.atan2(n.x) / std::f32::consts::TAU,
+            n.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
+        )
+    }
+}
+
+/// The six faces of an axis-aligned box `[min, max]`, rotated by `rotate_y`
+/// degrees about its vertical centre line, each as a quad with an outward
+/// normal.
+pub fn box_faces(min: Vec3, max: Vec3, rotate_y: f32) -> Vec<Quad> {
+    let c = 0.5 * (min + max);
+    let rot = glam::Mat3::from_rotation_y(rotate_y.to_radians());
+    let e = max - min;
+    let (x, y, z) = (Vec3::X * e.x, Vec3::Y * e.y, Vec3::Z * e.z);
+    let faces = [
+        (min, z, y),     // -x
+        (min + x, y, z), // +x
+        (min, x, z),     // -y
+        (min + y, z, x), // +y
+        (min, y, x),     // -z
+        (min + z, x, y), // +z
+    ];
+    faces
+        .iter()
+        .filter_map(|&(o, u, v)| Quad::new(c + rot * (o - c), rot * u, rot * v))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quad_hit_coordinates() {
+        let q = Quad::new(
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 4.0, 0.0),
+        )
+        .unwrap();
+        let r = Ray::new(Vec3::new(1.0, 1.0, 3.0), Vec3::NEG_Z);
+        let (t, uv) = q.intersect(&r, 0.0, 10.0).unwrap();
+        assert!((t - 3.0).abs() < 1e-6 && (uv - Vec2::new(0.5, 0.25)).length() < 1e-6);
+        assert!(q
+            .intersect(&Ray::new(Vec3::new(3.0, 1.0, 3.0), Vec3::NEG_Z), 0.0, 10.0)
+            .is_none());
+    }
+
+    #[test]
+    fn triangle_and_sphere() {
+        let tri = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+        let (t, b) = tri
+            .intersect(&Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z), 0.0, 5.0)
+            .unwrap();
+        assert!((t - 1.0).abs() < 1e-6 && (b - Vec2::splat(0.25)).length() < 1e-6);
+        let s = Sphere {
+            center: Vec3::ZERO,
+            radius: 2.0,
+        };
+        let r = Ray::new(Vec3::new(0.0, 0.0, 10.0), Vec3::NEG_Z);
+        assert!((s.intersect(&r, 0.0, 100.0).unwrap() - 8.0).abs() < 1e-5);
+        let inside = Ray::new(Vec3::ZERO, Vec3::X);
+        assert!((s.intersect(&inside, 1e-4, 100.0).unwrap() - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn box_faces_point_outwards() {
+        let faces = box_faces(Vec3::ZERO, Vec3::ONE, 30.0);
+        assert_eq!(faces.len(), 6);
+        let c = Vec3::splat(0.5);
+        for f in faces {
+            let centre = f.point(Vec2::splat(0.5));
+            assert!(f.normal.dot(centre - c) > 0.0);
+        }
+    }
+}

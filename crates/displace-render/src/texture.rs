@@ -1,0 +1,118 @@
+//! Image textures: colour maps (sRGB decoded to linear on load, DESIGN.md
+//! "Colour") and data maps (normal maps, read as stored).
+
+use crate::error::{Error, Result};
+use glam::{Vec2, Vec3};
+use std::path::Path;
+
+#[derive(Clone, Debug)]
+pub struct Texture {
+    width: usize,
+    height: usize,
+    /// Row-major, row 0 at `v = 0` (the height-map convention, so a colour
+    /// map made from the same image lines up with the displacement).
+    data: Vec<Vec3>,
+}
+
+/// The sRGB transfer function, decoded (IEC 61966-2-1).
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl Texture {
+    /// Loads `path`; `srgb` decodes the sRGB transfer function (colour maps),
+    /// otherwise values are kept as stored (normal maps).
+    pub fn load(path: &Path, srgb: bool) -> Result<Self> {
+        if !path.exists() {
+            return Err(Error::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::NotFound, "texture file not found"),
+            });
+        }
+        let img = image::open(path).map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let rgb = img.to_rgb32f();
+        let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+        if w == 0 || h == 0 {
+            return Err(Error::Image {
+                path: path.to_path_buf(),
+                message: "empty image".into(),
+            });
+        }
+        let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
+        let data = rgb
+            .pixels()
+            .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
+            .collect();
+        Ok(Self {
+            width: w,
+            height: h,
+            data,
+        })
+    }
+
+    pub fn from_pixels(width: usize, height: usize, data: Vec<Vec3>) -> Self {
+        assert_eq!(data.len(), width * height);
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// Bilinear between texel centres, repeating.
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
+        let (i, fx) = displace_core::convention::texel_lerp(uv.x.rem_euclid(1.0), self.width);
+        let (j, fy) = displace_core::convention::texel_lerp(uv.y.rem_euclid(1.0), self.height);
+        let at = |ii: i64, jj: i64| {
+            let x = ii.rem_euclid(self.width as i64) as usize;
+            let y = jj.rem_euclid(self.height as i64) as usize;
+            self.data[y * self.width + x]
+        };
+        let top = at(i, j).lerp(at(i + 1, j), fx);
+        let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trip() {
+        for k in 0..=20 {
+            let c = k as f32 / 20.0;
+            assert!((linear_to_srgb(srgb_to_linear(c)) - c).abs() < 1e-5);
+        }
+        assert!((srgb_to_linear(0.5) - 0.214).abs() < 1e-3);
+    }
+
+    #[test]
+    fn samples_texel_centres() {
+        let t = Texture::from_pixels(2, 1, vec![Vec3::ZERO, Vec3::ONE]);
+        assert!((t.sample(Vec2::new(0.25, 0.5)) - Vec3::ZERO).length() < 1e-6);
+        assert!((t.sample(Vec2::new(0.5, 0.5)) - Vec3::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn missing_file_names_its_path() {
+        let e = Texture::load(Path::new("/no/such/brick.png"), true).unwrap_err();
+        assert!(e.to_string().contains("/no/such/brick.png"), "{e}");
+    }
+}
