@@ -5,7 +5,7 @@
 //!
 //! Disk format (`<key>.dmap`, little endian): magic `DSPLDM01`, `u32` width,
 //! height, depth, `f32` aspect x, aspect y, `u8` addressing (0 clamp, 1
-//! repeat), `f32` max underestimate, then `width * height * depth` `f32`
+//! repeat), `f32` bound on the stored values' underestimate, then `width * height * depth` `f32`
 //! values in the core's `[k][j][i]` order. The normal map is rebuilt from the
 //! height map (cheap); only the distance transform is cached.
 
@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex};
 
 const MAGIC: &[u8; 8] = b"DSPLDM01";
 /// Bumped whenever the bake's output for the same inputs could change.
-const BAKE_VERSION: u64 = 1;
+const BAKE_VERSION: u64 = 2;
 
 /// The cache directory: `$DISPLACE_CACHE` if set (an empty value disables
 /// the disk cache), else `$XDG_CACHE_HOME/displace`, else
@@ -157,7 +157,7 @@ fn write_map(path: &Path, map: &DistanceMap) -> displace_core::Result<()> {
             w.write_all(&a.to_le_bytes())?;
         }
         w.write_all(&[(map.address() == Address::Repeat) as u8])?;
-        w.write_all(&map.max_underestimate().to_le_bytes())?;
+        w.write_all(&map.data_underestimate().to_le_bytes())?;
         let mut buf = Vec::with_capacity(map.data().len() * 4);
         for v in map.data() {
             buf.extend_from_slice(&v.to_le_bytes());

@@ -194,7 +194,7 @@ fn sah_split(items: &mut [Item], bounds: &Aabb) -> Option<(usize, usize)> {
     let extent = cb.max - cb.min;
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
-        if !(extent[axis] > 0.0) {
+        if extent[axis].is_nan() || extent[axis] <= 0.0 {
             continue;
         }
         let scale = BINS as f32 / extent[axis];

@@ -79,7 +79,7 @@ impl DisplacedFace {
         let to_world =
             Mat3::from_cols(frame.dpdu / ax, frame.dpdv / ay, frame.normal * frame.depth);
         let det = to_world.determinant();
-        if !(det.abs() > 1e-30) || !det.is_finite() {
+        if !det.is_finite() || det.abs() <= 1e-30 {
             return None;
         }
         let to_map = to_world.inverse();

@@ -71,17 +71,18 @@ fn shade(
                 None => (0, n),
             };
             for i in 0..n {
-                let Some(s) = light.sample(p, first + i, strata, rng) else {
+                // Geometry from the surface point itself; only the shadow
+                // ray starts off the surface.
+                let Some(s) = light.sample(hit.position, first + i, strata, rng) else {
                     continue;
                 };
-                let to = s.point - p;
-                let dist = to.length();
-                let wi = to / dist;
+                let wi = (s.point - hit.position).normalize();
                 let cos = ns.dot(wi);
                 if cos <= 0.0 || ng.dot(wi) <= 0.0 {
                     continue;
                 }
-                let shadow = Ray::new(p, wi);
+                let dist = (s.point - p).length();
+                let shadow = Ray::new(p, s.point - p);
                 if scene.occluded(&shadow, 0.0, dist * (1.0 - 1e-4) - scene.epsilon) {
                     continue;
                 }

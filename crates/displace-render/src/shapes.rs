@@ -21,7 +21,7 @@ impl Quad {
     pub fn new(origin: Vec3, edge_u: Vec3, edge_v: Vec3) -> Option<Self> {
         let n = edge_u.cross(edge_v);
         let nn = n.dot(n);
-        if !(nn > 0.0) || !nn.is_finite() {
+        if !nn.is_finite() || nn <= 0.0 {
             return None;
         }
         Some(Self {

@@ -244,6 +244,9 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                             attr: attrs.len() as u32 - 1,
                         })
                     }
+                    Some(d) if d.flip_v => {
+                        return Err(cx.err(format!("{what}.displacement.flip_v applies to quads only; give the triangle's uvs instead")));
+                    }
                     Some(d) => {
                         let (map_extent, _) = triangle_frame(&tri, &uv).ok_or_else(|| {
                             cx.err(format!("{what}.uvs: degenerate texture coordinates"))
@@ -300,6 +303,11 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                 let disp = displacement_of(&cx, displacement, &what)?;
                 let mut builder = None;
                 if let Some(d) = disp {
+                    if d.flip_v {
+                        return Err(
+                            cx.err(format!("{what}.displacement.flip_v applies to quads only"))
+                        );
+                    }
                     if !mesh.has_uvs {
                         return Err(Error::Mesh {
                             path: file,
@@ -500,13 +508,13 @@ impl DispBuild {
             .parse()
             .map_err(|e: displace_core::Error| cx.err(format!("{what}.method: {e}")))?;
         let hs = d.height_size;
-        if hs.iter().any(|&n| n < 2 || n > 1 << 16) {
+        if hs.iter().any(|&n| !(2..=1 << 16).contains(&n)) {
             return Err(cx.err(format!(
                 "{what}.height_size must be 2..65536 texels per side, got {hs:?}"
             )));
         }
         let ms = d.map_size;
-        if ms.iter().any(|&n| n < 2 || n > 1 << 14) {
+        if ms.iter().any(|&n| !(2..=1 << 14).contains(&n)) {
             return Err(cx.err(format!(
                 "{what}.map_size must be 2..16384 voxels per side, got {ms:?}"
             )));
@@ -628,10 +636,15 @@ fn displaced_quad(
     let tiles = Vec2::from_array(d.tiles);
     let tile = Vec2::new(q.edge_u.length(), q.edge_v.length()) / tiles.max(Vec2::splat(1e-30));
     let b = DispBuild::new(cx, d, tile, what)?;
+    let (origin, dpdv) = if d.flip_v {
+        (q.origin + q.edge_v, -q.edge_v / tiles.y)
+    } else {
+        (q.origin, q.edge_v / tiles.y)
+    };
     let frame = FaceFrame {
-        origin: q.origin,
+        origin,
         dpdu: q.edge_u / tiles.x,
-        dpdv: q.edge_v / tiles.y,
+        dpdv,
         normal: q.normal,
         depth: b.depth,
     };

@@ -191,6 +191,11 @@ pub struct DisplacementSpec {
     pub iterations: i64,
     pub color_texture: Option<String>,
     pub normal_map: Option<String>,
+    /// Quads only: run `v` from the far edge back to `origin`, so that an
+    /// image (row 0 = `v = 0`, the top row) reads unmirrored on a face whose
+    /// normal points at the viewer.
+    #[serde(default)]
+    pub flip_v: bool,
 }
 
 fn default_height_size() -> [i64; 2] {

@@ -1,0 +1,193 @@
+//! `displace render` end to end: a tiny default render, AOVs, and bad input
+//! giving a clear message, a non-zero exit and no output file.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn displace(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_displace"))
+        .args(args)
+        .current_dir(dir)
+        .env("DISPLACE_CACHE", dir.join("cache"))
+        .output()
+        .expect("run displace")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn default_scene_renders_with_aovs() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = displace(
+        &[
+            "render",
+            "-q",
+            "--size",
+            "24x16",
+            "--spp",
+            "1",
+            "--aov",
+            "depth,normal",
+            "-o",
+            "a.png",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(dir.path().join("a.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (24, 16));
+    for f in ["a.depth.npy", "a.depth.png", "a.normal.npy", "a.normal.png"] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+    // (H, W, C) float32.
+    let npy = std::fs::read(dir.path().join("a.normal.npy")).unwrap();
+    let header = String::from_utf8_lossy(&npy[..128]);
+    assert!(
+        header.contains("'<f4'") && header.contains("(16, 24, 3)"),
+        "{header}"
+    );
+    // The second run reads the bake from the cache.
+    let o = displace(
+        &["render", "-q", "--size", "8x8", "--spp", "1", "-o", "b.exr"],
+        dir.path(),
+    );
+    assert!(
+        o.status.success() && stderr(&o).contains("1 from cache"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(dir.path().join("b.exr").exists());
+}
+
+fn refuses(scene: &str, args: &[&str], expect: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("s.toml"), scene).unwrap();
+    let mut all = vec!["render", "-q", "s.toml", "-o", "out.png"];
+    all.extend_from_slice(args);
+    let o = displace(&all, dir.path());
+    let err = stderr(&o);
+    assert!(!o.status.success(), "accepted: {err}");
+    for e in expect {
+        assert!(err.contains(e), "`{e}` not in: {err}");
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "s.toml" && n != "cache")
+        .collect();
+    assert!(left.is_empty(), "files left behind: {left:?}");
+}
+
+const GOOD: &str = r#"
+[image]
+width = 8
+height = 8
+spp = 1
+[camera]
+position = [0, 1, -3]
+look_at = [0, 0, 0]
+[materials.m]
+type = "lambert"
+color = [0.5, 0.5, 0.5]
+[[lights]]
+type = "point"
+position = [0, 3, -1]
+intensity = [5, 5, 5]
+[[shapes]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1
+material = "m"
+"#;
+
+#[test]
+fn bad_input_is_refused_with_nothing_written() {
+    refuses(&GOOD.replace("spp = 1", "spp = 1 2"), &[], &["s.toml:5:"]);
+    refuses(
+        &GOOD.replace("radius = 1", "radius = 1\nradius2 = 1"),
+        &[],
+        &["s.toml:", "radius2"],
+    );
+    refuses(
+        &GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 1, -3]"),
+        &[],
+        &["looks nowhere"],
+    );
+    refuses(
+        &GOOD.replace("width = 8", "width = 0"),
+        &[],
+        &["image.width"],
+    );
+    refuses(
+        &GOOD.replace("spp = 1", "spp = -3"),
+        &[],
+        &["image.spp", "-3"],
+    );
+    refuses(
+        &GOOD.replace("center = [0, 0, 0]", "center = [0, nan, 0]"),
+        &[],
+        &["center", "finite"],
+    );
+    refuses(
+        &GOOD.replace(
+            "color = [0.5, 0.5, 0.5]",
+            "color = [0.5, 0.5, 0.5]\ntexture = \"missing/wood.png\"",
+        ),
+        &[],
+        &["missing/wood.png"],
+    );
+    refuses(GOOD, &["--size", "0x4"], &["--size"]);
+    refuses(GOOD, &["--crop", "4,4,10,10"], &["crop"]);
+    refuses(GOOD, &["--aov", "depth,colour"], &["colour"]);
+    let dir = tempfile::tempdir().unwrap();
+    let o = displace(&["render", "-q", "-o", "out.jpg"], dir.path());
+    assert!(
+        !o.status.success() && stderr(&o).contains("out.jpg"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("out.jpg").exists());
+    let dir = tempfile::tempdir().unwrap();
+    let o = displace(&["render", "-q", "nope.toml"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("nope.toml"));
+}
+
+/// Ctrl-C stops the render cleanly: non-zero exit, nothing written.
+#[cfg(unix)]
+#[test]
+fn interrupt_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_displace"))
+        .args([
+            "render",
+            "-q",
+            "--size",
+            "1500x1500",
+            "--spp",
+            "64",
+            "-o",
+            "big.png",
+        ])
+        .current_dir(dir.path())
+        .env("DISPLACE_CACHE", dir.path().join("cache"))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "cache")
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
