@@ -464,3 +464,93 @@ fn every_scene_of_the_repository_loads() {
     }
     assert!(n >= 12, "{n} scenes");
 }
+
+fn two_triangles(disp: &str) -> String {
+    let head = studded_scene("sphere", "gen:studded?period=8", 64);
+    let cut = head.find("[[shapes]]").unwrap();
+    let mut s = head[..cut].to_string();
+    // The quad (-1,0,-1) + u (0,0,2) + v (2,0,0) as two triangles with the
+    // quad's texture coordinates.
+    for (verts, uvs) in [
+        (
+            "[[-1, 0, -1], [-1, 0, 1], [1, 0, 1]]",
+            "[[0, 0], [1, 0], [1, 1]]",
+        ),
+        (
+            "[[-1, 0, -1], [1, 0, 1], [1, 0, -1]]",
+            "[[0, 0], [1, 1], [0, 1]]",
+        ),
+    ] {
+        s += &format!("[[shapes]]\ntype = \"triangle\"\nvertices = {verts}\nuvs = {uvs}\nmaterial = \"m\"\n{disp}\n");
+    }
+    s
+}
+
+/// A displaced triangle is the prism over it (seed 002 has only quads):
+/// the quad cut into two displaced triangles renders the same surface,
+/// with the same silhouette.
+#[test]
+fn two_displaced_triangles_equal_the_displaced_quad() {
+    let disp = "[shapes.displacement]\nheight = \"gen:studded?period=8\"\nheight_size = [64, 64]\ndepth = 0.25\nmap_size = [32, 32, 8]\n";
+    let quad = depth_aov(&studded_scene("sphere", "gen:studded?period=8", 64), None);
+    let tris = depth_aov(&two_triangles(disp), None);
+    let mut differ = 0;
+    for (a, b) in quad.iter().zip(&tris) {
+        if a.is_finite() != b.is_finite() || (a.is_finite() && (a - b).abs() > 1e-3) {
+            differ += 1;
+        }
+    }
+    // Pixels whose ray grazes the shared diagonal may land on either prism's wall.
+    assert!(
+        differ * 200 <= quad.len(),
+        "{differ} of {} pixels differ",
+        quad.len()
+    );
+}
+
+/// OBJ meshes go through the BVH; a displaced mesh of the same two
+/// triangles is the displaced quad again.
+#[test]
+fn obj_meshes_load_and_displace() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("q.obj");
+    std::fs::write(
+        &obj,
+        "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+    )
+    .unwrap();
+    let base = studded_scene("sphere", "gen:studded?period=8", 64);
+    let cut = base.find("[[shapes]]").unwrap();
+    let disp = "[shapes.displacement]\nheight = \"gen:studded?period=8\"\nheight_size = [64, 64]\ndepth = 0.25\nmap_size = [32, 32, 8]\n";
+    let text = format!(
+        "{}[[shapes]]\ntype = \"mesh\"\npath = \"q.obj\"\nmaterial = \"m\"\n{disp}",
+        &base[..cut]
+    );
+    std::fs::write(dir.path().join("s.toml"), &text).unwrap();
+    let s = Scene::load(&dir.path().join("s.toml"), &opts()).unwrap();
+    assert_eq!(s.primitive_count(), 2);
+    let r = render(
+        &s,
+        &RenderOptions {
+            aovs: vec![Aov::Depth],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let quad = depth_aov(&base, None);
+    let differ = quad
+        .iter()
+        .zip(&r.aovs[0].data)
+        .filter(|(a, b)| {
+            a.is_finite() != b.is_finite() || (a.is_finite() && (*a - *b).abs() > 1e-3)
+        })
+        .count();
+    assert!(differ * 200 <= quad.len(), "{differ} pixels differ");
+    // A missing mesh names its path.
+    std::fs::write(dir.path().join("t.toml"), text.replace("q.obj", "gone.obj")).unwrap();
+    let e = Scene::load(&dir.path().join("t.toml"), &opts())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("gone.obj"), "{e}");
+}
