@@ -1,0 +1,41 @@
+// Batch ray query: one invocation per map-space ray (issue 4, "A
+// compute-shader path for the march"). Rust mirrors: `RayIn`, `HitOut`.
+
+struct RayIn {
+    origin: vec3f,
+    _pad0: f32,
+    dir: vec3f,
+    _pad1: f32,
+}
+
+struct HitOut {
+    position: vec3f,
+    t: f32,
+    normal: vec3f,
+    kind: u32,
+    uv: vec2f,
+    iterations: u32,
+    flags: u32,
+}
+
+@group(1) @binding(0) var<storage, read> rays: array<RayIn>;
+@group(1) @binding(1) var<storage, read_write> hits: array<HitOut>;
+
+@compute @workgroup_size(64)
+fn trace_main(@builtin(global_invocation_id) gid: vec3u) {
+    let index = gid.x;
+    if (index >= arrayLength(&rays)) {
+        return;
+    }
+    let ray = rays[index];
+    let h = trace_map(ray.origin, ray.dir);
+    let p = ray.origin + ray.dir * h.t;
+    var flags = 0u;
+    if (h.converged) {
+        flags |= FLAG_CONVERGED;
+    }
+    if (cell_cap_reached) {
+        flags |= FLAG_CELL_CAP;
+    }
+    hits[index] = HitOut(p, h.t, h.normal, h.kind, p.xy / params.aspect, h.iterations, flags);
+}

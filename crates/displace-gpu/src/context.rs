@@ -1,0 +1,144 @@
+//! Headless device setup: one instance, adapter, device and queue that every
+//! path of this crate shares. Creating a device costs 55-100 ms on lavapipe
+//! (`shared/WGPU.md`), so callers keep one [`GpuContext`] alive.
+
+use crate::{Error, Result};
+
+/// An open GPU device and what we learnt about it.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    /// Whether the device was opened with timestamp queries (benchmarks).
+    pub timestamps: bool,
+    pub limits: wgpu::Limits,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("info", &self.info)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GpuContext {
+    /// Opens the default adapter without a window. Backends come from
+    /// `WGPU_BACKEND` when set (`vulkan` avoids the GL probe's noise on
+    /// lavapipe machines).
+    pub fn new_headless() -> Result<Self> {
+        pollster::block_on(Self::open())
+    }
+
+    async fn open() -> Result<Self> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| Error::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut required_features = wgpu::Features::empty();
+        if timestamps {
+            required_features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        // Big distance maps need the adapter's real 3D texture and buffer
+        // limits, not WebGPU's portable defaults.
+        let limits = adapter.limits();
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("displace"),
+                required_features,
+                required_limits: limits.clone(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| Error::Device {
+                adapter: info.name.clone(),
+                message: e.to_string(),
+            })?;
+        Ok(Self {
+            device,
+            queue,
+            info,
+            timestamps,
+            limits,
+        })
+    }
+
+    /// One line naming the adapter, for logs and benchmark headers.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            self.info.name,
+            self.info.backend,
+            self.info.device_type,
+            self.info.driver,
+            self.info.driver_info
+        )
+    }
+
+    /// True for software rasterisers (lavapipe): their timings say nothing
+    /// about a GPU.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// Runs `f` inside a validation error scope and turns a captured error
+    /// into [`Error::Gpu`], so shader or binding mistakes surface as errors
+    /// rather than as the default handler's panic.
+    pub fn checked<T>(&self, during: &str, f: impl FnOnce() -> T) -> Result<T> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        match pollster::block_on(scope.pop()) {
+            None => Ok(out),
+            Some(e) => Err(Error::Gpu {
+                during: during.to_string(),
+                message: e.to_string(),
+            }),
+        }
+    }
+
+    /// Blocks until the queue is idle.
+    pub fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu {
+                during: "waiting for the queue".into(),
+                message: e.to_string(),
+            })
+    }
+
+    /// Copies `buffer` (MAP_READ) back to the host.
+    pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let slice = buffer.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .map_err(|e| Error::Gpu {
+                during: "mapping a readback buffer".into(),
+                message: e.to_string(),
+            })?
+            .map_err(|e| Error::Gpu {
+                during: "mapping a readback buffer".into(),
+                message: e.to_string(),
+            })?;
+        let bytes = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Gpu {
+                during: "reading a mapped buffer".into(),
+                message: e.to_string(),
+            })?
+            .to_vec();
+        buffer.unmap();
+        Ok(bytes)
+    }
+}

@@ -1,0 +1,52 @@
+//! The Rust side of `shaders/convention.wgsl`: the codes and tolerances the
+//! shaders use, tied to `displace_core`'s conventions. The test
+//! `convention_constants_match_rust` parses the WGSL file and checks every
+//! constant against these and against the core functions they mirror.
+
+use displace_core::{Address, Method};
+
+pub const TEXEL_CENTRE: f32 = 0.5;
+pub const ADDRESS_CLAMP: u32 = 0;
+pub const ADDRESS_REPEAT: u32 = 1;
+pub const METHOD_SPHERE: u32 = 0;
+pub const METHOD_SPHERE_FIXED: u32 = 1;
+pub const METHOD_EXACT: u32 = 2;
+pub const HIT_NONE: u32 = 0;
+pub const HIT_SURFACE: u32 = 1;
+pub const HIT_WALL: u32 = 2;
+pub const FLAG_CONVERGED: u32 = 1;
+pub const FLAG_CELL_CAP: u32 = 2;
+/// `exact.rs`: a segment starts inside when `z < h - 1e-7`.
+pub const INSIDE_EPS: f32 = 1e-7;
+pub const ROOT_EPS: f32 = 1e-6;
+pub const LINEAR_EPS: f32 = 1e-12;
+pub const BIG: f32 = 1e30;
+
+/// The early-out threshold as a fraction of the smallest voxel side
+/// (`sphere_trace.rs`: `tau = 0.25 * voxel.min_element()`).
+pub const TAU_VOXELS: f32 = 0.25;
+
+/// The exact walk after the early out covers this many times the map's
+/// underestimate bound, plus `tau` (`sphere_trace.rs`).
+pub const BAND_FACTOR: f32 = 1.5;
+
+/// Bits of fixed-point precision assumed for a linear sampler's weights.
+/// Vulkan only promises `subTexelPrecisionBits >= 4`; desktop GPUs and
+/// lavapipe use 8. The filtered path subtracts the resulting worst-case
+/// interpolation error so the decoded distance stays a lower bound.
+pub const FILTER_WEIGHT_BITS: u32 = 8;
+
+pub fn address_code(a: Address) -> u32 {
+    match a {
+        Address::Clamp => ADDRESS_CLAMP,
+        Address::Repeat => ADDRESS_REPEAT,
+    }
+}
+
+pub fn method_code(m: Method) -> u32 {
+    match m {
+        Method::Sphere => METHOD_SPHERE,
+        Method::SphereFixed => METHOD_SPHERE_FIXED,
+        Method::Exact => METHOD_EXACT,
+    }
+}

@@ -1,0 +1,373 @@
+//! A [`DisplacementMap`] on the GPU: the height map (R32Float, read with
+//! `textureLoad` for the exact walk), the distance map in the chosen
+//! [`DistanceTexture`] format, and the constants every trace needs.
+
+use crate::convention::{address_code, method_code, BAND_FACTOR, FILTER_WEIGHT_BITS, TAU_VOXELS};
+use crate::shaders::DistanceTexture;
+use crate::{Error, GpuContext, Result};
+use bytemuck::{Pod, Zeroable};
+use displace_core::distance_map::Format;
+use displace_core::{Address, DisplacementMap, DistanceMap, TraceOptions};
+
+/// Mirror of WGSL `MapParams` (convention.wgsl), 80 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MapParams {
+    pub aspect: [f32; 2],
+    pub tiles: [f32; 2],
+    pub dist_size: [u32; 3],
+    pub address: u32,
+    pub height_size: [u32; 2],
+    pub tau: f32,
+    pub band: f32,
+    pub decode_scale: f32,
+    pub decode_offset: f32,
+    pub max_cells: u32,
+    pub method: u32,
+    pub iterations: u32,
+    pub t_min: f32,
+    pub t_max: f32,
+    pub _pad: u32,
+}
+
+/// The map's textures and bind group (group 0 of every pipeline).
+pub struct GpuMap {
+    pub texture: DistanceTexture,
+    pub layout: wgpu::BindGroupLayout,
+    height_view: wgpu::TextureView,
+    distance_view: wgpu::TextureView,
+    sampler: Option<wgpu::Sampler>,
+    base: MapParams,
+    address: Address,
+}
+
+impl GpuMap {
+    /// Uploads `map`. Filtered formats are rounded down
+    /// ([`DistanceMap::quantized`]) and widened by the worst filter error, so
+    /// the GPU's distances stay conservative.
+    pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
+        let [w, h, d] = map.distance.size();
+        let max3 = ctx.limits.max_texture_dimension_3d as usize;
+        if w.max(h).max(d) > max3 {
+            return Err(Error::Limit {
+                what: "distance map".into(),
+                size: format!("{w}x{h}x{d}"),
+                limit: format!("{max3} texels per side"),
+            });
+        }
+        let (hw, hh) = (map.height.width(), map.height.height());
+        let max2 = ctx.limits.max_texture_dimension_2d as usize;
+        if hw.max(hh) > max2 {
+            return Err(Error::Limit {
+                what: "height map".into(),
+                size: format!("{hw}x{hh}"),
+                limit: format!("{max2} texels per side"),
+            });
+        }
+        let height_tex = upload(
+            ctx,
+            "height",
+            wgpu::TextureDimension::D2,
+            [hw, hh, 1],
+            wgpu::TextureFormat::R32Float,
+            bytemuck::cast_slice(map.height.data()),
+        );
+        let (distance, bytes, format, decode) = encode_distance(&map.distance, texture);
+        let distance_tex = upload(
+            ctx,
+            "distance",
+            wgpu::TextureDimension::D3,
+            [w, h, d],
+            format,
+            &bytes,
+        );
+        let voxel = distance.voxel_size();
+        let tau = TAU_VOXELS * voxel.min_element();
+        let base = MapParams {
+            aspect: map.aspect(),
+            tiles: [1.0, 1.0],
+            dist_size: [w as u32, h as u32, d as u32],
+            address: address_code(map.address()),
+            height_size: [hw as u32, hh as u32],
+            tau,
+            // `data_underestimate`: the bound of the values uploaded, without the
+            // CPU tracer's own 8-bit copy.
+            band: BAND_FACTOR * (distance.data_underestimate() + decode.margin) + tau,
+            decode_scale: decode.scale,
+            decode_offset: decode.offset - decode.margin,
+            ..MapParams::default()
+        };
+        let sampler = texture.filtered().then(|| {
+            let across = match map.address() {
+                Address::Clamp => wgpu::AddressMode::ClampToEdge,
+                Address::Repeat => wgpu::AddressMode::Repeat,
+            };
+            ctx.device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("distance (linear, no mipmaps)"),
+                address_mode_u: across,
+                address_mode_v: across,
+                address_mode_w: wgpu::AddressMode::ClampToEdge,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Nearest,
+                ..Default::default()
+            })
+        });
+        let layout = map_layout(&ctx.device, texture);
+        Ok(Self {
+            texture,
+            layout,
+            height_view: height_tex.create_view(&Default::default()),
+            distance_view: distance_tex.create_view(&Default::default()),
+            sampler,
+            base,
+            address: map.address(),
+        })
+    }
+
+    /// The uniform for one trace configuration. Checks `opts` the way the
+    /// CPU does ([`DisplacementMap::check_trace`]).
+    pub fn params(&self, opts: &TraceOptions) -> Result<MapParams> {
+        if !opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0) {
+            return Err(Error::InvalidOption(format!(
+                "tiles {:?} must be positive",
+                opts.tiles
+            )));
+        }
+        if self.address == Address::Clamp && opts.tiles != [1.0, 1.0] {
+            return Err(Error::InvalidOption(
+                "a clamped map covers exactly one tile; bake with repeat addressing to tile it"
+                    .into(),
+            ));
+        }
+        if opts.t_min.is_nan() || opts.t_max.is_nan() {
+            return Err(Error::InvalidOption(
+                "t_min and t_max must not be NaN".into(),
+            ));
+        }
+        let [hw, hh] = self.base.height_size;
+        // A walk inside the shell crosses at most one cell per texel column
+        // and row of the face, plus the half cells at its borders.
+        let cells =
+            2.0 * (hw as f64 * opts.tiles[0] as f64 + hh as f64 * opts.tiles[1] as f64) + 64.0;
+        Ok(MapParams {
+            tiles: opts.tiles,
+            method: method_code(opts.method),
+            iterations: opts.iterations,
+            t_min: opts
+                .t_min
+                .clamp(-crate::convention::BIG, crate::convention::BIG),
+            t_max: opts
+                .t_max
+                .clamp(-crate::convention::BIG, crate::convention::BIG),
+            max_cells: cells.min(u32::MAX as f64) as u32,
+            ..self.base
+        })
+    }
+
+    /// Bind group 0 with `params` as its uniform buffer.
+    pub fn bind_group(&self, ctx: &GpuContext, params: &wgpu::Buffer) -> wgpu::BindGroup {
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&self.height_view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&self.distance_view),
+            },
+        ];
+        if let Some(s) = &self.sampler {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::Sampler(s),
+            });
+        }
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("map"),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
+struct Decode {
+    scale: f32,
+    offset: f32,
+    /// Worst overestimate a fixed-point filter can add.
+    margin: f32,
+}
+
+/// The values the GPU will see (rounded down to the format), the texel
+/// bytes, the texture format and the decoding.
+fn encode_distance(
+    map: &DistanceMap,
+    texture: DistanceTexture,
+) -> (DistanceMap, Vec<u8>, wgpu::TextureFormat, Decode) {
+    let exact = Decode {
+        scale: 1.0,
+        offset: 0.0,
+        margin: 0.0,
+    };
+    match texture {
+        DistanceTexture::R32Load => (
+            map.clone(),
+            bytemuck::cast_slice(map.data()).to_vec(),
+            wgpu::TextureFormat::R32Float,
+            exact,
+        ),
+        DistanceTexture::R16Linear => {
+            let (q, _) = map.quantized(Format::R16F);
+            let bytes: Vec<u8> = q
+                .data()
+                .iter()
+                .flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes())
+                .collect();
+            let margin = filter_margin(&q, 0.0);
+            (
+                q,
+                bytes,
+                wgpu::TextureFormat::R16Float,
+                Decode { margin, ..exact },
+            )
+        }
+        DistanceTexture::R8Linear => {
+            let (q, range) = map.quantized(Format::R8);
+            let r = range.expect("R8 quantisation returns its range");
+            let bytes: Vec<u8> = map.data().iter().map(|&v| r.encode(v)).collect();
+            // 8-bit filter units (llvmpipe's among them) may round the
+            // filtered result to a code as well: one more quantum.
+            let margin = filter_margin(&q, r.quantum()) + r.quantum();
+            let decode = Decode {
+                scale: r.max - r.min,
+                offset: r.min,
+                margin,
+            };
+            (q, bytes, wgpu::TextureFormat::R8Unorm, decode)
+        }
+    }
+}
+
+/// Bound on how much a linear filter with [`FILTER_WEIGHT_BITS`]-bit weights
+/// can overshoot the exact trilinear value: each of the three lerps may be
+/// off by `2^-bits` of the difference between neighbouring texels, which is
+/// at most the largest such difference in the map.
+fn filter_margin(map: &DistanceMap, quantum: f32) -> f32 {
+    let [w, h, d] = map.size();
+    let mut diff = [0.0f32; 3];
+    for k in 0..d {
+        for j in 0..h {
+            for i in 0..w {
+                let v = map.voxel(i, j, k);
+                let n = [
+                    map.voxel(map.address().texel_index(i as i64 + 1, w), j, k),
+                    map.voxel(i, map.address().texel_index(j as i64 + 1, h), k),
+                    map.voxel(i, j, (k + 1).min(d - 1)),
+                ];
+                for (m, nv) in diff.iter_mut().zip(n) {
+                    *m = m.max((nv - v).abs());
+                }
+            }
+        }
+    }
+    let weight_error = (-(FILTER_WEIGHT_BITS as f32)).exp2();
+    weight_error * (diff.iter().sum::<f32>() + 3.0 * quantum)
+}
+
+fn upload(
+    ctx: &GpuContext,
+    label: &str,
+    dimension: wgpu::TextureDimension,
+    size: [usize; 3],
+    format: wgpu::TextureFormat,
+    bytes: &[u8],
+) -> wgpu::Texture {
+    let extent = wgpu::Extent3d {
+        width: size[0] as u32,
+        height: size[1] as u32,
+        depth_or_array_layers: size[2] as u32,
+    };
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: extent,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let bpp = format.block_copy_size(None).expect("uncompressed format");
+    ctx.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(size[0] as u32 * bpp),
+            rows_per_image: Some(size[1] as u32),
+        },
+        extent,
+    );
+    texture
+}
+
+/// Group 0: params, height, distance (and its sampler when filtered), seen
+/// by every stage that traces.
+fn map_layout(device: &wgpu::Device, texture: DistanceTexture) -> wgpu::BindGroupLayout {
+    let vis = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
+    let mut entries = vec![
+        wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: vis | wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<MapParams>() as u64),
+            },
+            count: None,
+        },
+        wgpu::BindGroupLayoutEntry {
+            binding: 1,
+            visibility: vis,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        },
+        wgpu::BindGroupLayoutEntry {
+            binding: 2,
+            visibility: vis,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float {
+                    filterable: texture.filtered(),
+                },
+                view_dimension: wgpu::TextureViewDimension::D3,
+                multisampled: false,
+            },
+            count: None,
+        },
+    ];
+    if texture.filtered() {
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 3,
+            visibility: vis,
+            ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            count: None,
+        });
+    }
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("map"),
+        entries: &entries,
+    })
+}

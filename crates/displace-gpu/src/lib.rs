@@ -1,0 +1,25 @@
+//! # displace-gpu
+//!
+//! Distance mapping on the GPU with `wgpu` and WGSL (Donnelly, GPU Gems 2
+//! ch. 8): a headless device ([`GpuContext`]), the distance and height maps
+//! as textures ([`GpuMap`]), and a compute-shader batch ray query
+//! ([`trace_rays`]) that runs the same map-space trace as the CPU
+//! (`displace_core::sphere_trace`), so either backend answers the same
+//! question with the same conventions (`shaders/convention.wgsl`).
+
+pub mod context;
+pub mod convention;
+pub mod error;
+pub mod gpu_map;
+pub mod shaders;
+pub mod test_support;
+pub mod trace;
+
+pub use context::GpuContext;
+pub use error::Error;
+pub use gpu_map::{GpuMap, MapParams};
+pub use shaders::DistanceTexture;
+pub use trace::{trace_rays, GpuHit, GpuTraceOptions, RayTracer};
+
+/// Result type of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

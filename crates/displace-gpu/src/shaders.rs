@@ -1,0 +1,82 @@
+//! WGSL sources, assembled from the files under `shaders/` (WGSL has no
+//! include): the conventions first, then one distance-lookup flavour, then
+//! the surface walk and trace, then the entry points.
+
+pub const CONVENTION: &str = include_str!("../shaders/convention.wgsl");
+pub const DISTANCE_LOAD: &str = include_str!("../shaders/distance_load.wgsl");
+pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.wgsl");
+pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
+pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+
+/// How the shaders read the distance map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DistanceTexture {
+    /// R32Float, interpolated by hand from `textureLoad` with the CPU's
+    /// texel centres, addressing and order of operations: the stored values
+    /// at full precision, on any GPU (R32Float need not be filterable).
+    #[default]
+    R32Load,
+    /// R16Float rounded down, through a linear sampler (Donnelly's way).
+    R16Linear,
+    /// R8Unorm rounded down over the map's range, through a linear sampler:
+    /// the 8-bit maps of GPU Gems 2 section 8.6.
+    R8Linear,
+}
+
+impl DistanceTexture {
+    pub const ALL: [DistanceTexture; 3] = [Self::R32Load, Self::R16Linear, Self::R8Linear];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::R32Load => "r32-load",
+            Self::R16Linear => "r16-linear",
+            Self::R8Linear => "r8-linear",
+        }
+    }
+
+    pub fn filtered(self) -> bool {
+        self != Self::R32Load
+    }
+}
+
+impl std::str::FromStr for DistanceTexture {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|d| d.name() == s)
+            .ok_or_else(|| {
+                crate::Error::InvalidOption(format!(
+                    "unknown distance texture `{s}` (expected r32-load, r16-linear or r8-linear)"
+                ))
+            })
+    }
+}
+
+/// Conventions, distance lookup and the map-space trace: the part every
+/// entry point shares.
+pub fn map_trace_source(texture: DistanceTexture) -> String {
+    let distance = if texture.filtered() {
+        DISTANCE_FILTERED
+    } else {
+        DISTANCE_LOAD
+    };
+    [CONVENTION, distance, SURFACE].join("\n")
+}
+
+/// The batch ray query kernel.
+pub fn compute_trace_source(texture: DistanceTexture) -> String {
+    [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
+}
+
+/// Every complete shader module this crate builds, by name, for validation.
+pub fn all_modules() -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for t in DistanceTexture::ALL {
+        out.push((
+            format!("trace-compute/{}", t.name()),
+            compute_trace_source(t),
+        ));
+    }
+    out
+}

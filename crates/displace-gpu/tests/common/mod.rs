@@ -1,0 +1,125 @@
+//! Seeded random height maps, bakes and rays shared by the GPU tests.
+
+#![allow(dead_code)]
+
+use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightMap, MapRay};
+use glam::Vec3;
+
+/// SplitMix64: a small seeded generator, so every run sees the same cases.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f32()
+    }
+    pub fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+            );
+            let l = v.length();
+            if l > 0.05 && l <= 1.0 {
+                return v / l;
+            }
+        }
+    }
+}
+
+/// A random height map: white noise, smoothed a random number of times, so
+/// both jagged and gentle surfaces are covered.
+pub fn random_height(rng: &mut Rng, address: Address) -> HeightMap {
+    let w = 4 + (rng.next_u64() % 29) as usize;
+    let h = 4 + (rng.next_u64() % 29) as usize;
+    let mut data: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
+    for _ in 0..rng.next_u64() % 3 {
+        let prev = data.clone();
+        for j in 0..h {
+            for i in 0..w {
+                let at = |di: i64, dj: i64| {
+                    let ii = address.texel_index(i as i64 + di, w);
+                    let jj = address.texel_index(j as i64 + dj, h);
+                    prev[jj * w + ii]
+                };
+                data[j * w + i] =
+                    (at(0, 0) * 4.0 + at(1, 0) + at(-1, 0) + at(0, 1) + at(0, -1)) / 8.0;
+            }
+        }
+    }
+    HeightMap::new(w, h, data, address).unwrap()
+}
+
+pub fn random_map(rng: &mut Rng, address: Address) -> DisplacementMap {
+    let height = random_height(rng, address);
+    let size = [
+        4 + (rng.next_u64() % 29) as usize,
+        4 + (rng.next_u64() % 29) as usize,
+        2 + (rng.next_u64() % 11) as usize,
+    ];
+    let extent = Extent::new(
+        rng.range(0.5, 2.0),
+        rng.range(0.5, 2.0),
+        rng.range(0.05, 0.6),
+    )
+    .unwrap();
+    bake(
+        &height,
+        &BakeOptions {
+            size,
+            extent,
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap()
+}
+
+/// Rays from around and above the shell `[0, hi.x] x [0, hi.y] x [0, 1]`,
+/// aimed at a random point of it, so most of them cross it: from above
+/// (surface hits), from the sides (walls and grazing hits) and a few from
+/// below.
+pub fn random_rays(rng: &mut Rng, hi: Vec3, n: usize) -> Vec<MapRay> {
+    (0..n)
+        .map(|_| {
+            let target = Vec3::new(
+                rng.range(0.0, hi.x),
+                rng.range(0.0, hi.y),
+                rng.range(0.0, 1.0),
+            );
+            let spread = hi.max_element().max(1.0) * 1.5;
+            let origin = match rng.next_u64() % 10 {
+                0 => target + rng.unit() * spread,
+                1..=2 => Vec3::new(
+                    rng.range(-0.5, hi.x + 0.5),
+                    rng.range(-0.5, hi.y + 0.5),
+                    rng.range(0.0, 1.2),
+                ),
+                _ => Vec3::new(
+                    rng.range(-0.5, hi.x + 0.5),
+                    rng.range(-0.5, hi.y + 0.5),
+                    rng.range(1.0, 3.0),
+                ),
+            };
+            let dir = target - origin;
+            if dir.length() < 1e-3 {
+                MapRay::new(origin, Vec3::new(0.0, 0.0, -1.0))
+            } else {
+                MapRay::new(origin, dir)
+            }
+        })
+        .collect()
+}
