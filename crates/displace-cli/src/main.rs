@@ -2,6 +2,9 @@
 //! measure it all. Each subcommand lives in its own module; errors are
 //! reported with context and a non-zero exit code.
 
+mod bench;
+mod bench_render;
+mod export_mesh;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -17,12 +20,18 @@ struct Cli {
 enum Command {
     /// Ray trace a scene (or the built-in studded Cornell box) to PNG/EXR.
     Render(render::RenderArgs),
+    /// Measure: `bench render` (rays per second on displaced surfaces).
+    Bench(bench::BenchArgs),
+    /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
+    ExportMesh(export_mesh::ExportMeshArgs),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::ExportMesh(args) => export_mesh::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -36,6 +36,57 @@ pub fn radiance(
     }
 }
 
+/// Surfaces are two-sided: the geometric and shading normals turned to the
+/// side `ray` arrived on, and the point secondary rays start from, just off
+/// the surface on that side.
+pub fn facing(scene: &Scene, ray: &Ray, hit: &Interaction) -> (Vec3, Vec3, Vec3) {
+    let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
+    if ng.dot(ray.dir) > 0.0 {
+        ng = -ng;
+        ns = -ns;
+    }
+    (ng, ns, hit.position + ng * scene.epsilon)
+}
+
+/// A shadow ray towards a light sample, as [`radiance`] casts it.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowQuery {
+    pub ray: Ray,
+    /// Occluders count only before this distance (short of the light).
+    pub t_max: f32,
+    /// Unit direction from the surface point to the light sample.
+    pub wi: Vec3,
+    /// `ns . wi`, the receiver's cosine.
+    pub cos: f32,
+}
+
+/// The shadow ray from a hit at `position` (offset to `p` off the surface,
+/// normals `ng`, `ns` already facing the viewer) to light sample `target`,
+/// or `None` when the light is behind the surface and no ray is cast. The
+/// geometry is taken from the surface point itself; only the ray starts off
+/// the surface. Shared with [`crate::probe`], which benchmarks these rays.
+pub fn shadow_query(
+    scene: &Scene,
+    position: Vec3,
+    p: Vec3,
+    ng: Vec3,
+    ns: Vec3,
+    target: Vec3,
+) -> Option<ShadowQuery> {
+    let wi = (target - position).normalize();
+    let cos = ns.dot(wi);
+    if cos <= 0.0 || ng.dot(wi) <= 0.0 {
+        return None;
+    }
+    let dist = (target - p).length();
+    Some(ShadowQuery {
+        ray: Ray::new(p, target - p),
+        t_max: dist * (1.0 - 1e-4) - scene.epsilon,
+        wi,
+        cos,
+    })
+}
+
 fn shade(
     scene: &Scene,
     ray: &Ray,
@@ -54,13 +105,7 @@ fn shade(
     }
     let mat = &scene.materials[hit.material as usize];
     let wo = -ray.dir;
-    // Surfaces are two-sided: shade the side the ray arrived on.
-    let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
-    if ng.dot(wo) < 0.0 {
-        ng = -ng;
-        ns = -ns;
-    }
-    let p = hit.position + ng * scene.epsilon;
+    let (ng, ns, p) = facing(scene, ray, hit);
     let albedo = mat.albedo(hit.uv, hit.tint);
     if albedo != Vec3::ZERO || mat.specular != Vec3::ZERO {
         for light in &scene.lights {
@@ -71,22 +116,16 @@ fn shade(
                 None => (0, n),
             };
             for i in 0..n {
-                // Geometry from the surface point itself; only the shadow
-                // ray starts off the surface.
                 let Some(s) = light.sample(hit.position, first + i, strata, rng) else {
                     continue;
                 };
-                let wi = (s.point - hit.position).normalize();
-                let cos = ns.dot(wi);
-                if cos <= 0.0 || ng.dot(wi) <= 0.0 {
+                let Some(q) = shadow_query(scene, hit.position, p, ng, ns, s.point) else {
+                    continue;
+                };
+                if scene.occluded(&q.ray, 0.0, q.t_max) {
                     continue;
                 }
-                let dist = (s.point - p).length();
-                let shadow = Ray::new(p, s.point - p);
-                if scene.occluded(&shadow, 0.0, dist * (1.0 - 1e-4) - scene.epsilon) {
-                    continue;
-                }
-                sum += mat.brdf(albedo, ns, wo, wi) * s.weight * cos;
+                sum += mat.brdf(albedo, ns, wo, q.wi) * s.weight * q.cos;
             }
             l += sum / n as f32;
         }

@@ -11,7 +11,8 @@
 //! Modules, one job each (after pbrt-v4's layout): [`scene`] (TOML, checks,
 //! construction), [`camera`], [`shapes`], [`displaced`], [`bvh`],
 //! [`material`], [`light`], [`sampler`], [`integrator`], [`render`] (tiles,
-//! threads, crops, AOVs), [`output`] (PNG/EXR/npy, atomic), [`bake_cache`].
+//! threads, crops, AOVs), [`probe`] (ray sets for benchmarks), [`output`]
+//! (PNG/EXR/npy, atomic), [`bake_cache`].
 //!
 //! ```no_run
 //! use displace_render::{render, RenderOptions, Scene, SceneOptions};
@@ -32,6 +33,7 @@ pub mod light;
 pub mod material;
 pub mod mesh;
 pub mod output;
+pub mod probe;
 pub mod render;
 pub mod sampler;
 pub mod scene;

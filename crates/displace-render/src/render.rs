@@ -4,6 +4,7 @@
 //! cancellation flag for the CLI.
 
 use crate::error::{Error, Result};
+use crate::geometry::Ray;
 use crate::integrator::{radiance, PixelSample};
 use crate::sampler::{jittered, Rng};
 use crate::scene::Scene;
@@ -224,18 +225,24 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
     })
 }
 
+/// The camera ray of sample `s` of pixel `(x, y)` and the generator the
+/// rest of that sample's path draws from; [`crate::probe`] replays it.
+pub(crate) fn camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, Rng) {
+    let mut rng = Rng::for_sample(scene.seed, x, y, s);
+    let j = jittered(s, scene.spp, &mut rng);
+    let film = Vec2::new(
+        (x as f32 + j.x) / scene.width as f32,
+        (y as f32 + j.y) / scene.height as f32,
+    );
+    let lens = rng.next_2d();
+    (scene.camera.ray(film, lens), rng)
+}
+
 /// The mean of the pixel's stratified samples.
 fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for s in 0..scene.spp {
-        let mut rng = Rng::for_sample(scene.seed, x, y, s);
-        let j = jittered(s, scene.spp, &mut rng);
-        let film = Vec2::new(
-            (x as f32 + j.x) / scene.width as f32,
-            (y as f32 + j.y) / scene.height as f32,
-        );
-        let lens = rng.next_2d();
-        let ray = scene.camera.ray(film, lens);
+        let (ray, mut rng) = camera_sample(scene, x, y, s);
         sum += radiance(
             scene,
             &ray,

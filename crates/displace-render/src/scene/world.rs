@@ -87,6 +87,18 @@ impl Scene {
 
     /// Nearest hit with `t` in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Interaction> {
+        self.intersect_primitive(ray, t_min, t_max)
+            .map(|(_, hit)| hit)
+    }
+
+    /// Nearest hit and the index of the primitive it lies on (benchmarks
+    /// sort rays by what they hit, see [`Scene::is_displaced`]).
+    pub fn intersect_primitive(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(u32, Interaction)> {
         let mut best: Option<(u32, f32, Local)> = None;
         self.bvh.traverse(ray, t_min, t_max, false, |i, t_max| {
             let (t, local) = self.hit_prim(i, ray, t_min, t_max)?;
@@ -94,7 +106,15 @@ impl Scene {
             Some(t)
         });
         let (i, t, local) = best?;
-        Some(self.resolve(i, ray, t, local))
+        Some((i, self.resolve(i, ray, t, local)))
+    }
+
+    /// Whether primitive `i` is a displaced face.
+    pub fn is_displaced(&self, i: u32) -> bool {
+        matches!(
+            self.prims.get(i as usize).map(|p| &p.shape),
+            Some(Shape::Displaced(_))
+        )
     }
 
     /// Whether anything lies on the ray within `[t_min, t_max]`.

@@ -1,0 +1,300 @@
+//! `displace export-mesh`: the displaced height field as a triangle grid, so
+//! that triangle ray tracers (Mitsuba 3, Embree) can render the surface we
+//! sphere trace (issue 3, "Benchmarks").
+//!
+//! **Which grid.** Vertices sit on the texel-centre grid of the height map
+//! refined `--scale` times (`(i + 0.5) / n`, DESIGN.md "Texel centres"),
+//! plus a row and a column at each border (`u, v = 0` and `1`), each at the
+//! height of our continuous bilinear surface there. At scale 1 every vertex
+//! is a texel value, so the mesh is the height map at its own resolution;
+//! each quad of it is split into two triangles, the only difference from the
+//! bilinear patch we trace. Higher scales sample the bilinear surface more
+//! finely and converge to it. Normals are our shading normals (the
+//! central-difference normal map, sampled bilinearly), so shading matches.
+//!
+//! **Frame.** That of `displace trace`: `x = u SX`, `y = v SY`, `z = h SZ`,
+//! with `(u, v)` the texture coordinate written as `vt`. A quad with
+//! `origin = [0,0,0]`, `edge_u = [SX,0,0]`, `edge_v = [0,SY,0]` and
+//! `depth = SZ` in a scene file is the same surface.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use displace_core::convention::parse_size;
+use displace_core::io::atomic::write_atomic;
+use displace_core::io::height::{self, HeightOptions};
+use displace_core::{Address, Extent, HeightMap, NormalMap};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Most vertices written (an OBJ of that many is several GB already).
+const MAX_VERTICES: u64 = 1 << 26;
+
+#[derive(Args, Debug)]
+pub struct ExportMeshArgs {
+    /// Height map: gen:NAME[?...], a PNG or an EXR file
+    #[arg(value_name = "HEIGHT")]
+    pub height: String,
+    /// Texels of a generated height map (`gen:...`), WxH
+    #[arg(long, value_name = "WxH", default_value = "256x256")]
+    pub height_size: String,
+    /// Texture addressing of the height map (clamp or repeat)
+    #[arg(long, default_value = "clamp", value_parser = parse_address)]
+    pub address: Address,
+    /// Physical width, height and displacement depth of the face
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent)]
+    pub extent: Extent,
+    /// Vertices per height texel along each axis (1: the height map's own
+    /// resolution; 4: sixteen times the triangles, sampled bilinearly)
+    #[arg(long, default_value_t = 1)]
+    pub scale: u32,
+    /// Output mesh: .obj (text) or .ply (binary little-endian)
+    #[arg(short, long, value_name = "MESH")]
+    pub output: PathBuf,
+}
+
+fn parse_address(s: &str) -> Result<Address, String> {
+    s.parse().map_err(|e: displace_core::Error| e.to_string())
+}
+
+/// `SX,SY,SZ`: three positive finite numbers, as `Extent::new` checks them.
+fn parse_extent(s: &str) -> Result<Extent, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse()
+                .map_err(|_| format!("`{s}`: `{p}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] => Extent::new(x, y, z).map_err(|e| e.to_string()),
+        _ => Err(format!("`{s}`: expected three numbers SX,SY,SZ")),
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum MeshFile {
+    Obj,
+    Ply,
+}
+
+/// The grid's vertex coordinates along one axis of `n` height texels.
+fn axis(n: usize, scale: usize) -> Vec<f32> {
+    let m = n * scale;
+    std::iter::once(0.0)
+        .chain((0..m).map(|i| (i as f32 + 0.5) / m as f32))
+        .chain(std::iter::once(1.0))
+        .collect()
+}
+
+/// A vertex grid `us x vs` over the face, row-major in `v`.
+struct Grid {
+    us: Vec<f32>,
+    vs: Vec<f32>,
+}
+
+impl Grid {
+    fn vertices(&self) -> usize {
+        self.us.len() * self.vs.len()
+    }
+    fn triangles(&self) -> usize {
+        2 * (self.us.len() - 1) * (self.vs.len() - 1)
+    }
+    /// Every vertex as (position, normal, uv), row by row.
+    fn each_vertex<'a>(
+        &'a self,
+        height: &'a HeightMap,
+        normals: &'a NormalMap,
+        extent: Extent,
+    ) -> impl Iterator<Item = ([f32; 3], [f32; 3], [f32; 2])> + 'a {
+        self.vs.iter().flat_map(move |&v| {
+            self.us.iter().map(move |&u| {
+                let h = height.sample(u, v);
+                let n = normals.sample(u, v);
+                (
+                    [u * extent.sx, v * extent.sy, h * extent.sz],
+                    n.to_array(),
+                    [u, v],
+                )
+            })
+        })
+    }
+    /// Two counter-clockwise (seen from +z) triangles per grid cell,
+    /// 0-based vertex indices.
+    fn each_triangle(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        let nu = self.us.len() as u32;
+        (0..self.vs.len() as u32 - 1).flat_map(move |j| {
+            (0..nu - 1).flat_map(move |i| {
+                let a = j * nu + i;
+                let (b, c, d) = (a + 1, a + nu, a + nu + 1);
+                [[a, b, d], [a, d, c]]
+            })
+        })
+    }
+}
+
+pub fn run(args: ExportMeshArgs) -> Result<()> {
+    let kind = match args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("obj") => MeshFile::Obj,
+        Some("ply") => MeshFile::Ply,
+        _ => bail!(
+            "output {}: write a .obj or a .ply mesh",
+            args.output.display()
+        ),
+    };
+    if let Some(dir) = args.output.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!(
+                "output {}: directory {} does not exist",
+                args.output.display(),
+                dir.display()
+            );
+        }
+    }
+    if args.scale == 0 {
+        bail!("--scale must be at least 1");
+    }
+    let size = parse_size::<2>(&args.height_size)
+        .and_then(|[w, h]| HeightMap::check_size(w, h).map(|()| [w, h]))
+        .with_context(|| format!("--height-size {}", args.height_size))?;
+    let opts = HeightOptions {
+        channel: None,
+        size,
+        address: args.address,
+    };
+    let height = height::load(&args.height, &opts)
+        .with_context(|| format!("loading height map `{}`", args.height))?;
+    let scale = args.scale as u64;
+    let count = (height.width() as u64 * scale + 2) * (height.height() as u64 * scale + 2);
+    if count > MAX_VERTICES {
+        bail!(
+            "{}x{} texels at --scale {} is {count} vertices; at most {MAX_VERTICES} are written",
+            height.width(),
+            height.height(),
+            args.scale
+        );
+    }
+    let grid = Grid {
+        us: axis(height.width(), args.scale as usize),
+        vs: axis(height.height(), args.scale as usize),
+    };
+    let normals = NormalMap::from_height(&height, args.extent);
+    let write = |w: &mut dyn Write| match kind {
+        MeshFile::Obj => write_obj(w, &grid, &height, &normals, args.extent),
+        MeshFile::Ply => write_ply(w, &grid, &height, &normals, args.extent),
+    };
+    write_atomic(&args.output, write)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "{} ({}x{} texels) at scale {}: {} vertices, {} triangles -> {}",
+        args.height,
+        height.width(),
+        height.height(),
+        args.scale,
+        grid.vertices(),
+        grid.triangles(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn write_obj(
+    w: &mut dyn Write,
+    g: &Grid,
+    h: &HeightMap,
+    n: &NormalMap,
+    e: Extent,
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "# displace export-mesh: {} vertices, {} triangles",
+        g.vertices(),
+        g.triangles()
+    )?;
+    // Three passes rather than a copy of every vertex in memory.
+    for (p, _, _) in g.each_vertex(h, n, e) {
+        writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+    }
+    for (_, _, t) in g.each_vertex(h, n, e) {
+        writeln!(w, "vt {} {}", t[0], t[1])?;
+    }
+    for (_, nn, _) in g.each_vertex(h, n, e) {
+        writeln!(w, "vn {} {} {}", nn[0], nn[1], nn[2])?;
+    }
+    for [a, b, c] in g.each_triangle() {
+        let (a, b, c) = (a + 1, b + 1, c + 1);
+        writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
+    }
+    Ok(())
+}
+
+fn write_ply(
+    w: &mut dyn Write,
+    g: &Grid,
+    h: &HeightMap,
+    n: &NormalMap,
+    e: Extent,
+) -> std::io::Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment displace export-mesh\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         property float u\nproperty float v\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        g.vertices(),
+        g.triangles()
+    )?;
+    for (p, nn, t) in g.each_vertex(h, n, e) {
+        for c in p.into_iter().chain(nn).chain(t) {
+            w.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for tri in g.each_triangle() {
+        w.write_all(&[3])?;
+        for i in tri {
+            w.write_all(&(i as i32).to_le_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use displace_core::Address;
+
+    /// Scale 1 puts a vertex on every texel centre with the texel's value,
+    /// and the border rows repeat the clamped edge values.
+    #[test]
+    fn scale_one_vertices_are_the_texels() {
+        let data: Vec<f32> = (0..6).map(|k| k as f32 / 8.0).collect();
+        let h = HeightMap::new(3, 2, data.clone(), Address::Clamp).unwrap();
+        let e = Extent::new(2.0, 1.0, 0.5).unwrap();
+        let n = NormalMap::from_height(&h, e);
+        let g = Grid {
+            us: axis(3, 1),
+            vs: axis(2, 1),
+        };
+        assert_eq!((g.vertices(), g.triangles()), (5 * 4, 2 * 4 * 3));
+        let verts: Vec<_> = g.each_vertex(&h, &n, e).collect();
+        for j in 0..2 {
+            for i in 0..3 {
+                let (p, _, uv) = verts[(j + 1) * 5 + i + 1];
+                assert_eq!(uv, [(i as f32 + 0.5) / 3.0, (j as f32 + 0.5) / 2.0]);
+                assert!((p[2] - data[j * 3 + i] * 0.5).abs() < 1e-6);
+            }
+        }
+        assert_eq!(verts[0].0[2], verts[6].0[2]);
+        assert!(g
+            .each_triangle()
+            .flatten()
+            .all(|i| (i as usize) < g.vertices()));
+    }
+}
