@@ -11,6 +11,7 @@ pub mod context;
 pub mod convention;
 pub mod error;
 pub mod gpu_map;
+pub mod raster;
 pub mod shaders;
 pub mod test_support;
 pub mod trace;
@@ -18,6 +19,7 @@ pub mod trace;
 pub use context::GpuContext;
 pub use error::Error;
 pub use gpu_map::{GpuMap, MapParams};
+pub use raster::{Image, PlaneScene, Renderer, Shadows};
 pub use shaders::DistanceTexture;
 pub use trace::{trace_rays, GpuHit, GpuTraceOptions, RayTracer};
 

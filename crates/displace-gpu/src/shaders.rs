@@ -7,6 +7,7 @@ pub const DISTANCE_LOAD: &str = include_str!("../shaders/distance_load.wgsl");
 pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.wgsl");
 pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 
 /// How the shaders read the distance map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -67,6 +68,12 @@ pub fn map_trace_source(texture: DistanceTexture) -> String {
 /// The batch ray query kernel.
 pub fn compute_trace_source(texture: DistanceTexture) -> String {
     [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
+}
+
+/// Donnelly's vertex and fragment stages (fixed-step, early-out and
+/// shadowing variants are uniforms of one module).
+pub fn raster_source(texture: DistanceTexture) -> String {
+    [map_trace_source(texture).as_str(), RASTER].join("\n")
 }
 
 /// Every complete shader module this crate builds, by name, for validation.

@@ -1,0 +1,675 @@
+//! The raster path: one displaced planar face drawn as its shell box with
+//! Donnelly's vertex and fragment stages (`shaders/raster.wgsl`), rendered
+//! offscreen, with a UV AOV (uv, hit kind, t) beside the colour so renders
+//! can be checked against the CPU trace pixel by pixel.
+
+use crate::gpu_map::{GpuMap, MapParams};
+use crate::shaders::{raster_source, DistanceTexture};
+use crate::{Error, GpuContext, Result};
+use bytemuck::{Pod, Zeroable};
+use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
+use glam::{Mat4, Vec3};
+use wgpu::util::DeviceExt;
+
+/// Largest image edge accepted before anything is allocated.
+pub const MAX_IMAGE_EDGE: u32 = 16384;
+
+/// Self-shadowing variant (a second march towards the light).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shadows {
+    None,
+    #[default]
+    Hard,
+    /// Hard occlusion plus the distance field's penumbra estimate.
+    Soft,
+}
+
+impl std::str::FromStr for Shadows {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "none" => Ok(Self::None),
+            "hard" => Ok(Self::Hard),
+            "soft" => Ok(Self::Soft),
+            o => Err(Error::InvalidOption(format!(
+                "unknown shadows `{o}` (expected none, hard or soft)"
+            ))),
+        }
+    }
+}
+
+/// A displaced planar face, a pinhole camera and a point light: the built-in
+/// scene of `displace gpu-render`. The face spans `origin + [0,1] t + [0,1]
+/// b` with its shell `depth` high along `normal`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlaneScene {
+    pub size: [u32; 2],
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    pub fov_y_degrees: f32,
+    pub light: Vec3,
+    pub light_intensity: f32,
+    pub origin: Vec3,
+    pub tangent: Vec3,
+    pub bitangent: Vec3,
+    pub depth: f32,
+    pub method: Method,
+    pub iterations: u32,
+    pub shadows: Shadows,
+    pub penumbra_k: f32,
+    pub ambient: f32,
+    pub specular: f32,
+    pub shininess: f32,
+}
+
+impl PlaneScene {
+    /// The face of `map`'s extent at the origin in the xy plane (z up),
+    /// seen obliquely, lit from above one corner.
+    pub fn for_map(map: &DisplacementMap, size: [u32; 2]) -> Self {
+        let e = map.extent;
+        let centre = Vec3::new(e.sx * 0.5, e.sy * 0.5, 0.0);
+        let reach = e.sx.max(e.sy);
+        Self {
+            size,
+            eye: centre + Vec3::new(-0.35, -1.0, 0.8) * reach,
+            target: centre,
+            up: Vec3::Z,
+            fov_y_degrees: 45.0,
+            light: centre + Vec3::new(-1.0, 0.4, 1.2) * reach,
+            light_intensity: 1.0,
+            origin: Vec3::ZERO,
+            tangent: Vec3::new(e.sx, 0.0, 0.0),
+            bitangent: Vec3::new(0.0, e.sy, 0.0),
+            depth: e.sz,
+            method: Method::Sphere,
+            iterations: 64,
+            shadows: Shadows::Hard,
+            penumbra_k: 8.0,
+            ambient: 0.15,
+            specular: 0.25,
+            shininess: 32.0,
+        }
+    }
+
+    pub fn normal(&self) -> Vec3 {
+        self.tangent.cross(self.bitangent).normalize()
+    }
+
+    pub fn view_proj(&self) -> Mat4 {
+        let aspect = self.size[0] as f32 / self.size[1] as f32;
+        let reach =
+            (self.eye - self.target).length() + self.tangent.length() + self.bitangent.length();
+        Mat4::perspective_rh(
+            self.fov_y_degrees.to_radians(),
+            aspect,
+            reach * 1e-3,
+            reach * 4.0,
+        ) * Mat4::look_at_rh(self.eye, self.target, self.up)
+    }
+
+    /// The camera ray through the centre of pixel `(x, y)` in map space
+    /// (depth units), as the rasteriser samples it.
+    pub fn pixel_ray(&self, map: &DisplacementMap, x: u32, y: u32) -> MapRay {
+        let inv = self.view_proj().inverse();
+        let ndc_x = (x as f32 + 0.5) / self.size[0] as f32 * 2.0 - 1.0;
+        let ndc_y = 1.0 - (y as f32 + 0.5) / self.size[1] as f32 * 2.0;
+        let far = inv.project_point3(Vec3::new(ndc_x, ndc_y, 1.0));
+        let to_map = |v: Vec3| {
+            let [ax, ay] = map.aspect();
+            Vec3::new(
+                v.dot(self.tangent) / self.tangent.length_squared() * ax,
+                v.dot(self.bitangent) / self.bitangent.length_squared() * ay,
+                v.dot(self.normal()) / self.depth,
+            )
+        };
+        MapRay::new(to_map(self.eye - self.origin), to_map(far - self.eye))
+    }
+
+    fn check(&self) -> Result<()> {
+        let [w, h] = self.size;
+        if w == 0 || h == 0 || w > MAX_IMAGE_EDGE || h > MAX_IMAGE_EDGE {
+            return Err(Error::InvalidOption(format!(
+                "image size {w}x{h} (each side must be 1..={MAX_IMAGE_EDGE})"
+            )));
+        }
+        let vecs = [
+            self.eye,
+            self.target,
+            self.up,
+            self.light,
+            self.origin,
+            self.tangent,
+            self.bitangent,
+        ];
+        if !vecs.iter().all(|v| v.is_finite()) || !(self.depth.is_finite() && self.depth > 0.0) {
+            return Err(Error::InvalidOption(
+                "scene vectors must be finite and the depth positive".into(),
+            ));
+        }
+        if self.tangent.cross(self.bitangent).length_squared() == 0.0
+            || (self.eye - self.target).length_squared() == 0.0
+        {
+            return Err(Error::InvalidOption("degenerate face or camera".into()));
+        }
+        if !(self.fov_y_degrees > 0.0 && self.fov_y_degrees < 180.0) {
+            return Err(Error::InvalidOption(format!(
+                "field of view {} degrees",
+                self.fov_y_degrees
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Mirror of WGSL `Frame` (raster.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct FrameUniform {
+    view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light: [f32; 4],
+    face_origin: [f32; 4],
+    face_t: [f32; 4],
+    face_b: [f32; 4],
+    face_n: [f32; 4],
+    inv_bump_depth: f32,
+    shadows: u32,
+    penumbra_k: f32,
+    ambient: f32,
+    specular: f32,
+    shininess: f32,
+    light_intensity: f32,
+    _pad: f32,
+}
+
+/// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
+/// (`kind` 0 where nothing was hit).
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba8: Vec<u8>,
+    pub uv: Vec<[f32; 4]>,
+}
+
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const AOV_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Pipelines and textures for rendering one displacement map.
+pub struct Renderer {
+    map: GpuMap,
+    pipeline: wgpu::RenderPipeline,
+    shade_group: wgpu::BindGroupLayout,
+    normal_view: wgpu::TextureView,
+    color_view: wgpu::TextureView,
+    sampler: wgpu::Sampler,
+}
+
+impl Renderer {
+    pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
+        let gpu_map = GpuMap::new(ctx, map, texture)?;
+        let normals: Vec<u8> = map
+            .normals
+            .data
+            .iter()
+            .flat_map(|n| {
+                let e = |c: f32| ((c * 0.5 + 0.5).clamp(0.0, 1.0) * 255.0).round() as u8;
+                [e(n.x), e(n.y), e(n.z), 255]
+            })
+            .collect();
+        let normal_view = texture_2d(
+            ctx,
+            "normal map",
+            [map.normals.width as u32, map.normals.height as u32],
+            wgpu::TextureFormat::Rgba8Unorm,
+            &[normals],
+        );
+        let color_view = texture_2d(
+            ctx,
+            "colour",
+            [256, 256],
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+            &checker_mips(256, 16),
+        );
+        let address = match map.address() {
+            Address::Clamp => wgpu::AddressMode::ClampToEdge,
+            Address::Repeat => wgpu::AddressMode::Repeat,
+        };
+        let sampler = ctx.device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shading"),
+            address_mode_u: address,
+            address_mode_v: address,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
+        let (pipeline, shade_group) = ctx.checked("building the raster pipeline", || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("raster"),
+                    source: wgpu::ShaderSource::Wgsl(raster_source(texture).into()),
+                });
+            let tex = |binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            };
+            let shade_group =
+                ctx.device
+                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some("shading"),
+                        entries: &[
+                            wgpu::BindGroupLayoutEntry {
+                                binding: 0,
+                                visibility: wgpu::ShaderStages::VERTEX
+                                    | wgpu::ShaderStages::FRAGMENT,
+                                ty: wgpu::BindingType::Buffer {
+                                    ty: wgpu::BufferBindingType::Uniform,
+                                    has_dynamic_offset: false,
+                                    min_binding_size: None,
+                                },
+                                count: None,
+                            },
+                            tex(1),
+                            tex(2),
+                            wgpu::BindGroupLayoutEntry {
+                                binding: 3,
+                                visibility: wgpu::ShaderStages::FRAGMENT,
+                                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                                count: None,
+                            },
+                        ],
+                    });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("raster"),
+                    bind_group_layouts: &[Some(&gpu_map.layout), Some(&shade_group)],
+                    immediate_size: 0,
+                });
+            let target = |format| {
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
+            };
+            let pipeline = ctx
+                .device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("raster"),
+                    layout: Some(&layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode: Some(wgpu::Face::Back),
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[target(COLOR_FORMAT), target(AOV_FORMAT)],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
+            (pipeline, shade_group)
+        })?;
+        Ok(Self {
+            map: gpu_map,
+            pipeline,
+            shade_group,
+            normal_view,
+            color_view,
+            sampler,
+        })
+    }
+
+    fn uniforms(
+        &self,
+        ctx: &GpuContext,
+        scene: &PlaneScene,
+    ) -> Result<(wgpu::BindGroup, wgpu::BindGroup)> {
+        scene.check()?;
+        let opts = TraceOptions {
+            method: scene.method,
+            iterations: scene.iterations,
+            // The fragment's start point is interpolated: let the clip find
+            // the shell's face a hair behind it.
+            t_min: -1e-3,
+            ..TraceOptions::default()
+        };
+        let params: MapParams = self.map.params(&opts)?;
+        let n = scene.normal();
+        let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+        let frame = FrameUniform {
+            view_proj: scene.view_proj().to_cols_array_2d(),
+            eye: v4(scene.eye, 1.0),
+            light: v4(scene.light, 1.0),
+            face_origin: v4(scene.origin, 1.0),
+            face_t: v4(scene.tangent, 0.0),
+            face_b: v4(scene.bitangent, 0.0),
+            face_n: v4(n, 0.0),
+            inv_bump_depth: 1.0 / scene.depth,
+            shadows: scene.shadows as u32,
+            penumbra_k: scene.penumbra_k,
+            ambient: scene.ambient,
+            specular: scene.specular,
+            shininess: scene.shininess,
+            light_intensity: scene.light_intensity,
+            _pad: 0.0,
+        };
+        let params_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("raster params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let frame_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("frame"),
+                contents: bytemuck::bytes_of(&frame),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let map_group = self.map.bind_group(ctx, &params_buf);
+        let shade = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shading"),
+            layout: &self.shade_group,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&self.normal_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&self.color_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        Ok((map_group, shade))
+    }
+
+    /// Records `frames` draws of `scene` into fresh targets; returns them
+    /// with the encoder, for [`Renderer::render`] and the benchmarks.
+    pub(crate) fn encode(
+        &self,
+        ctx: &GpuContext,
+        scene: &PlaneScene,
+        frames: u32,
+        timestamps: Option<&wgpu::QuerySet>,
+    ) -> Result<(wgpu::CommandEncoder, Targets)> {
+        let (map_group, shade) = self.uniforms(ctx, scene)?;
+        let targets = Targets::new(ctx, scene.size);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        for f in 0..frames {
+            let ts = timestamps.map(|q| wgpu::RenderPassTimestampWrites {
+                query_set: q,
+                beginning_of_pass_write_index: (f == 0).then_some(0),
+                end_of_pass_write_index: (f + 1 == frames).then_some(1),
+            });
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("displace"),
+                color_attachments: &[
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &targets.color,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: 0.02,
+                                g: 0.02,
+                                b: 0.03,
+                                a: 1.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &targets.aov,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: -1.0,
+                                g: -1.0,
+                                b: 0.0,
+                                a: -1.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                ],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: ts,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &map_group, &[]);
+            pass.set_bind_group(1, &shade, &[]);
+            pass.draw(0..36, 0..1);
+        }
+        Ok((encoder, targets))
+    }
+
+    /// Renders `scene` offscreen and reads colour and AOV back.
+    pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
+        let (mut encoder, targets) =
+            ctx.checked("rendering", || self.encode(ctx, scene, 1, None))??;
+        let [w, h] = scene.size;
+        let color_row = (w * 4).div_ceil(256) * 256;
+        let aov_row = (w * 16).div_ceil(256) * 256;
+        let readback = |row: u32| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: row as u64 * h as u64,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (cbuf, abuf) = (readback(color_row), readback(aov_row));
+        for (tex, buf, row) in [
+            (&targets.color_tex, &cbuf, color_row),
+            (&targets.aov_tex, &abuf, aov_row),
+        ] {
+            encoder.copy_texture_to_buffer(
+                tex.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(row),
+                        rows_per_image: Some(h),
+                    },
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let cbytes = ctx.read_buffer(&cbuf)?;
+        let abytes = ctx.read_buffer(&abuf)?;
+        let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);
+        let mut uv = Vec::with_capacity((w * h) as usize);
+        for y in 0..h as usize {
+            rgba8.extend_from_slice(&cbytes[y * color_row as usize..][..w as usize * 4]);
+            let row: &[f32] =
+                bytemuck::cast_slice(&abytes[y * aov_row as usize..][..w as usize * 16]);
+            uv.extend(row.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
+        }
+        Ok(Image {
+            width: w,
+            height: h,
+            rgba8,
+            uv,
+        })
+    }
+}
+
+pub(crate) struct Targets {
+    color_tex: wgpu::Texture,
+    aov_tex: wgpu::Texture,
+    color: wgpu::TextureView,
+    aov: wgpu::TextureView,
+    depth: wgpu::TextureView,
+}
+
+impl Targets {
+    fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
+        let make = |format, usage| {
+            ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("target"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let rt = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let color_tex = make(COLOR_FORMAT, rt);
+        let aov_tex = make(AOV_FORMAT, rt);
+        let depth = make(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT)
+            .create_view(&Default::default());
+        Self {
+            color: color_tex.create_view(&Default::default()),
+            aov: aov_tex.create_view(&Default::default()),
+            color_tex,
+            aov_tex,
+            depth,
+        }
+    }
+}
+
+/// A two-tone checkerboard (`cells` squares a side) and its box-filtered
+/// mip chain, so derivative-driven sampling (section 8.5.3) has levels to
+/// choose from.
+fn checker_mips(size: u32, cells: u32) -> Vec<Vec<u8>> {
+    let cell = size / cells;
+    let mut level: Vec<u8> = (0..size * size)
+        .flat_map(|k| {
+            let (x, y) = (k % size, k / size);
+            if ((x / cell) + (y / cell)) % 2 == 0 {
+                [225, 200, 160, 255]
+            } else {
+                [150, 90, 60, 255]
+            }
+        })
+        .collect();
+    let mut out = Vec::new();
+    let mut n = size;
+    loop {
+        out.push(level.clone());
+        if n == 1 {
+            return out;
+        }
+        let m = n / 2;
+        level = (0..m * m)
+            .flat_map(|k| {
+                let (x, y) = ((k % m) * 2, (k / m) * 2);
+                let at = |dx: u32, dy: u32, c: usize| {
+                    level[(((y + dy) * n + x + dx) * 4) as usize + c] as u32
+                };
+                let mut px = [0u8; 4];
+                for (c, p) in px.iter_mut().enumerate() {
+                    *p = ((at(0, 0, c) + at(1, 0, c) + at(0, 1, c) + at(1, 1, c) + 2) / 4) as u8;
+                }
+                px
+            })
+            .collect();
+        n = m;
+    }
+}
+
+fn texture_2d(
+    ctx: &GpuContext,
+    label: &str,
+    [w, h]: [u32; 2],
+    format: wgpu::TextureFormat,
+    mips: &[Vec<u8>],
+) -> wgpu::TextureView {
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: mips.len() as u32,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (level, data) in mips.iter().enumerate() {
+        let (lw, lh) = ((w >> level).max(1), (h >> level).max(1));
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: level as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(lw * 4),
+                rows_per_image: Some(lh),
+            },
+            wgpu::Extent3d {
+                width: lw,
+                height: lh,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    texture.create_view(&Default::default())
+}
