@@ -142,7 +142,7 @@ impl PlaneScene {
             self.tangent,
             self.bitangent,
         ];
-        if !vecs.iter().all(|v| v.is_finite()) || !(self.depth.is_finite() && self.depth > 0.0) {
+        if !(vecs.iter().all(|v| v.is_finite()) && self.depth.is_finite() && self.depth > 0.0) {
             return Err(Error::InvalidOption(
                 "scene vectors must be finite and the depth positive".into(),
             ));
