@@ -7,6 +7,7 @@
 //! (`displace_core::sphere_trace`), so either backend answers the same
 //! question with the same conventions (`shaders/convention.wgsl`).
 
+pub mod bench;
 pub mod context;
 pub mod convention;
 pub mod error;
@@ -14,6 +15,7 @@ pub mod gpu_map;
 pub mod raster;
 pub mod shaders;
 pub mod test_support;
+pub mod timing;
 pub mod trace;
 
 pub use context::GpuContext;

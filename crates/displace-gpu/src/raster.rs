@@ -420,18 +420,30 @@ impl Renderer {
         Ok((map_group, shade))
     }
 
-    /// Records `frames` draws of `scene` into fresh targets; returns them
-    /// with the encoder, for [`Renderer::render`] and the benchmarks.
-    pub(crate) fn encode(
+    /// Times `frames` renders of `scene` (benchmarks).
+    pub fn time(
         &self,
         ctx: &GpuContext,
         scene: &PlaneScene,
         frames: u32,
-        timestamps: Option<&wgpu::QuerySet>,
-    ) -> Result<(wgpu::CommandEncoder, Targets)> {
+    ) -> Result<crate::timing::Timing> {
         let (map_group, shade) = self.uniforms(ctx, scene)?;
         let targets = Targets::new(ctx, scene.size);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        crate::timing::time_frames(ctx, frames, |encoder, query| {
+            self.record(encoder, &targets, &map_group, &shade, frames.max(1), query);
+            Ok(())
+        })
+    }
+
+    fn record(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &Targets,
+        map_group: &wgpu::BindGroup,
+        shade: &wgpu::BindGroup,
+        frames: u32,
+        timestamps: Option<&wgpu::QuerySet>,
+    ) {
         for f in 0..frames {
             let ts = timestamps.map(|q| wgpu::RenderPassTimestampWrites {
                 query_set: q,
@@ -483,17 +495,20 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &map_group, &[]);
-            pass.set_bind_group(1, &shade, &[]);
+            pass.set_bind_group(0, map_group, &[]);
+            pass.set_bind_group(1, shade, &[]);
             pass.draw(0..36, 0..1);
         }
-        Ok((encoder, targets))
     }
 
     /// Renders `scene` offscreen and reads colour and AOV back.
     pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
-        let (mut encoder, targets) =
-            ctx.checked("rendering", || self.encode(ctx, scene, 1, None))??;
+        let (map_group, shade) = self.uniforms(ctx, scene)?;
+        let targets = Targets::new(ctx, scene.size);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        ctx.checked("rendering", || {
+            self.record(&mut encoder, &targets, &map_group, &shade, 1, None)
+        })?;
         let [w, h] = scene.size;
         let color_row = (w * 4).div_ceil(256) * 256;
         let aov_row = (w * 16).div_ceil(256) * 256;
@@ -547,7 +562,7 @@ impl Renderer {
     }
 }
 
-pub(crate) struct Targets {
+struct Targets {
     color_tex: wgpu::Texture,
     aov_tex: wgpu::Texture,
     color: wgpu::TextureView,

@@ -8,6 +8,7 @@ pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.w
 pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
+pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
 
 /// How the shaders read the distance map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -76,6 +77,11 @@ pub fn raster_source(texture: DistanceTexture) -> String {
     [map_trace_source(texture).as_str(), RASTER].join("\n")
 }
 
+/// The bare loop of dependent filtered fetches (benchmarks only).
+pub fn fetch_loop_source() -> String {
+    [CONVENTION, DISTANCE_FILTERED, FETCH_LOOP].join("\n")
+}
+
 /// Every complete shader module this crate builds, by name, for validation.
 pub fn all_modules() -> Vec<(String, String)> {
     let mut out = Vec::new();
@@ -85,5 +91,6 @@ pub fn all_modules() -> Vec<(String, String)> {
             compute_trace_source(t),
         ));
     }
+    out.push(("fetch-loop/filtered".into(), fetch_loop_source()));
     out
 }

@@ -158,15 +158,52 @@ impl RayTracer {
         Ok(out)
     }
 
-    fn trace_chunk(
+    /// Times `frames` dispatches over `rays` (at most one chunk) for the
+    /// benchmarks; the hits are discarded.
+    pub fn time(
         &self,
         ctx: &GpuContext,
-        map_group: &wgpu::BindGroup,
         rays: &[MapRay],
-    ) -> Result<Vec<HitOut>> {
-        if rays.is_empty() {
-            return Ok(Vec::new());
+        opts: &TraceOptions,
+        frames: u32,
+    ) -> Result<crate::timing::Timing> {
+        let params = self.map.params(opts)?;
+        let params_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("trace params"),
+                contents: bytemuck::bytes_of::<MapParams>(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let map_group = self.map.bind_group(ctx, &params_buf);
+        let (rays_group, _hits) = self.ray_buffers(ctx, rays);
+        let groups = (rays.len() as u32).div_ceil(WORKGROUP);
+        if groups > ctx.limits.max_compute_workgroups_per_dimension {
+            return Err(Error::Limit {
+                what: "ray batch".into(),
+                size: rays.len().to_string(),
+                limit: format!(
+                    "{} workgroups of {WORKGROUP}",
+                    ctx.limits.max_compute_workgroups_per_dimension
+                ),
+            });
         }
+        crate::timing::time_frames(ctx, frames, |encoder, query| {
+            for f in 0..frames.max(1) {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("trace"),
+                    timestamp_writes: crate::timing::compute_writes(query, f, frames.max(1)),
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &map_group, &[]);
+                pass.set_bind_group(1, &rays_group, &[]);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            Ok(())
+        })
+    }
+
+    fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
         let input: Vec<RayIn> = rays
             .iter()
             .map(|r| RayIn {
@@ -177,39 +214,53 @@ impl RayTracer {
             })
             .collect();
         let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
-        ctx.checked("tracing rays", || {
-            let ray_buf = ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("rays"),
-                    contents: bytemuck::cast_slice(&input),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
-            let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hits"),
-                size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
+        let ray_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("rays"),
+                contents: bytemuck::cast_slice(&input),
+                usage: wgpu::BufferUsages::STORAGE,
             });
+        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hits"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("rays"),
+            layout: &self.rays_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: ray_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: hit_buf.as_entire_binding(),
+                },
+            ],
+        });
+        (group, hit_buf)
+    }
+
+    fn trace_chunk(
+        &self,
+        ctx: &GpuContext,
+        map_group: &wgpu::BindGroup,
+        rays: &[MapRay],
+    ) -> Result<Vec<HitOut>> {
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
+        ctx.checked("tracing rays", || {
+            let (rays_group, hit_buf) = self.ray_buffers(ctx, rays);
             let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("hits readback"),
                 size,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
-            });
-            let rays_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("rays"),
-                layout: &self.rays_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: ray_buf.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: hit_buf.as_entire_binding(),
-                    },
-                ],
             });
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             {

@@ -1,0 +1,82 @@
+//! GPU timing: a pair of timestamp queries around `frames` passes recorded
+//! into one submission, so the figure excludes submission and readback
+//! overhead. Without `TIMESTAMP_QUERY` the wall clock around submit-and-wait
+//! is used instead, and the result says so.
+
+use crate::{GpuContext, Result};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Timing {
+    pub ms_per_frame: f64,
+    /// True when timed by GPU timestamps, false for the wall clock.
+    pub gpu_timestamps: bool,
+}
+
+/// Runs `record(encoder, query_set)` (which records the passes, writing
+/// timestamp 0 at the first pass's start and 1 at the last's end when given
+/// a query set) and returns the time per frame.
+pub fn time_frames(
+    ctx: &GpuContext,
+    frames: u32,
+    record: impl FnOnce(&mut wgpu::CommandEncoder, Option<&wgpu::QuerySet>) -> Result<()>,
+) -> Result<Timing> {
+    let frames = frames.max(1);
+    let query = ctx.timestamps.then(|| {
+        ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("timing"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        })
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    record(&mut encoder, query.as_ref())?;
+    let readback = query.as_ref().map(|q| {
+        let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps"),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps readback"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        encoder.resolve_query_set(q, 0..2, &resolve, 0);
+        encoder.copy_buffer_to_buffer(&resolve, 0, &readback, 0, 16);
+        readback
+    });
+    let start = std::time::Instant::now();
+    ctx.queue.submit([encoder.finish()]);
+    ctx.wait()?;
+    let wall = start.elapsed().as_secs_f64() * 1e3;
+    match readback {
+        Some(buf) => {
+            let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&ctx.read_buffer(&buf)?);
+            let ns =
+                ticks[1].saturating_sub(ticks[0]) as f64 * ctx.queue.get_timestamp_period() as f64;
+            Ok(Timing {
+                ms_per_frame: ns / 1e6 / frames as f64,
+                gpu_timestamps: true,
+            })
+        }
+        None => Ok(Timing {
+            ms_per_frame: wall / frames as f64,
+            gpu_timestamps: false,
+        }),
+    }
+}
+
+/// Timestamp writes for frame `f` of `frames` compute passes.
+pub fn compute_writes(
+    query: Option<&wgpu::QuerySet>,
+    f: u32,
+    frames: u32,
+) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+    query.map(|q| wgpu::ComputePassTimestampWrites {
+        query_set: q,
+        beginning_of_pass_write_index: (f == 0).then_some(0),
+        end_of_pass_write_index: (f + 1 == frames).then_some(1),
+    })
+}
