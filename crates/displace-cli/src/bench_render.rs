@@ -214,7 +214,8 @@ fn mrays(n: usize, s: f64) -> f64 {
 
 fn print_table(rows: &[Row], size: [u32; 2], spp: u32, threads: usize) {
     println!(
-        "rays on displaced surfaces, {}x{} at {spp} spp; Mrays/s on 1 thread and on {threads} (best of runs)",
+        "rays on displaced surfaces, {}x{} at {spp} spp; Mrays/s on 1 thread and on {threads} \
+         (best of runs); prim xN: primary speed-up on {threads} threads",
         size[0], size[1]
     );
     println!(
