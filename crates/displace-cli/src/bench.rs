@@ -15,10 +15,14 @@ pub enum BenchCommand {
     /// Primary and shadow rays per second on displaced surfaces, per scene,
     /// on one core and on all.
     Render(BenchRenderArgs),
+    /// GPU raster and compute paths and the bare fetch loop, ms/frame and
+    /// Gpixels/s by GPU timestamps.
+    Gpu(crate::gpu::BenchGpuArgs),
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render::run(a),
+        BenchCommand::Gpu(a) => crate::gpu::run_bench(a),
     }
 }

@@ -5,6 +5,7 @@
 mod bench;
 mod bench_render;
 mod export_mesh;
+mod gpu;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -24,6 +25,9 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
     ExportMesh(export_mesh::ExportMeshArgs),
+    /// Render a displaced plane on the GPU, offscreen, to PNG (Donnelly's
+    /// shaders; a built-in scene configured by flags).
+    GpuRender(gpu::GpuRenderArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -32,6 +36,7 @@ fn main() -> std::process::ExitCode {
         Command::Render(args) => render::run(args),
         Command::Bench(args) => bench::run(args),
         Command::ExportMesh(args) => export_mesh::run(args),
+        Command::GpuRender(args) => gpu::run_render(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,338 @@
+//! `displace gpu-render` and `displace bench gpu`: the wgpu paths of
+//! `displace-gpu` from the command line, and the GPU backend of the batch
+//! ray query ([`trace_physical_gpu`]).
+//!
+//! `gpu-render` draws a built-in scene (one displaced planar face, a pinhole
+//! camera, a point light) configured by flags; scene TOML files are not read
+//! by the GPU path yet.
+
+use anyhow::{bail, Context, Result};
+use displace_core::convention::parse_size;
+use displace_core::io::height::{load, HeightOptions};
+use displace_core::{
+    bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, MapRay, Method, TraceOptions,
+};
+use displace_gpu::bench::bench_config;
+use displace_gpu::{DistanceTexture, GpuContext, PlaneScene, RayTracer, Renderer, Shadows};
+use glam::Vec3;
+use std::path::PathBuf;
+
+/// The displaced face: its height source, bake and proportions.
+#[derive(clap::Args, Debug, Clone)]
+pub struct FaceArgs {
+    /// Height map: `gen:NAME?params`, a PNG or an EXR.
+    #[arg(long, default_value = "gen:studded")]
+    pub height: String,
+    /// Distance-map voxels, WxHxD (generated heights use W x H texels).
+    #[arg(long, default_value = "256x256x16", value_name = "WxHxD")]
+    pub map_size: String,
+    /// Face width, height and displacement depth.
+    #[arg(long, default_value = "1,1,0.1", value_name = "SX,SY,SZ", value_parser = parse_extent)]
+    pub extent: Extent,
+    /// clamp or repeat.
+    #[arg(long, default_value = "clamp")]
+    pub address: Address,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GpuRenderArgs {
+    #[command(flatten)]
+    pub face: FaceArgs,
+    /// Output PNG (sRGB).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long, default_value = "640x480", value_name = "WxH")]
+    pub size: String,
+    /// sphere (early out, exact refinement) or sphere-fixed (Donnelly's loop).
+    #[arg(long, default_value = "sphere")]
+    pub method: Method,
+    #[arg(long, default_value_t = 64)]
+    pub iterations: u32,
+    /// none, hard or soft (a second march towards the light).
+    #[arg(long, default_value = "hard")]
+    pub shadows: Shadows,
+    /// r32-load, r16-linear or r8-linear.
+    #[arg(long, default_value = "r8-linear")]
+    pub distance: DistanceTexture,
+    /// Camera position [default: oblique, above the face].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    pub eye: Option<Vec3>,
+    /// Point light position.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    pub light: Option<Vec3>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BenchGpuArgs {
+    #[command(flatten)]
+    pub face: FaceArgs,
+    /// Frame sizes [default: the set: 1280x1024 with a 256x256x16
+    /// map at 8 and 16 iterations, 1920x1080 and 3840x2160 with a
+    /// 512x512x64 map at 16 and 32].
+    #[arg(long = "frame", value_name = "WxH")]
+    pub frames_sizes: Vec<String>,
+    /// Iteration counts for `--frame` sizes.
+    #[arg(long = "iterations", default_values_t = [16u32])]
+    pub iterations: Vec<u32>,
+    /// Frames per measurement.
+    #[arg(long, default_value_t = 10)]
+    pub frames: u32,
+}
+
+fn parse_extent(s: &str) -> Result<Extent, String> {
+    let v = parse_floats::<3>(s)?;
+    Extent::new(v[0], v[1], v[2]).map_err(|e| e.to_string())
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    parse_floats::<3>(s).map(Vec3::from_array)
+}
+
+fn parse_floats<const N: usize>(s: &str) -> Result<[f32; N], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != N {
+        return Err(format!("`{s}`: expected {N} comma-separated numbers"));
+    }
+    let mut out = [0.0f32; N];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{s}`: `{p}` is not a number"))?;
+        if !o.is_finite() {
+            return Err(format!("`{s}`: `{p}` is not finite"));
+        }
+    }
+    Ok(out)
+}
+
+fn image_size(s: &str) -> Result<[u32; 2]> {
+    let [w, h] = parse_size::<2>(s).with_context(|| format!("--size {s}"))?;
+    let max = displace_gpu::raster::MAX_IMAGE_EDGE as usize;
+    if w > max || h > max {
+        bail!("--size {s}: each side must be at most {max}");
+    }
+    Ok([w as u32, h as u32])
+}
+
+fn bake_face(face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
+    let size = parse_size::<3>(map_size).with_context(|| format!("--map-size {map_size}"))?;
+    DistanceMap::check_size(size).with_context(|| format!("--map-size {map_size}"))?;
+    let height = load(
+        &face.height,
+        &HeightOptions {
+            size: [size[0], size[1]],
+            address: face.address,
+            ..HeightOptions::default()
+        },
+    )
+    .with_context(|| format!("loading height map {}", face.height))?;
+    bake(
+        &height,
+        &BakeOptions {
+            size,
+            extent: face.extent,
+            ..BakeOptions::default()
+        },
+    )
+    .context("baking the distance map")
+}
+
+fn open_gpu() -> Result<GpuContext> {
+    let ctx = GpuContext::new_headless().context("opening a GPU")?;
+    eprintln!("gpu: {}", ctx.describe());
+    Ok(ctx)
+}
+
+pub fn run_render(args: GpuRenderArgs) -> Result<()> {
+    let size = image_size(&args.size)?;
+    if args.method == Method::Exact {
+        bail!(
+            "--method exact is the CPU reference; the GPU paths trace with sphere or sphere-fixed"
+        );
+    }
+    let map = bake_face(&args.face, &args.face.map_size)?;
+    let mut scene = PlaneScene::for_map(&map, size);
+    scene.method = args.method;
+    scene.iterations = args.iterations;
+    scene.shadows = args.shadows;
+    if let Some(eye) = args.eye {
+        scene.eye = eye;
+    }
+    if let Some(light) = args.light {
+        scene.light = light;
+    }
+    let ctx = open_gpu()?;
+    let renderer = Renderer::new(&ctx, &map, args.distance).context("building the GPU renderer")?;
+    let image = renderer
+        .render(&ctx, &scene)
+        .context("rendering on the GPU")?;
+    let rgb: Vec<u8> = image
+        .rgba8
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    displace_render::output::write_png_rgb8(&args.output, image.width, image.height, &rgb)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    println!(
+        "rendered {}x{} -> {}",
+        image.width,
+        image.height,
+        args.output.display()
+    );
+    Ok(())
+}
+
+pub fn run_bench(args: BenchGpuArgs) -> Result<()> {
+    let configs: Vec<(String, String, Vec<u32>)> = if args.frames_sizes.is_empty() {
+        vec![
+            ("1280x1024".into(), "256x256x16".into(), vec![8, 16]),
+            ("1920x1080".into(), "512x512x64".into(), vec![16, 32]),
+            ("3840x2160".into(), "512x512x64".into(), vec![16, 32]),
+        ]
+    } else {
+        args.frames_sizes
+            .iter()
+            .map(|s| {
+                (
+                    s.clone(),
+                    args.face.map_size.clone(),
+                    args.iterations.clone(),
+                )
+            })
+            .collect()
+    };
+    let ctx = open_gpu()?;
+    if ctx.is_software() {
+        println!("note: {} is a software rasteriser: these figures measure the CPU it runs on, not a GPU", ctx.info.name);
+    }
+    println!("| path | variant | frame | map | iterations | ms/frame | Gpix/s | timer |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (frame, map_size, iterations) in configs {
+        let size = image_size(&frame)?;
+        let map = bake_face(&args.face, &map_size)?;
+        for &n in &iterations {
+            for row in bench_config(&ctx, &map, size, n, args.frames)
+                .with_context(|| format!("benchmarking {frame} at {n} iterations"))?
+            {
+                println!(
+                    "| {} | {} | {frame} | {map_size} | {n} | {:.3} | {:.3} | {} |",
+                    row.path,
+                    row.variant,
+                    row.timing.ms_per_frame,
+                    row.gpix_per_s(),
+                    if row.timing.gpu_timestamps {
+                        "timestamps"
+                    } else {
+                        "wall clock"
+                    }
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The GPU backend of `displace trace`: physical-frame rays `[ox, oy, oz,
+/// dx, dy, dz]` (the face's units; map space times the depth) in, `[t, x, y,
+/// z, iterations]` out with `t = inf` and NaN coordinates for a miss, the
+/// same records the CPU backend writes.
+// Only the tests call it until `displace trace` grows `--backend gpu`.
+#[allow(dead_code)]
+pub fn trace_physical_gpu(
+    ctx: &GpuContext,
+    map: &DisplacementMap,
+    opts: &TraceOptions,
+    texture: DistanceTexture,
+    rays: &[[f32; 6]],
+) -> Result<Vec<[f32; 5]>> {
+    map.check_trace(opts).context("trace options")?;
+    let sz = map.extent.sz;
+    let map_rays: Vec<MapRay> = rays
+        .iter()
+        .map(|r| {
+            MapRay::new(
+                Vec3::new(r[0], r[1], r[2]) / sz,
+                Vec3::new(r[3], r[4], r[5]),
+            )
+        })
+        .collect();
+    let tracer = RayTracer::new(ctx, map, texture).context("building the GPU ray query")?;
+    let hits = tracer
+        .trace(ctx, &map_rays, opts)
+        .context("tracing on the GPU")?;
+    Ok(rays
+        .iter()
+        .zip(hits)
+        .map(|(r, h)| match h {
+            Some(hit) => {
+                let p = hit.position * sz;
+                let len = Vec3::new(r[3], r[4], r[5]).length();
+                [hit.t * sz / len, p.x, p.y, p.z, hit.iterations as f32]
+            }
+            None => [f32::INFINITY, f32::NAN, f32::NAN, f32::NAN, 0.0],
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use displace_core::generators;
+
+    /// The GPU backend's records equal the CPU's within 1e-3 shell depths.
+    #[test]
+    fn physical_records_match_the_cpu() {
+        let Some(ctx) = displace_gpu::test_support::test_context() else {
+            return;
+        };
+        let height = generators::generate("gen:gaussian", 32, 32, Address::Clamp).unwrap();
+        let extent = Extent::new(2.0, 1.0, 0.25).unwrap();
+        let map = bake(
+            &height,
+            &BakeOptions {
+                size: [32, 32, 8],
+                extent,
+                ..BakeOptions::default()
+            },
+        )
+        .unwrap();
+        let mut rays = Vec::new();
+        for i in 0..20 {
+            for j in 0..20 {
+                let o = [i as f32 * 0.1, j as f32 * 0.05, 0.6];
+                rays.push([
+                    o[0],
+                    o[1],
+                    o[2],
+                    0.3 - i as f32 * 0.02,
+                    0.1,
+                    -1.0 - j as f32 * 0.1,
+                ]);
+            }
+        }
+        let opts = TraceOptions::default();
+        let gpu = trace_physical_gpu(ctx, &map, &opts, DistanceTexture::R32Load, &rays).unwrap();
+        let mut hits = 0;
+        for (r, g) in rays.iter().zip(&gpu) {
+            let ray = MapRay::new(
+                Vec3::new(r[0], r[1], r[2]) / extent.sz,
+                Vec3::new(r[3], r[4], r[5]),
+            );
+            match map.trace(&ray, &opts) {
+                Some(c) => {
+                    hits += 1;
+                    let p = c.position * extent.sz;
+                    let d = (Vec3::new(g[1], g[2], g[3]) - p).length();
+                    assert!(d <= 1e-3 * extent.sz, "{r:?}: {g:?} vs {p}");
+                    assert!(
+                        (g[0] - c.t * extent.sz / Vec3::new(r[3], r[4], r[5]).length()).abs()
+                            <= 1e-3 * extent.sz
+                    );
+                }
+                None => assert!(g[0].is_infinite() && g[1].is_nan(), "{r:?}: {g:?}"),
+            }
+        }
+        assert!(hits > 200, "{hits}");
+    }
+}

@@ -1,0 +1,110 @@
+//! `displace gpu-render` and `displace bench gpu` end to end, on whatever
+//! adapter the machine has (lavapipe in CI; see displace-gpu's
+//! `test_support` for the no-adapter policy).
+
+use displace_gpu::test_support::test_context;
+use std::process::Command;
+
+fn displace() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_displace"))
+}
+
+#[test]
+fn gpu_render_writes_a_png_of_the_displaced_plane() {
+    if test_context().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plane.png");
+    let status = displace()
+        .args([
+            "gpu-render",
+            "--size",
+            "64x64",
+            "--map-size",
+            "64x64x8",
+            "--shadows",
+            "soft",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (64, 64));
+    // The background corner and the lit face differ, and the face is not
+    // one flat colour.
+    let corner = *img.get_pixel(0, 0);
+    let centre = *img.get_pixel(32, 40);
+    assert_ne!(corner, centre);
+    let distinct: std::collections::BTreeSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 50, "{}", distinct.len());
+    // Nothing else was left in the directory (the write is atomic).
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn gpu_render_refuses_bad_input_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bad.png");
+    for (args, needle) in [
+        (vec!["--size", "0x4"], "--size"),
+        (vec!["--size", "100000x4"], "--size"),
+        (vec!["--map-size", "1x8x8"], "--map-size"),
+        (vec!["--height", "/nonexistent/h.png"], "/nonexistent/h.png"),
+        (vec!["--extent", "1,1,0"], "extent"),
+        (vec!["--method", "exact"], "exact"),
+        (vec!["--distance", "r4"], "r4"),
+    ] {
+        let o = displace()
+            .arg("gpu-render")
+            .args(&args)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} should fail");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn bench_gpu_prints_a_row_per_path_and_variant() {
+    if test_context().is_none() {
+        return;
+    }
+    let o = displace()
+        .args([
+            "bench",
+            "gpu",
+            "--frame",
+            "64x48",
+            "--iterations",
+            "4",
+            "--frames",
+            "1",
+            "--map-size",
+            "32x32x4",
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains("64x48"))
+        .collect();
+    assert_eq!(rows.len(), 6, "{stdout}");
+    for r in rows {
+        let ms: f64 = r.split('|').nth(6).unwrap().trim().parse().unwrap();
+        assert!(ms > 0.0 && ms.is_finite(), "{r}");
+    }
+}
