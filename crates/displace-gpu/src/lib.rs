@@ -5,7 +5,10 @@
 //! as textures ([`GpuMap`]), and a compute-shader batch ray query
 //! ([`trace_rays`]) that runs the same map-space trace as the CPU
 //! (`displace_core::sphere_trace`), so either backend answers the same
-//! question with the same conventions (`shaders/convention.wgsl`).
+//! question with the same conventions (`shaders/convention.wgsl`); the
+//! raster path of section 8.5 ([`Renderer`]: listing 8-1's vertex stage,
+//! listing 8-2's fragment stage with exact refinement, normal-mapped
+//! shading, self-shadowing); and GPU-timed benchmarks ([`bench`]).
 
 pub mod bench;
 pub mod context;

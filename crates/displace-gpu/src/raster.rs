@@ -445,11 +445,14 @@ impl Renderer {
         timestamps: Option<&wgpu::QuerySet>,
     ) {
         for f in 0..frames {
-            let ts = timestamps.map(|q| wgpu::RenderPassTimestampWrites {
-                query_set: q,
-                beginning_of_pass_write_index: (f == 0).then_some(0),
-                end_of_pass_write_index: (f + 1 == frames).then_some(1),
-            });
+            let edge = f == 0 || f + 1 == frames;
+            let ts = timestamps
+                .filter(|_| edge)
+                .map(|q| wgpu::RenderPassTimestampWrites {
+                    query_set: q,
+                    beginning_of_pass_write_index: (f == 0).then_some(0),
+                    end_of_pass_write_index: (f + 1 == frames).then_some(1),
+                });
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("displace"),
                 color_attachments: &[
@@ -542,7 +545,8 @@ impl Renderer {
                 },
             );
         }
-        ctx.queue.submit([encoder.finish()]);
+        let commands = ctx.checked("finishing the render", || encoder.finish())?;
+        ctx.queue.submit([commands]);
         let cbytes = ctx.read_buffer(&cbuf)?;
         let abytes = ctx.read_buffer(&abuf)?;
         let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);

@@ -10,6 +10,10 @@ pub struct Timing {
     pub ms_per_frame: f64,
     /// True when timed by GPU timestamps, false for the wall clock.
     pub gpu_timestamps: bool,
+    /// Wall clock from submission to idle, per frame: a cross-check, since
+    /// some drivers (lavapipe's compute passes among them) write timestamps
+    /// that do not bracket the work.
+    pub wall_ms_per_frame: f64,
 }
 
 /// Runs `record(encoder, query_set)` (which records the passes, writing
@@ -29,7 +33,9 @@ pub fn time_frames(
         })
     });
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
-    record(&mut encoder, query.as_ref())?;
+    ctx.checked("recording timed passes", || {
+        record(&mut encoder, query.as_ref())
+    })??;
     let readback = query.as_ref().map(|q| {
         let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("timestamps"),
@@ -48,7 +54,8 @@ pub fn time_frames(
         readback
     });
     let start = std::time::Instant::now();
-    ctx.queue.submit([encoder.finish()]);
+    let commands = ctx.checked("finishing timed passes", || encoder.finish())?;
+    ctx.queue.submit([commands]);
     ctx.wait()?;
     let wall = start.elapsed().as_secs_f64() * 1e3;
     match readback {
@@ -59,11 +66,13 @@ pub fn time_frames(
             Ok(Timing {
                 ms_per_frame: ns / 1e6 / frames as f64,
                 gpu_timestamps: true,
+                wall_ms_per_frame: wall / frames as f64,
             })
         }
         None => Ok(Timing {
             ms_per_frame: wall / frames as f64,
             gpu_timestamps: false,
+            wall_ms_per_frame: wall / frames as f64,
         }),
     }
 }
@@ -74,6 +83,11 @@ pub fn compute_writes(
     f: u32,
     frames: u32,
 ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+    // A pass with neither index set is a validation error: only the first
+    // and the last pass write.
+    if f != 0 && f + 1 != frames {
+        return None;
+    }
     query.map(|q| wgpu::ComputePassTimestampWrites {
         query_set: q,
         beginning_of_pass_write_index: (f == 0).then_some(0),

@@ -14,7 +14,7 @@ fn every_row_is_timed() {
     let Some(ctx) = test_context() else { return };
     let mut rng = Rng::new(21);
     let map = random_map(&mut rng, Address::Clamp);
-    let rows = bench_config(ctx, &map, [64, 48], 8, 2).unwrap();
+    let rows = bench_config(ctx, &map, [64, 48], 8, 3).unwrap();
     let paths: Vec<&str> = rows.iter().map(|r| r.path.as_str()).collect();
     assert_eq!(
         paths,
