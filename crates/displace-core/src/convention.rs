@@ -123,6 +123,17 @@ pub fn floor_i64(x: f32) -> i64 {
     }
 }
 
+/// Early-out threshold of sphere tracing, as a fraction of the smallest voxel
+/// side: below it the stored distance no longer tells the ray from the
+/// surface, and the tracer walks the next stretch exactly.
+pub const TRACE_STOP_VOXELS: f32 = 0.25;
+
+/// Length of that exact walk, in multiples of the map's underestimate bound
+/// (plus the threshold). Any length is correct, since the walk is exact and
+/// the ray is above the surface where it ends; this one was fastest on the
+/// seed maps (BENCHMARKS.md).
+pub const TRACE_BAND_FACTOR: f32 = 1.5;
+
 /// Largest allocation one bake, map or image may ask for. Requests above it
 /// are refused before any memory is touched.
 pub const MAX_ALLOCATION_BYTES: u128 = 8 << 30;

@@ -9,6 +9,7 @@
 //! side or the bottom) hits the solid at its entry point: a displaced face is
 //! the top of a solid slab, so its silhouette is that of the slab.
 
+use crate::convention::{TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
 use crate::exact::{self, Walk};
 use crate::{DistanceMap, Error, HeightMap, Result};
 use glam::{Vec2, Vec3};
@@ -226,8 +227,8 @@ pub fn trace(
     // map's zero level set (which sits up to `max_underestimate` above the
     // surface).
     let voxel = distance.voxel_size();
-    let tau = 0.25 * voxel.min_element();
-    let band = 1.5 * distance.max_underestimate() + tau;
+    let tau = TRACE_STOP_VOXELS * voxel.min_element();
+    let band = TRACE_BAND_FACTOR * distance.max_underestimate() + tau;
     let mut t = clip.t_in;
     let mut iterations = 0u32;
     let fixed = opts.method == Method::SphereFixed;

@@ -22,13 +22,12 @@ pub const ROOT_EPS: f32 = 1e-6;
 pub const LINEAR_EPS: f32 = 1e-12;
 pub const BIG: f32 = 1e30;
 
-/// The early-out threshold as a fraction of the smallest voxel side
-/// (`sphere_trace.rs`: `tau = 0.25 * voxel.min_element()`).
-pub const TAU_VOXELS: f32 = 0.25;
+/// The early-out threshold as a fraction of the smallest voxel side.
+pub const TAU_VOXELS: f32 = displace_core::convention::TRACE_STOP_VOXELS;
 
 /// The exact walk after the early out covers this many times the map's
-/// underestimate bound, plus `tau` (`sphere_trace.rs`).
-pub const BAND_FACTOR: f32 = 1.5;
+/// underestimate bound, plus `tau`.
+pub const BAND_FACTOR: f32 = displace_core::convention::TRACE_BAND_FACTOR;
 
 /// Bits of fixed-point precision assumed for a linear sampler's weights.
 /// Vulkan only promises `subTexelPrecisionBits >= 4`; desktop GPUs and
