@@ -229,7 +229,7 @@ fn print_table(rows: &[Row], size: [u32; 2], spp: u32, threads: usize) {
         "prim Nt",
         "shad 1t",
         "shad Nt",
-        "speedup"
+        "prim xN"
     );
     for r in rows {
         let (np, ns) = (r.rays.camera.len(), r.rays.shadow.len());
