@@ -2,9 +2,11 @@
 //! `displace-gpu` from the command line, and the GPU backend of the batch
 //! ray query ([`trace_physical_gpu`]).
 //!
-//! `gpu-render` draws a built-in scene (one displaced planar face, a pinhole
-//! camera, a point light) configured by flags; scene TOML files are not read
-//! by the GPU path yet.
+//! `gpu-render SCENE` draws the displaced faces of a scene file ([`scene`]);
+//! without one it draws a built-in scene (one displaced planar face, a
+//! pinhole camera, a point light) configured by flags.
+
+mod scene;
 
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
@@ -34,15 +36,34 @@ pub struct FaceArgs {
     pub address: Address,
 }
 
+/// With SCENE, the CPU renderer's scene file: each displaced parallelogram
+/// (one tile) is drawn by the GPU raster path with its own bake and its
+/// material's colour, lit by the first point light (else the centre of the
+/// first area light, as a point of intensity radiance x area). Left out, and
+/// listed on stderr: non-displaced shapes, displaced triangles and meshes,
+/// tiled or flip_v faces, textures, reflections, other lights, depth of
+/// field, and shadows between faces. --height, --map-size, --extent,
+/// --address, --method, --iterations, --eye and --light configure the
+/// built-in plane only.
 #[derive(clap::Args, Debug)]
 pub struct GpuRenderArgs {
+    /// Scene TOML (docs/scenes.md); omitted: the built-in displaced plane.
+    pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub face: FaceArgs,
     /// Output PNG (sRGB).
     #[arg(short, long)]
     pub output: PathBuf,
-    #[arg(long, default_value = "640x480", value_name = "WxH")]
-    pub size: String,
+    /// Image size [default: the scene's, or 640x480 for the built-in plane].
+    #[arg(long, value_name = "WxH")]
+    pub size: Option<String>,
+    /// Also write `<output stem>.uvkt.npy`, float32 [height, width, 4]: u,
+    /// v, hit kind (0 none, 1 surface, 2 wall) and map-space t per pixel.
+    #[arg(long)]
+    pub uv_aov: bool,
+    /// Scene mode: do not read or write the on-disk bake cache.
+    #[arg(long)]
+    pub no_cache: bool,
     /// sphere (early out, exact refinement) or sphere-fixed (Donnelly's loop).
     #[arg(long, default_value = "sphere")]
     pub method: Method,
@@ -144,8 +165,68 @@ fn open_gpu() -> Result<GpuContext> {
     Ok(ctx)
 }
 
+fn write_outputs(
+    output: &std::path::Path,
+    image: &displace_gpu::Image,
+    uv_aov: bool,
+) -> Result<()> {
+    if uv_aov {
+        let stem = output
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
+        let npy = output
+            .parent()
+            .unwrap_or(std::path::Path::new(""))
+            .join(format!("{stem}.uvkt.npy"));
+        let data: Vec<f32> = image.uv.iter().flatten().copied().collect();
+        displace_core::io::npy::write_file(
+            &npy,
+            &[image.height as usize, image.width as usize, 4],
+            &data,
+        )
+        .with_context(|| format!("writing {}", npy.display()))?;
+    }
+    let rgb: Vec<u8> = image
+        .rgba8
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    displace_render::output::write_png_rgb8(output, image.width, image.height, &rgb)
+        .with_context(|| format!("writing {}", output.display()))?;
+    Ok(())
+}
+
+fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
+    if args.eye.is_some() || args.light.is_some() {
+        bail!(
+            "--eye and --light configure the built-in plane; a scene has its own camera and lights"
+        );
+    }
+    let size = args.size.as_deref().map(image_size).transpose()?;
+    let loaded = scene::load(path, size, args.no_cache)?;
+    let ctx = open_gpu()?;
+    let out = scene::render(&ctx, &loaded, args.distance, args.shadows)
+        .with_context(|| format!("rendering {}", path.display()))?;
+    if !out.left_out.is_empty() {
+        eprintln!("gpu-render: not drawn: {}", out.left_out.join("; "));
+    }
+    write_outputs(&args.output, &out.image, args.uv_aov)?;
+    println!(
+        "rendered {} displaced faces, {}x{} -> {}",
+        out.faces,
+        out.image.width,
+        out.image.height,
+        args.output.display()
+    );
+    Ok(())
+}
+
 pub fn run_render(args: GpuRenderArgs) -> Result<()> {
-    let size = image_size(&args.size)?;
+    if let Some(path) = args.scene.clone() {
+        return run_scene(&args, &path);
+    }
+    let size = image_size(args.size.as_deref().unwrap_or("640x480"))?;
     if args.method == Method::Exact {
         bail!(
             "--method exact is the CPU reference; the GPU paths trace with sphere or sphere-fixed"
@@ -167,13 +248,7 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
     let image = renderer
         .render(&ctx, &scene)
         .context("rendering on the GPU")?;
-    let rgb: Vec<u8> = image
-        .rgba8
-        .chunks_exact(4)
-        .flat_map(|p| [p[0], p[1], p[2]])
-        .collect();
-    displace_render::output::write_png_rgb8(&args.output, image.width, image.height, &rgb)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    write_outputs(&args.output, &image, args.uv_aov)?;
     println!(
         "rendered {}x{} -> {}",
         image.width,

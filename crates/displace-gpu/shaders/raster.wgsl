@@ -25,7 +25,9 @@ struct Frame {
     specular: f32,
     shininess: f32,
     light_intensity: f32,
-    _pad: f32,
+    // 1: the light is a point of radiant intensity light_intensity, falling
+    // off with the squared world distance (the CPU renderer's point light).
+    falloff: u32,
 }
 
 @group(1) @binding(0) var<uniform> frame: Frame;
@@ -143,7 +145,12 @@ fn fs_main(in: VsOut) -> FsOut {
         n = normalize(textureSampleGrad(normal_tex, shade_sampler, uv, dx, dy).xyz * 2.0 - 1.0);
     }
     let albedo = textureSampleGrad(color_tex, shade_sampler, uv, dx, dy).rgb;
-    let lit = max(dot(n, l), 0.0) * shadow(p + n * params.tau, l, length(to_light));
+    var lit = max(dot(n, l), 0.0) * shadow(p + n * params.tau, l, length(to_light));
+    if (frame.falloff == 1u) {
+        // to_light is in units of the depth (an orthogonal face frame).
+        let r = length(to_light) * depth;
+        lit = lit / max(r * r, 1e-20);
+    }
     let half_vec = normalize(l - dir);
     let spec = select(0.0, pow(max(dot(n, half_vec), 0.0), frame.shininess), lit > 0.0) * frame.specular * lit;
     let rgb = albedo * (frame.ambient + frame.light_intensity * lit) + vec3f(spec * frame.light_intensity);

@@ -61,6 +61,13 @@ pub struct PlaneScene {
     pub ambient: f32,
     pub specular: f32,
     pub shininess: f32,
+    /// Divide the light by the squared world distance (a point light of
+    /// radiant intensity `light_intensity`, as the CPU renderer lights);
+    /// off, the light is a constant irradiance (the built-in scene's look).
+    pub falloff: bool,
+    /// Near and far planes; `None` picks them from this face alone. Faces
+    /// drawn into one depth buffer must share them.
+    pub depth_range: Option<[f32; 2]>,
 }
 
 impl PlaneScene {
@@ -89,6 +96,8 @@ impl PlaneScene {
             ambient: 0.15,
             specular: 0.25,
             shininess: 32.0,
+            falloff: false,
+            depth_range: None,
         }
     }
 
@@ -100,12 +109,9 @@ impl PlaneScene {
         let aspect = self.size[0] as f32 / self.size[1] as f32;
         let reach =
             (self.eye - self.target).length() + self.tangent.length() + self.bitangent.length();
-        Mat4::perspective_rh(
-            self.fov_y_degrees.to_radians(),
-            aspect,
-            reach * 1e-3,
-            reach * 4.0,
-        ) * Mat4::look_at_rh(self.eye, self.target, self.up)
+        let [near, far] = self.depth_range.unwrap_or([reach * 1e-3, reach * 4.0]);
+        Mat4::perspective_rh(self.fov_y_degrees.to_radians(), aspect, near, far)
+            * Mat4::look_at_rh(self.eye, self.target, self.up)
     }
 
     /// The camera ray through the centre of pixel `(x, y)` in map space
@@ -152,6 +158,13 @@ impl PlaneScene {
         {
             return Err(Error::InvalidOption("degenerate face or camera".into()));
         }
+        if let Some([near, far]) = self.depth_range {
+            if !(near > 0.0 && far > near && far.is_finite()) {
+                return Err(Error::InvalidOption(format!(
+                    "depth range {near}..{far} (need 0 < near < far)"
+                )));
+            }
+        }
         if !(self.fov_y_degrees > 0.0 && self.fov_y_degrees < 180.0) {
             return Err(Error::InvalidOption(format!(
                 "field of view {} degrees",
@@ -180,7 +193,7 @@ pub struct FrameUniform {
     specular: f32,
     shininess: f32,
     light_intensity: f32,
-    _pad: f32,
+    falloff: u32,
 }
 
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
@@ -207,7 +220,32 @@ pub struct Renderer {
 }
 
 impl Renderer {
+    /// A renderer whose colour texture is Donnelly's checkerboard.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
+        Self::with_colour(ctx, map, texture, &checker_mips(256, 16), 256)
+    }
+
+    /// A renderer whose surface colour is the constant linear `albedo`
+    /// (a scene material's colour; each channel clamped to `[0, 1]`, stored
+    /// as 8-bit sRGB like the checkerboard).
+    pub fn with_albedo(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        albedo: [f32; 3],
+    ) -> Result<Self> {
+        let e = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+        let texel = vec![e(albedo[0]), e(albedo[1]), e(albedo[2]), 255];
+        Self::with_colour(ctx, map, texture, &[texel], 1)
+    }
+
+    fn with_colour(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        colour_mips: &[Vec<u8>],
+        colour_size: u32,
+    ) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
         let normals: Vec<u8> = map
             .normals
@@ -228,9 +266,9 @@ impl Renderer {
         let color_view = texture_2d(
             ctx,
             "colour",
-            [256, 256],
+            [colour_size, colour_size],
             wgpu::TextureFormat::Rgba8UnormSrgb,
-            &checker_mips(256, 16),
+            colour_mips,
         );
         let address = match map.address() {
             Address::Clamp => wgpu::AddressMode::ClampToEdge,
@@ -378,7 +416,7 @@ impl Renderer {
             specular: scene.specular,
             shininess: scene.shininess,
             light_intensity: scene.light_intensity,
-            _pad: 0.0,
+            falloff: scene.falloff as u32,
         };
         let params_buf = ctx
             .device
@@ -427,143 +465,189 @@ impl Renderer {
         scene: &PlaneScene,
         frames: u32,
     ) -> Result<crate::timing::Timing> {
-        let (map_group, shade) = self.uniforms(ctx, scene)?;
+        let groups = self.uniforms(ctx, scene)?;
         let targets = Targets::new(ctx, scene.size);
         crate::timing::time_frames(ctx, frames, |encoder, query| {
-            self.record(encoder, &targets, &map_group, &shade, frames.max(1), query);
+            record(
+                encoder,
+                &targets,
+                &[(self, groups.0.clone(), groups.1.clone())],
+                DEFAULT_CLEAR,
+                frames.max(1),
+                query,
+            );
             Ok(())
         })
     }
 
-    fn record(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        targets: &Targets,
-        map_group: &wgpu::BindGroup,
-        shade: &wgpu::BindGroup,
-        frames: u32,
-        timestamps: Option<&wgpu::QuerySet>,
-    ) {
-        for f in 0..frames {
-            let edge = f == 0 || f + 1 == frames;
-            let ts = timestamps
-                .filter(|_| edge)
-                .map(|q| wgpu::RenderPassTimestampWrites {
-                    query_set: q,
-                    beginning_of_pass_write_index: (f == 0).then_some(0),
-                    end_of_pass_write_index: (f + 1 == frames).then_some(1),
-                });
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("displace"),
-                color_attachments: &[
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &targets.color,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: 0.02,
-                                g: 0.02,
-                                b: 0.03,
-                                a: 1.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &targets.aov,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: -1.0,
-                                g: -1.0,
-                                b: 0.0,
-                                a: -1.0,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                ],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: ts,
-                occlusion_query_set: None,
-                multiview_mask: None,
+    /// Renders `scene` offscreen and reads colour and AOV back.
+    pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
+        render_faces(ctx, &[(self, scene)], DEFAULT_CLEAR)
+    }
+}
+
+/// The built-in scene's background (linear).
+const DEFAULT_CLEAR: [f64; 3] = [0.02, 0.02, 0.03];
+
+fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+type Draw<'a> = (&'a Renderer, wgpu::BindGroup, wgpu::BindGroup);
+
+fn record(
+    encoder: &mut wgpu::CommandEncoder,
+    targets: &Targets,
+    draws: &[Draw],
+    clear: [f64; 3],
+    frames: u32,
+    timestamps: Option<&wgpu::QuerySet>,
+) {
+    for f in 0..frames {
+        let edge = f == 0 || f + 1 == frames;
+        let ts = timestamps
+            .filter(|_| edge)
+            .map(|q| wgpu::RenderPassTimestampWrites {
+                query_set: q,
+                beginning_of_pass_write_index: (f == 0).then_some(0),
+                end_of_pass_write_index: (f + 1 == frames).then_some(1),
             });
-            pass.set_pipeline(&self.pipeline);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("displace"),
+            color_attachments: &[
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &targets.color,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: clear[0],
+                            g: clear[1],
+                            b: clear[2],
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &targets.aov,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: -1.0,
+                            g: -1.0,
+                            b: 0.0,
+                            a: -1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: ts,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        for (renderer, map_group, shade) in draws {
+            pass.set_pipeline(&renderer.pipeline);
             pass.set_bind_group(0, map_group, &[]);
             pass.set_bind_group(1, shade, &[]);
             pass.draw(0..36, 0..1);
         }
     }
+}
 
-    /// Renders `scene` offscreen and reads colour and AOV back.
-    pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
-        let (map_group, shade) = self.uniforms(ctx, scene)?;
-        let targets = Targets::new(ctx, scene.size);
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        ctx.checked("rendering", || {
-            self.record(&mut encoder, &targets, &map_group, &shade, 1, None)
-        })?;
-        let [w, h] = scene.size;
-        let color_row = (w * 4).div_ceil(256) * 256;
-        let aov_row = (w * 16).div_ceil(256) * 256;
-        let readback = |row: u32| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("readback"),
-                size: row as u64 * h as u64,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let (cbuf, abuf) = (readback(color_row), readback(aov_row));
-        for (tex, buf, row) in [
-            (&targets.color_tex, &cbuf, color_row),
-            (&targets.aov_tex, &abuf, aov_row),
-        ] {
-            encoder.copy_texture_to_buffer(
-                tex.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(row),
-                        rows_per_image: Some(h),
-                    },
-                },
-                wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-            );
-        }
-        let commands = ctx.checked("finishing the render", || encoder.finish())?;
-        ctx.queue.submit([commands]);
-        let cbytes = ctx.read_buffer(&cbuf)?;
-        let abytes = ctx.read_buffer(&abuf)?;
-        let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);
-        let mut uv = Vec::with_capacity((w * h) as usize);
-        for y in 0..h as usize {
-            rgba8.extend_from_slice(&cbytes[y * color_row as usize..][..w as usize * 4]);
-            let row: &[f32] =
-                bytemuck::cast_slice(&abytes[y * aov_row as usize..][..w as usize * 16]);
-            uv.extend(row.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
-        }
-        Ok(Image {
-            width: w,
-            height: h,
-            rgba8,
-            uv,
-        })
+/// Draws every `(renderer, face)` into one colour, AOV and depth target (the
+/// nearest surface wins per pixel, through the fragments' exact depths),
+/// cleared to the linear colour `clear`, and reads them back. All faces must
+/// share the image size and camera, including [`PlaneScene::depth_range`].
+pub fn render_faces(
+    ctx: &GpuContext,
+    faces: &[(&Renderer, &PlaneScene)],
+    clear: [f64; 3],
+) -> Result<Image> {
+    let Some((_, first)) = faces.first() else {
+        return Err(Error::InvalidOption("no faces to render".into()));
+    };
+    if faces
+        .iter()
+        .any(|(_, s)| s.size != first.size || s.view_proj() != first.view_proj())
+    {
+        return Err(Error::InvalidOption(
+            "faces drawn together must share the image size and camera".into(),
+        ));
     }
+    let draws = faces
+        .iter()
+        .map(|(r, s)| r.uniforms(ctx, s).map(|(m, sh)| (*r, m, sh)))
+        .collect::<Result<Vec<_>>>()?;
+    let targets = Targets::new(ctx, first.size);
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    ctx.checked("rendering", || {
+        record(&mut encoder, &targets, &draws, clear, 1, None)
+    })?;
+    let [w, h] = first.size;
+    let color_row = (w * 4).div_ceil(256) * 256;
+    let aov_row = (w * 16).div_ceil(256) * 256;
+    let readback = |row: u32| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: row as u64 * h as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let (cbuf, abuf) = (readback(color_row), readback(aov_row));
+    for (tex, buf, row) in [
+        (&targets.color_tex, &cbuf, color_row),
+        (&targets.aov_tex, &abuf, aov_row),
+    ] {
+        encoder.copy_texture_to_buffer(
+            tex.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    let commands = ctx.checked("finishing the render", || encoder.finish())?;
+    ctx.queue.submit([commands]);
+    let cbytes = ctx.read_buffer(&cbuf)?;
+    let abytes = ctx.read_buffer(&abuf)?;
+    let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);
+    let mut uv = Vec::with_capacity((w * h) as usize);
+    for y in 0..h as usize {
+        rgba8.extend_from_slice(&cbytes[y * color_row as usize..][..w as usize * 4]);
+        let row: &[f32] = bytemuck::cast_slice(&abytes[y * aov_row as usize..][..w as usize * 16]);
+        uv.extend(row.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
+    }
+    Ok(Image {
+        width: w,
+        height: h,
+        rgba8,
+        uv,
+    })
 }
 
 struct Targets {

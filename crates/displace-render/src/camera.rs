@@ -112,6 +112,17 @@ impl Camera {
     pub fn position(&self) -> Vec3 {
         self.position
     }
+
+    /// The orthonormal basis `(forward, right, up)` and `tan(vfov / 2)`, so
+    /// another renderer can reproduce [`Camera::ray`]'s pixel mapping.
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3, f32) {
+        (self.forward, self.right, self.up, self.tan_half)
+    }
+
+    /// Lens radius, world units (0: pinhole).
+    pub fn lens_radius(&self) -> f32 {
+        self.lens_radius
+    }
 }
 
 #[cfg(test)]

@@ -116,6 +116,21 @@ impl DisplacedFace {
         &self.map
     }
 
+    /// `(origin, M)` of the frame `world = origin + M p` (module docs).
+    pub fn frame(&self) -> (Vec3, Mat3) {
+        (self.origin, self.to_world)
+    }
+
+    pub fn trace_options(&self) -> TraceOptions {
+        self.trace
+    }
+
+    /// Whether the face is a triangle (a prism shell) rather than a
+    /// parallelogram (the whole map box).
+    pub fn is_triangle(&self) -> bool {
+        self.prism.is_some()
+    }
+
     pub fn set_method(&mut self, method: displace_core::Method) {
         self.trace.method = method;
     }

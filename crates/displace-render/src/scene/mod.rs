@@ -104,6 +104,23 @@ impl Scene {
     pub fn cache_stats(&self) -> CacheStats {
         self.cache_stats
     }
+    /// The built primitives, for other renderers of the same scene (the GPU
+    /// path of `displace gpu-render`).
+    pub fn primitives(&self) -> &[Primitive] {
+        &self.prims
+    }
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+    pub fn lights(&self) -> &[Light] {
+        &self.lights
+    }
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+    pub fn background(&self) -> Vec3 {
+        self.background
+    }
 }
 
 /// 1-based line and column (in characters) of byte offset `at`.

@@ -1,0 +1,217 @@
+//! `displace gpu-render SCENE`: the CPU renderer's scene file drawn by the
+//! GPU raster path (issue 4: "the same scene TOML as the CPU renderer, with
+//! the same camera conventions, so one scene renders on both and can be
+//! compared").
+//!
+//! The scene is loaded and validated by `displace_render` itself, so every
+//! error (file:line:column, unknown keys, missing height files) is the CPU
+//! renderer's, and every displaced face gets the bake the CPU renderer would
+//! use (the same in-memory sharing and on-disk cache). What the GPU draws of
+//! it: each displaced parallelogram of one tile, as its own shell box with
+//! Donnelly's shaders, lit by one point light (the first point light, else
+//! the centre of the first area light) with the CPU's point-light falloff
+//! and Lambert / normalised Blinn-Phong terms. Everything else is left out
+//! and reported: non-displaced shapes, displaced triangles and meshes,
+//! tiled faces, `flip_v` faces, textures, reflections, other lights, and
+//! shadows cast by one face onto another (each face shadows only itself).
+
+use anyhow::{bail, Context, Result};
+use displace_core::Method;
+use displace_gpu::raster::render_faces;
+use displace_gpu::{DistanceTexture, GpuContext, Image, PlaneScene, Renderer, Shadows};
+use displace_render::light::Light;
+use displace_render::scene::Shape;
+use displace_render::{Scene, SceneOptions};
+use glam::Vec3;
+use std::f32::consts::PI;
+use std::path::Path;
+
+/// A rendered scene and what of it was not drawn.
+pub struct SceneImage {
+    pub image: Image,
+    pub faces: usize,
+    pub left_out: Vec<String>,
+}
+
+/// Loads `path` exactly as `displace render` does.
+pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<Scene> {
+    let opts = SceneOptions {
+        size,
+        cache_dir: if no_cache {
+            None
+        } else {
+            displace_render::default_cache_dir()
+        },
+        ..SceneOptions::default()
+    };
+    Ok(Scene::load(path, &opts)?)
+}
+
+/// The light the GPU path uses: position and radiant intensity (RGB).
+/// An area light becomes a point at its centre with its on-axis intensity
+/// `L A` (radiance times area).
+fn pick_light(scene: &Scene) -> Option<(Vec3, Vec3)> {
+    let lights = scene.lights();
+    let point = lights.iter().find_map(|l| match l {
+        Light::Point {
+            position,
+            intensity,
+        } => Some((*position, *intensity)),
+        Light::Area { .. } => None,
+    });
+    point.or_else(|| {
+        lights.iter().find_map(|l| match l {
+            Light::Area { quad, radiance } => Some((
+                quad.origin + 0.5 * (quad.edge_u + quad.edge_v),
+                *radiance * quad.edge_u.cross(quad.edge_v).length(),
+            )),
+            Light::Point { .. } => None,
+        })
+    })
+}
+
+pub fn render(
+    ctx: &GpuContext,
+    scene: &Scene,
+    texture: DistanceTexture,
+    shadows: Shadows,
+) -> Result<SceneImage> {
+    let camera = scene.camera();
+    let (forward, _, up, tan_half) = camera.basis();
+    let eye = camera.position();
+    let mut left_out = Vec::new();
+    if camera.lens_radius() > 0.0 {
+        left_out.push("depth of field (drawn as a pinhole)".to_string());
+    }
+    let Some((light, intensity)) = pick_light(scene) else {
+        bail!("the scene has no light; gpu-render lights with its first point or area light");
+    };
+    if scene.lights().len() > 1 {
+        left_out.push(format!(
+            "{} lights after the one used",
+            scene.lights().len() - 1
+        ));
+    }
+    let size = [scene.width(), scene.height()];
+    let mut faces = Vec::new();
+    let mut far = 0.0f32;
+    let mut skip = |what: &str| left_out.push(what.to_string());
+    for (k, prim) in scene.primitives().iter().enumerate() {
+        let face = match &prim.shape {
+            Shape::Displaced(d) => d,
+            Shape::Quad(_) if prim.emitter.is_some() => {
+                skip("visible area-light quads");
+                continue;
+            }
+            _ => {
+                skip("non-displaced shapes");
+                continue;
+            }
+        };
+        if face.is_triangle() {
+            skip("displaced triangles and meshes");
+            continue;
+        }
+        let trace = face.trace_options();
+        if trace.tiles != [1.0, 1.0] {
+            skip("tiled displaced faces (tiles other than [1, 1])");
+            continue;
+        }
+        if trace.method == Method::Exact {
+            bail!(
+                "primitive {k}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed"
+            );
+        }
+        if face.color.is_some() || face.normal_map.is_some() {
+            skip("displacement colour textures and normal maps");
+        }
+        let (origin, m) = face.frame();
+        let map = face.map();
+        let [ax, ay] = map.aspect();
+        let (tangent, bitangent, up_n) = (m.col(0) * ax, m.col(1) * ay, m.col(2));
+        if tangent.cross(bitangent).dot(up_n) <= 0.0 {
+            skip("flip_v faces (a mirrored frame)");
+            continue;
+        }
+        for c in 0..8 {
+            let p = origin
+                + m * Vec3::new(
+                    (c & 1) as f32 * ax,
+                    ((c >> 1) & 1) as f32 * ay,
+                    ((c >> 2) & 1) as f32,
+                );
+            far = far.max((p - eye).dot(forward));
+        }
+        let mat = &scene.materials()[prim.material as usize];
+        if mat.texture.is_some() {
+            skip("material textures");
+        }
+        if mat.reflects() {
+            skip("reflections");
+        }
+        // The CPU's direct term is `diffuse / pi * I / r^2 * cos`: the GPU's
+        // is `albedo * light_intensity * cos / r^2`, its albedo a [0, 1]
+        // texture, so the largest channel of `diffuse I / pi` becomes the
+        // light's strength and the rest the albedo.
+        let rgb = mat.diffuse * intensity / PI;
+        let strength = rgb.max_element();
+        let strength = if strength > 0.0 { strength } else { 1.0 };
+        let albedo = rgb / strength;
+        // Normalised Blinn-Phong (displace_render::material::brdf) with the
+        // mean of its specular colour and the light's (the GPU highlight is
+        // white).
+        let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+        let specular = if mat.shininess > 0.0 && mat.specular != Vec3::ZERO {
+            mean(mat.specular) * (mat.shininess + 8.0) / (8.0 * PI) * mean(intensity) / strength
+        } else {
+            0.0
+        };
+        let plane = PlaneScene {
+            size,
+            eye,
+            target: eye + forward,
+            up,
+            fov_y_degrees: 2.0 * tan_half.atan().to_degrees(),
+            light,
+            light_intensity: strength,
+            origin,
+            tangent,
+            bitangent,
+            depth: up_n.length(),
+            method: trace.method,
+            iterations: trace.iterations,
+            shadows,
+            penumbra_k: 8.0,
+            ambient: 0.0,
+            specular,
+            shininess: mat.shininess.max(1.0),
+            falloff: true,
+            depth_range: None,
+        };
+        let renderer = Renderer::with_albedo(ctx, map, texture, albedo.to_array())
+            .with_context(|| format!("uploading displaced face {k}"))?;
+        faces.push((renderer, plane));
+    }
+    left_out.sort();
+    left_out.dedup();
+    if faces.is_empty() {
+        bail!("the scene has no displaced face gpu-render can draw (left out: {left_out:?})");
+    }
+    if far <= 0.0 {
+        bail!("every displaced face is behind the camera");
+    }
+    // One depth range for all faces, so their exact fragment depths compare.
+    let range = [far * 1.01 * 1e-4, far * 1.01];
+    for (_, p) in &mut faces {
+        p.depth_range = Some(range);
+    }
+    let draws: Vec<(&Renderer, &PlaneScene)> = faces.iter().map(|(r, p)| (r, p)).collect();
+    let bg = scene.background();
+    let image = render_faces(ctx, &draws, [bg.x as f64, bg.y as f64, bg.z as f64])
+        .context("rendering the scene on the GPU")?;
+    Ok(SceneImage {
+        image,
+        faces: faces.len(),
+        left_out,
+    })
+}
