@@ -37,11 +37,11 @@ pub struct FaceArgs {
 }
 
 /// With SCENE, the CPU renderer's scene file: each displaced parallelogram
-/// (one tile) is drawn by the GPU raster path with its own bake and its
+/// is drawn by the GPU raster path with its own bake and its
 /// material's colour, lit by the first point light (else the centre of the
 /// first area light, as a point of intensity radiance x area). Left out, and
 /// listed on stderr: non-displaced shapes, displaced triangles and meshes,
-/// tiled or flip_v faces, textures, reflections, other lights, depth of
+/// flip_v faces, textures, reflections, other lights, depth of
 /// field, and shadows between faces. --height, --map-size, --extent,
 /// --address, --method, --iterations, --eye and --light configure the
 /// built-in plane only.

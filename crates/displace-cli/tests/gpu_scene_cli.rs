@@ -160,6 +160,20 @@ fn phong_quad_matches_the_cpu_renderer() {
     );
 }
 
+/// A face tiled 2 x 2 by a repeating map: the shell box spans all tiles and
+/// the UV AOV counts tiles, as on the CPU.
+#[test]
+fn tiled_quad_matches_the_cpu_renderer() {
+    if test_context().is_none() {
+        return;
+    }
+    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
+        "map_size = [64, 64, 16] }",
+        "map_size = [64, 64, 16], address = \"repeat\", tiles = [2.0, 2.0] }",
+    );
+    compare_scene(&text, "tiled", 6.0);
+}
+
 /// Two displaced quads, the upright one in front of the other: one draw
 /// each into a shared depth buffer must give the CPU's visibility (which
 /// face, which texel) pixel for pixel. The colour is not compared tightly:

@@ -62,7 +62,9 @@ fn box_corner(index: u32) -> vec3f {
 
 @vertex
 fn vs_main(@builtin(vertex_index) index: u32) -> VsOut {
-    let uvw = box_corner(index);
+    // The box spans every tile of the face (params.tiles; 1 x 1 unless the
+    // map repeats).
+    let uvw = box_corner(index) * vec3f(params.tiles, 1.0);
     let depth = 1.0 / frame.inv_bump_depth;
     let t = frame.face_t.xyz;
     let b = frame.face_b.xyz;

@@ -68,6 +68,10 @@ pub struct PlaneScene {
     /// Near and far planes; `None` picks them from this face alone. Faces
     /// drawn into one depth buffer must share them.
     pub depth_range: Option<[f32; 2]>,
+    /// How many tiles of the map the face spans along `tangent` and
+    /// `bitangent` (each of those is one tile); other than `[1, 1]` only for
+    /// a map baked with repeat addressing.
+    pub tiles: [f32; 2],
 }
 
 impl PlaneScene {
@@ -98,6 +102,7 @@ impl PlaneScene {
             shininess: 32.0,
             falloff: false,
             depth_range: None,
+            tiles: [1.0, 1.0],
         }
     }
 
@@ -107,8 +112,9 @@ impl PlaneScene {
 
     pub fn view_proj(&self) -> Mat4 {
         let aspect = self.size[0] as f32 / self.size[1] as f32;
-        let reach =
-            (self.eye - self.target).length() + self.tangent.length() + self.bitangent.length();
+        let reach = (self.eye - self.target).length()
+            + self.tangent.length() * self.tiles[0]
+            + self.bitangent.length() * self.tiles[1];
         let [near, far] = self.depth_range.unwrap_or([reach * 1e-3, reach * 4.0]);
         Mat4::perspective_rh(self.fov_y_degrees.to_radians(), aspect, near, far)
             * Mat4::look_at_rh(self.eye, self.target, self.up)
@@ -396,6 +402,7 @@ impl Renderer {
             // The fragment's start point is interpolated: let the clip find
             // the shell's face a hair behind it.
             t_min: -1e-3,
+            tiles: scene.tiles,
             ..TraceOptions::default()
         };
         let params: MapParams = self.map.params(&opts)?;

@@ -7,12 +7,12 @@
 //! error (file:line:column, unknown keys, missing height files) is the CPU
 //! renderer's, and every displaced face gets the bake the CPU renderer would
 //! use (the same in-memory sharing and on-disk cache). What the GPU draws of
-//! it: each displaced parallelogram of one tile, as its own shell box with
+//! it: each displaced parallelogram (tiled or not), as its own shell box with
 //! Donnelly's shaders, lit by one point light (the first point light, else
 //! the centre of the first area light) with the CPU's point-light falloff
 //! and Lambert / normalised Blinn-Phong terms. Everything else is left out
 //! and reported: non-displaced shapes, displaced triangles and meshes,
-//! tiled faces, `flip_v` faces, textures, reflections, other lights, and
+//! `flip_v` faces, textures, reflections, other lights, and
 //! shadows cast by one face onto another (each face shadows only itself).
 
 use anyhow::{bail, Context, Result};
@@ -113,10 +113,6 @@ pub fn render(
             continue;
         }
         let trace = face.trace_options();
-        if trace.tiles != [1.0, 1.0] {
-            skip("tiled displaced faces (tiles other than [1, 1])");
-            continue;
-        }
         if trace.method == Method::Exact {
             bail!(
                 "primitive {k}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed"
@@ -136,8 +132,8 @@ pub fn render(
         for c in 0..8 {
             let p = origin
                 + m * Vec3::new(
-                    (c & 1) as f32 * ax,
-                    ((c >> 1) & 1) as f32 * ay,
+                    (c & 1) as f32 * ax * trace.tiles[0],
+                    ((c >> 1) & 1) as f32 * ay * trace.tiles[1],
                     ((c >> 2) & 1) as f32,
                 );
             far = far.max((p - eye).dot(forward));
@@ -187,6 +183,7 @@ pub fn render(
             shininess: mat.shininess.max(1.0),
             falloff: true,
             depth_range: None,
+            tiles: trace.tiles,
         };
         let renderer = Renderer::with_albedo(ctx, map, texture, albedo.to_array())
             .with_context(|| format!("uploading displaced face {k}"))?;
