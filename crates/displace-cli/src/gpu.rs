@@ -41,7 +41,7 @@ pub struct FaceArgs {
 /// material's colour, lit by the first point light (else the centre of the
 /// first area light, as a point of intensity radiance x area). Left out, and
 /// listed on stderr: non-displaced shapes, displaced triangles and meshes,
-/// flip_v faces, textures, reflections, other lights, depth of
+/// textures, reflections, other lights, depth of
 /// field, and shadows between faces. --height, --map-size, --extent,
 /// --address, --method, --iterations, --eye and --light configure the
 /// built-in plane only.

@@ -174,6 +174,21 @@ fn tiled_quad_matches_the_cpu_renderer() {
     compare_scene(&text, "tiled", 6.0);
 }
 
+/// A `flip_v` quad (a left-handed face frame): drawn with the opposite
+/// winding, displaced along the quad's own normal, UV running back along
+/// `edge_v`, as on the CPU.
+#[test]
+fn flipped_quad_matches_the_cpu_renderer() {
+    if test_context().is_none() {
+        return;
+    }
+    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
+        "map_size = [64, 64, 16] }",
+        "map_size = [64, 64, 16], flip_v = true }",
+    );
+    compare_scene(&text, "flip_v", 4.0);
+}
+
 /// Two displaced quads, the upright one in front of the other: one draw
 /// each into a shared depth buffer must give the CPU's visibility (which
 /// face, which texel) pixel for pixel. The colour is not compared tightly:

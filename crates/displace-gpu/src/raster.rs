@@ -72,6 +72,10 @@ pub struct PlaneScene {
     /// `bitangent` (each of those is one tile); other than `[1, 1]` only for
     /// a map baked with repeat addressing.
     pub tiles: [f32; 2],
+    /// The face's frame is left-handed: its normal is `bitangent x tangent`
+    /// (a scene quad with `flip_v`, whose `v` runs back along its edge).
+    /// Drawn only by a renderer made with the same handedness.
+    pub mirrored: bool,
 }
 
 impl PlaneScene {
@@ -103,11 +107,17 @@ impl PlaneScene {
             falloff: false,
             depth_range: None,
             tiles: [1.0, 1.0],
+            mirrored: false,
         }
     }
 
     pub fn normal(&self) -> Vec3 {
-        self.tangent.cross(self.bitangent).normalize()
+        let n = self.tangent.cross(self.bitangent).normalize();
+        if self.mirrored {
+            -n
+        } else {
+            n
+        }
     }
 
     pub fn view_proj(&self) -> Mat4 {
@@ -223,26 +233,30 @@ pub struct Renderer {
     normal_view: wgpu::TextureView,
     color_view: wgpu::TextureView,
     sampler: wgpu::Sampler,
+    mirrored: bool,
 }
 
 impl Renderer {
     /// A renderer whose colour texture is Donnelly's checkerboard.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
-        Self::with_colour(ctx, map, texture, &checker_mips(256, 16), 256)
+        Self::with_colour(ctx, map, texture, &checker_mips(256, 16), 256, false)
     }
 
     /// A renderer whose surface colour is the constant linear `albedo`
     /// (a scene material's colour; each channel clamped to `[0, 1]`, stored
-    /// as 8-bit sRGB like the checkerboard).
+    /// as 8-bit sRGB like the checkerboard), for faces of the handedness
+    /// `mirrored` ([`PlaneScene::mirrored`]: the shell box's winding flips
+    /// with it, so back-face culling must too).
     pub fn with_albedo(
         ctx: &GpuContext,
         map: &DisplacementMap,
         texture: DistanceTexture,
         albedo: [f32; 3],
+        mirrored: bool,
     ) -> Result<Self> {
         let e = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
         let texel = vec![e(albedo[0]), e(albedo[1]), e(albedo[2]), 255];
-        Self::with_colour(ctx, map, texture, &[texel], 1)
+        Self::with_colour(ctx, map, texture, &[texel], 1, mirrored)
     }
 
     fn with_colour(
@@ -251,6 +265,7 @@ impl Renderer {
         texture: DistanceTexture,
         colour_mips: &[Vec<u8>],
         colour_size: u32,
+        mirrored: bool,
     ) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
         let normals: Vec<u8> = map
@@ -358,6 +373,11 @@ impl Renderer {
                         buffers: &[],
                     },
                     primitive: wgpu::PrimitiveState {
+                        front_face: if mirrored {
+                            wgpu::FrontFace::Cw
+                        } else {
+                            wgpu::FrontFace::Ccw
+                        },
                         cull_mode: Some(wgpu::Face::Back),
                         ..Default::default()
                     },
@@ -387,6 +407,7 @@ impl Renderer {
             normal_view,
             color_view,
             sampler,
+            mirrored,
         })
     }
 
@@ -396,6 +417,11 @@ impl Renderer {
         scene: &PlaneScene,
     ) -> Result<(wgpu::BindGroup, wgpu::BindGroup)> {
         scene.check()?;
+        if scene.mirrored != self.mirrored {
+            return Err(Error::InvalidOption(
+                "the face's handedness differs from the renderer's (PlaneScene::mirrored)".into(),
+            ));
+        }
         let opts = TraceOptions {
             method: scene.method,
             iterations: scene.iterations,

@@ -11,8 +11,7 @@
 //! Donnelly's shaders, lit by one point light (the first point light, else
 //! the centre of the first area light) with the CPU's point-light falloff
 //! and Lambert / normalised Blinn-Phong terms. Everything else is left out
-//! and reported: non-displaced shapes, displaced triangles and meshes,
-//! `flip_v` faces, textures, reflections, other lights, and
+//! and reported: non-displaced shapes, displaced triangles and meshes, textures, reflections, other lights, and
 //! shadows cast by one face onto another (each face shadows only itself).
 
 use anyhow::{bail, Context, Result};
@@ -125,10 +124,8 @@ pub fn render(
         let map = face.map();
         let [ax, ay] = map.aspect();
         let (tangent, bitangent, up_n) = (m.col(0) * ax, m.col(1) * ay, m.col(2));
-        if tangent.cross(bitangent).dot(up_n) <= 0.0 {
-            skip("flip_v faces (a mirrored frame)");
-            continue;
-        }
+        // A `flip_v` quad runs `v` back along its edge: a left-handed frame.
+        let mirrored = tangent.cross(bitangent).dot(up_n) < 0.0;
         for c in 0..8 {
             let p = origin
                 + m * Vec3::new(
@@ -184,8 +181,9 @@ pub fn render(
             falloff: true,
             depth_range: None,
             tiles: trace.tiles,
+            mirrored,
         };
-        let renderer = Renderer::with_albedo(ctx, map, texture, albedo.to_array())
+        let renderer = Renderer::with_albedo(ctx, map, texture, albedo.to_array(), mirrored)
             .with_context(|| format!("uploading displaced face {k}"))?;
         faces.push((renderer, plane));
     }
