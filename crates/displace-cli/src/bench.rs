@@ -12,6 +12,10 @@ pub struct BenchArgs {
 
 #[derive(clap::Subcommand, Debug)]
 pub enum BenchCommand {
+    /// Bake throughput (Mvoxels/s) next to `edt` and scipy on the same volume.
+    Bake(crate::bench_bake::BenchBakeArgs),
+    /// Map-space trace throughput (rays/s, one core and all) and iterations.
+    Trace(crate::bench_trace::BenchTraceArgs),
     /// Primary and shadow rays per second on displaced surfaces, per scene,
     /// on one core and on all.
     Render(BenchRenderArgs),
@@ -22,6 +26,8 @@ pub enum BenchCommand {
 
 pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
+        BenchCommand::Bake(a) => crate::bench_bake::run(a),
+        BenchCommand::Trace(a) => crate::bench_trace::run(a),
         BenchCommand::Render(a) => bench_render::run(a),
         BenchCommand::Gpu(a) => crate::gpu::run_bench(a),
     }

@@ -2,16 +2,25 @@
 //! measure it all. Each subcommand lives in its own module; errors are
 //! reported with context and a non-zero exit code.
 
+mod bake;
 mod bench;
+mod bench_bake;
 mod bench_render;
+mod bench_trace;
 mod export_mesh;
 mod gpu;
+mod progress;
 mod render;
+mod trace;
 
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "displace", version, about = "Per-pixel displacement mapping with distance functions")]
+#[command(
+    name = "displace",
+    version,
+    about = "Per-pixel displacement mapping with distance functions"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -19,9 +28,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Bake a height map into a conservative 3D distance map (KTX2, DDS or
+    /// npy) and optionally a normal map.
+    Bake(bake::BakeArgs),
+    /// Batch ray queries against one displaced face (rays and hits as .npy).
+    Trace(trace::TraceArgs),
     /// Ray trace a scene (or the built-in studded Cornell box) to PNG/EXR.
     Render(render::RenderArgs),
-    /// Measure: `bench render` (rays per second on displaced surfaces).
+    /// Measure: `bench bake`, `bench trace`, `bench render`, `bench gpu`.
     Bench(bench::BenchArgs),
     /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
     ExportMesh(export_mesh::ExportMeshArgs),
@@ -33,6 +47,8 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
+        Command::Bake(args) => bake::run(args),
+        Command::Trace(args) => trace::run(args),
         Command::Render(args) => render::run(args),
         Command::Bench(args) => bench::run(args),
         Command::ExportMesh(args) => export_mesh::run(args),

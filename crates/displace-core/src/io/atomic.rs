@@ -55,7 +55,10 @@ fn parent_dir(path: &Path) -> Option<&Path> {
 fn create_temp(path: &Path) -> std::io::Result<(PathBuf, File)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let name = path.file_name().ok_or_else(|| {
-        std::io::Error::new(std::io::ErrorKind::InvalidInput, "the output path names no file")
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the output path names no file",
+        )
     })?;
     let dir = parent_dir(path).unwrap_or(Path::new("."));
     loop {
@@ -120,7 +123,10 @@ mod tests {
             Err(std::io::Error::other("boom"))
         })
         .unwrap_err();
-        assert!(err.to_string().contains("boom") && err.to_string().contains("a.bin"), "{err}");
+        assert!(
+            err.to_string().contains("boom") && err.to_string().contains("a.bin"),
+            "{err}"
+        );
         assert!(entries(dir.path()).is_empty());
 
         write_atomic(&p, |w| w.write_all(b"old")).unwrap();

@@ -22,7 +22,9 @@
 use super::FormatError;
 use crate::distance_map::{f16_round_down, Format, R8Range, R8_SPAN};
 use crate::{Address, DistanceMap, Extent, Result};
-use ddsfile::{AlphaMode, Caps2, D3D10ResourceDimension, D3DFormat, Dds, DxgiFormat, NewDxgiParams};
+use ddsfile::{
+    AlphaMode, Caps2, D3D10ResourceDimension, D3DFormat, Dds, DxgiFormat, NewDxgiParams,
+};
 use std::path::Path;
 
 /// The one range every R8 DDS map is encoded with (see the module docs).
@@ -142,7 +144,11 @@ pub fn from_bytes(
                     "D3D format {other:?} (expected L8, R16F or R32F)"
                 )))
             }
-            None => return Err(FormatError::Unsupported("DDS pixel format not recognised".into())),
+            None => {
+                return Err(FormatError::Unsupported(
+                    "DDS pixel format not recognised".into(),
+                ))
+            }
         }
     };
     let size = [
@@ -171,7 +177,10 @@ pub fn from_bytes(
     }
     let raw = &dds.data[..need];
     let (data, quantum): (Vec<f32>, f32) = match format {
-        Format::R8 => (raw.iter().map(|&c| DDS_R8_RANGE.decode(c)).collect(), DDS_R8_RANGE.quantum()),
+        Format::R8 => (
+            raw.iter().map(|&c| DDS_R8_RANGE.decode(c)).collect(),
+            DDS_R8_RANGE.quantum(),
+        ),
         Format::R16F => {
             let data: Vec<f32> = raw
                 .chunks_exact(2)
@@ -183,7 +192,9 @@ pub fn from_bytes(
             (data, big * (1.0 / 1024.0) + 6.0e-8)
         }
         Format::R32F => (
-            raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+            raw.chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
             0.0,
         ),
     };
@@ -204,7 +215,9 @@ pub fn from_bytes(
 /// baked for, since the file cannot say.
 pub fn read(path: &Path, extent: Extent, address: Address) -> Result<DistanceMap> {
     let bytes = super::read_bytes(path)?;
-    from_bytes(&bytes, extent, address).map(|(m, _)| m).map_err(|e| e.at(path))
+    from_bytes(&bytes, extent, address)
+        .map(|(m, _)| m)
+        .map_err(|e| e.at(path))
 }
 
 #[cfg(test)]
@@ -234,7 +247,10 @@ mod tests {
             let bytes = to_bytes(&map, format).unwrap();
             let dds = Dds::read(&bytes[..]).unwrap();
             assert_eq!(dds.get_dxgi_format(), Some(dxgi(format)));
-            assert_eq!((dds.get_width(), dds.get_height(), dds.get_depth()), (12, 10, 6));
+            assert_eq!(
+                (dds.get_width(), dds.get_height(), dds.get_depth()),
+                (12, 10, 6)
+            );
             assert!(dds.header.caps2.contains(Caps2::VOLUME));
             let (back, f) = from_bytes(&bytes, extent, Address::Clamp).unwrap();
             assert_eq!(f, format);
@@ -257,16 +273,25 @@ mod tests {
         let (map, extent) = baked();
         let mut low = map.data().to_vec();
         low[0] = -2.0;
-        let low = DistanceMap::from_raw(map.size(), map.aspect(), Address::Clamp, low, 0.1).unwrap();
+        let low =
+            DistanceMap::from_raw(map.size(), map.aspect(), Address::Clamp, low, 0.1).unwrap();
         let e = to_bytes(&low, Format::R8).unwrap_err().to_string();
         assert!(e.contains("fixed R8 range"), "{e}");
         assert!(to_bytes(&low, Format::R16F).is_ok());
 
         let good = to_bytes(&map, Format::R16F).unwrap();
-        let err = |b: &[u8]| from_bytes(b, extent, Address::Clamp).unwrap_err().to_string();
+        let err = |b: &[u8]| {
+            from_bytes(b, extent, Address::Clamp)
+                .unwrap_err()
+                .to_string()
+        };
         assert!(err(b"").contains("bad magic"));
         assert!(err(b"\x89PNG\r\n\x1a\n").contains("bad magic"));
-        assert!(err(&good[..60]).contains("truncated"), "{}", err(&good[..60]));
+        assert!(
+            err(&good[..60]).contains("truncated"),
+            "{}",
+            err(&good[..60])
+        );
         let e = err(&good[..good.len() - 10]);
         assert!(e.contains("truncated") && e.contains("12x10x6"), "{e}");
         // A 2D texture is not a distance map.

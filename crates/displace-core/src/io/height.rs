@@ -28,7 +28,9 @@ impl std::str::FromStr for Channel {
             "g" => Ok(Channel::G),
             "b" => Ok(Channel::B),
             "a" => Ok(Channel::A),
-            other => Err(Error::InvalidHeightMap(format!("unknown channel `{other}` (expected r, g, b or a)"))),
+            other => Err(Error::InvalidHeightMap(format!(
+                "unknown channel `{other}` (expected r, g, b or a)"
+            ))),
         }
     }
 }
@@ -75,7 +77,10 @@ pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
         return generators::generate(source, opts.size[0], opts.size[1], opts.address);
     }
     let path = Path::new(source);
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("png") => load_png(path, opts),
         Some("exr") => load_exr(path, opts),
@@ -104,11 +109,15 @@ fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         path: path.to_path_buf(),
         source,
     })?;
+    if file.metadata().is_ok_and(|m| m.len() == 0) {
+        return Err(image_err(path, "the file is empty"));
+    }
     let decoder = image::codecs::png::PngDecoder::new(std::io::BufReader::new(file))
         .map_err(|e| image_err(path, format!("cannot read PNG: {e}")))?;
     let (w, h) = decoder.dimensions();
     HeightMap::check_size(w as usize, h as usize).map_err(|e| image_err(path, e))?;
-    let img = DynamicImage::from_decoder(decoder).map_err(|e| image_err(path, format!("cannot decode PNG: {e}")))?;
+    let img = DynamicImage::from_decoder(decoder)
+        .map_err(|e| image_err(path, format!("cannot decode PNG: {e}")))?;
     let (w, h) = (w as usize, h as usize);
     // Samples normalised to [0, 1] with their channel layout.
     let (channels, grey, samples): (usize, bool, Vec<f32>) = match img {
@@ -120,10 +129,16 @@ fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         DynamicImage::ImageLumaA16(b) => (2, true, norm16(b.into_raw())),
         DynamicImage::ImageRgb16(b) => (3, false, norm16(b.into_raw())),
         DynamicImage::ImageRgba16(b) => (4, false, norm16(b.into_raw())),
-        other => return Err(image_err(path, format!("unsupported PNG colour type {:?}", other.color()))),
+        other => {
+            return Err(image_err(
+                path,
+                format!("unsupported PNG colour type {:?}", other.color()),
+            ))
+        }
     };
     let has_alpha = channels == 2 || channels == 4;
-    let pick = |c: usize| -> Vec<f32> { samples.iter().skip(c).step_by(channels).copied().collect() };
+    let pick =
+        |c: usize| -> Vec<f32> { samples.iter().skip(c).step_by(channels).copied().collect() };
     let data = match (opts.channel, grey) {
         (Some(Channel::A), _) if !has_alpha => {
             return Err(image_err(path, "has no alpha channel (--channel a)"));
@@ -152,7 +167,10 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     use exr::prelude::*;
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| image_err(path, format!("cannot read EXR: {e}")))?;
-    let header = meta.headers.first().ok_or_else(|| image_err(path, "EXR file has no layers"))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| image_err(path, "EXR file has no layers"))?;
     let size = header.layer_size;
     HeightMap::check_size(size.width(), size.height()).map_err(|e| image_err(path, e))?;
     let image = read()
@@ -174,31 +192,56 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         .collect();
     // Channel names may carry a layer prefix (`height.R`).
     let find = |letter: &str| {
+        channels.iter().find(|(n, _)| {
+            n.rsplit('.')
+                .next()
+                .is_some_and(|s| s.eq_ignore_ascii_case(letter))
+        })
+    };
+    let names = || {
         channels
             .iter()
-            .find(|(n, _)| n.rsplit('.').next().is_some_and(|s| s.eq_ignore_ascii_case(letter)))
+            .map(|(n, _)| n.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
     };
-    let names = || channels.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ");
     let used: Vec<(&(String, Vec<f32>), f32)> = match opts.channel {
         Some(c) => {
-            let ch = find(c.letter())
-                .ok_or_else(|| image_err(path, format!("has no {} channel (channels: {})", c.letter(), names())))?;
+            let ch = find(c.letter()).ok_or_else(|| {
+                image_err(
+                    path,
+                    format!("has no {} channel (channels: {})", c.letter(), names()),
+                )
+            })?;
             vec![(ch, 1.0)]
         }
         None => match (find("R"), find("G"), find("B"), find("Y")) {
             (Some(r), Some(g), Some(b), _) => vec![(r, LUMA[0]), (g, LUMA[1]), (b, LUMA[2])],
             (_, _, _, Some(y)) => vec![(y, 1.0)],
-            _ => vec![(channels.first().ok_or_else(|| image_err(path, "EXR layer has no channels"))?, 1.0)],
+            _ => vec![(
+                channels
+                    .first()
+                    .ok_or_else(|| image_err(path, "EXR layer has no channels"))?,
+                1.0,
+            )],
         },
     };
     for ((name, values), _) in &used {
         if values.len() != w * h {
-            return Err(image_err(path, format!("channel {name} is subsampled, which is not supported")));
+            return Err(image_err(
+                path,
+                format!("channel {name} is subsampled, which is not supported"),
+            ));
         }
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(image_err(
                 path,
-                format!("texel ({}, {}) of channel {name} is {}: heights must be finite", k % w, k / w, values[k]),
+                format!(
+                    "texel ({}, {}) of channel {name} is {}: heights must be finite",
+                    k % w,
+                    k / w,
+                    values[k]
+                ),
             ));
         }
     }
@@ -209,7 +252,11 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         }
     }
     if let Some(k) = data.iter().position(|v| !(0.0..=1.0).contains(v)) {
-        let (lo, hi) = data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = data
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         return Err(image_err(
             path,
             format!(
@@ -224,7 +271,13 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     finish(path, w, h, data, opts.address)
 }
 
-fn encode_png(w: &mut dyn std::io::Write, width: usize, height: usize, bytes: &[u8], ty: image::ExtendedColorType) -> std::io::Result<()> {
+fn encode_png(
+    w: &mut dyn std::io::Write,
+    width: usize,
+    height: usize,
+    bytes: &[u8],
+    ty: image::ExtendedColorType,
+) -> std::io::Result<()> {
     use image::ImageEncoder;
     image::codecs::png::PngEncoder::new(w)
         .write_image(bytes, width as u32, height as u32, ty)
@@ -232,17 +285,20 @@ fn encode_png(w: &mut dyn std::io::Write, width: usize, height: usize, bytes: &[
 }
 
 /// Writes a tangent-space normal map as an 8-bit RGB PNG, `rgb = n * 0.5 +
-/// 0.5`, +Y up (OpenGL convention: green grows along `+v`, the direction the
-/// height map's rows advance). Row `j` of the image is texel row `j`, as the
-/// height map was read, so the two line up pixel for pixel.
+/// 0.5` in the +Y-up (OpenGL) convention of [`NormalMap::to_rgb8`] (the one
+/// place that encoding is defined). Row `j` of the image is texel row `j`, as
+/// the height map was read, so the two line up pixel for pixel.
 pub fn write_normal_map_png(path: &Path, normals: &NormalMap) -> Result<()> {
-    let (w, h) = (normals.width, normals.height);
-    let bytes: Vec<u8> = normals
-        .data
-        .iter()
-        .flat_map(|n| n.to_array().map(|c| ((c * 0.5 + 0.5).clamp(0.0, 1.0) * 255.0).round() as u8))
-        .collect();
-    super::atomic::write_atomic(path, |out| encode_png(out, w, h, &bytes, image::ExtendedColorType::Rgb8))
+    let bytes = normals.to_rgb8();
+    super::atomic::write_atomic(path, |out| {
+        encode_png(
+            out,
+            normals.width,
+            normals.height,
+            &bytes,
+            image::ExtendedColorType::Rgb8,
+        )
+    })
 }
 
 /// Writes a height map as a 16-bit greyscale PNG (`round(h * 65535)`),
@@ -254,7 +310,9 @@ pub fn write_height_png16(path: &Path, height: &HeightMap) -> Result<()> {
         .iter()
         .flat_map(|&v| (((v * 65535.0).round()) as u16).to_ne_bytes())
         .collect();
-    super::atomic::write_atomic(path, |out| encode_png(out, w, h, &bytes, image::ExtendedColorType::L16))
+    super::atomic::write_atomic(path, |out| {
+        encode_png(out, w, h, &bytes, image::ExtendedColorType::L16)
+    })
 }
 
 #[cfg(test)]
@@ -293,30 +351,76 @@ mod tests {
     fn png8_grey_alpha_and_colour_channels() {
         let dir = tempfile::tempdir().unwrap();
         let grey = dir.path().join("g.png");
-        ImageBuffer::<Luma<u8>, _>::from_fn(2, 2, |x, y| Luma([(x * 100 + y * 50) as u8])).save(&grey).unwrap();
+        ImageBuffer::<Luma<u8>, _>::from_fn(2, 2, |x, y| Luma([(x * 100 + y * 50) as u8]))
+            .save(&grey)
+            .unwrap();
         let m = load_path(&grey, &opts()).unwrap();
         assert_eq!(m.texel(1, 1), 150.0 / 255.0);
-        let e = load_path(&grey, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap_err();
-        assert!(e.to_string().contains("no alpha") && e.to_string().contains("g.png"), "{e}");
+        let e = load_path(
+            &grey,
+            &HeightOptions {
+                channel: Some(Channel::A),
+                ..opts()
+            },
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("no alpha") && e.to_string().contains("g.png"),
+            "{e}"
+        );
 
         let la = dir.path().join("la.png");
-        ImageBuffer::<LumaA<u8>, _>::from_fn(2, 2, |_, _| LumaA([10, 200])).save(&la).unwrap();
-        let m = load_path(&la, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap();
+        ImageBuffer::<LumaA<u8>, _>::from_fn(2, 2, |_, _| LumaA([10, 200]))
+            .save(&la)
+            .unwrap();
+        let m = load_path(
+            &la,
+            &HeightOptions {
+                channel: Some(Channel::A),
+                ..opts()
+            },
+        )
+        .unwrap();
         assert_eq!(m.texel(0, 0), 200.0 / 255.0);
         assert_eq!(load_path(&la, &opts()).unwrap().texel(0, 0), 10.0 / 255.0);
 
         let rgb = dir.path().join("c.png");
-        ImageBuffer::<Rgb<u8>, _>::from_fn(2, 2, |_, _| Rgb([255, 0, 51])).save(&rgb).unwrap();
+        ImageBuffer::<Rgb<u8>, _>::from_fn(2, 2, |_, _| Rgb([255, 0, 51]))
+            .save(&rgb)
+            .unwrap();
         let m = load_path(&rgb, &opts()).unwrap();
         assert!((m.texel(0, 0) - (0.2126 + 0.0722 * 0.2)).abs() < 1e-6);
-        let m = load_path(&rgb, &HeightOptions { channel: Some(Channel::B), ..opts() }).unwrap();
+        let m = load_path(
+            &rgb,
+            &HeightOptions {
+                channel: Some(Channel::B),
+                ..opts()
+            },
+        )
+        .unwrap();
         assert_eq!(m.texel(0, 0), 0.2);
-        assert!(load_path(&rgb, &HeightOptions { channel: Some(Channel::A), ..opts() }).is_err());
+        assert!(load_path(
+            &rgb,
+            &HeightOptions {
+                channel: Some(Channel::A),
+                ..opts()
+            }
+        )
+        .is_err());
 
         let rgba16 = dir.path().join("c16.png");
-        ImageBuffer::<Rgba<u16>, _>::from_fn(2, 2, |_, _| Rgba([65535, 65535, 65535, 1])).save(&rgba16).unwrap();
+        ImageBuffer::<Rgba<u16>, _>::from_fn(2, 2, |_, _| Rgba([65535, 65535, 65535, 1]))
+            .save(&rgba16)
+            .unwrap();
         assert_eq!(load_path(&rgba16, &opts()).unwrap().texel(1, 0), 1.0);
-        let m = load_path(&rgba16, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap();
+        let m = load_path(
+            &rgba16,
+            &HeightOptions {
+                channel: Some(Channel::A),
+                ..opts()
+            },
+        )
+        .unwrap();
         assert_eq!(m.texel(1, 0), 1.0 / 65535.0);
     }
 
@@ -326,16 +430,23 @@ mod tests {
         let p = dir.path().join("bad.png");
         std::fs::write(&p, b"").unwrap();
         let e = load_path(&p, &opts()).unwrap_err().to_string();
-        assert!(e.contains("bad.png") && e.contains("PNG"), "{e}");
+        assert!(e.contains("bad.png") && e.contains("empty"), "{e}");
 
         std::fs::write(&p, b"this is not a png at all").unwrap();
-        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("bad.png"));
+        assert!(load_path(&p, &opts())
+            .unwrap_err()
+            .to_string()
+            .contains("bad.png"));
 
-        ImageBuffer::<Luma<u8>, _>::from_fn(1, 1, |_, _| Luma([3])).save(&p).unwrap();
+        ImageBuffer::<Luma<u8>, _>::from_fn(1, 1, |_, _| Luma([3]))
+            .save(&p)
+            .unwrap();
         let e = load_path(&p, &opts()).unwrap_err().to_string();
         assert!(e.contains("1x1") && e.contains("bad.png"), "{e}");
 
-        ImageBuffer::<Luma<u16>, _>::from_fn(64, 64, |x, y| Luma([(x * y) as u16])).save(&p).unwrap();
+        ImageBuffer::<Luma<u16>, _>::from_fn(64, 64, |x, y| Luma([(x * y) as u16]))
+            .save(&p)
+            .unwrap();
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
         let e = load_path(&p, &opts()).unwrap_err().to_string();
@@ -349,9 +460,16 @@ mod tests {
 
     fn write_exr(p: &Path, w: usize, h: usize, channels: Vec<(&str, Vec<f32>)>) {
         use exr::prelude::*;
-        let list: Vec<AnyChannel<FlatSamples>> =
-            channels.into_iter().map(|(n, v)| AnyChannel::new(n, FlatSamples::F32(v))).collect();
-        let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
+        let list: Vec<AnyChannel<FlatSamples>> = channels
+            .into_iter()
+            .map(|(n, v)| AnyChannel::new(n, FlatSamples::F32(v)))
+            .collect();
+        let layer = Layer::new(
+            (w, h),
+            LayerAttributes::default(),
+            Encoding::FAST_LOSSLESS,
+            AnyChannels::sort(list.into()),
+        );
         Image::from_layer(layer).write().to_file(p).unwrap();
     }
 
@@ -364,23 +482,53 @@ mod tests {
         let m = load_path(&p, &opts()).unwrap();
         assert_eq!(m.data(), &vals[..]);
 
-        write_exr(&p, 4, 3, vec![("R", vals.clone()), ("G", vec![0.5; 12]), ("B", vec![0.0; 12])]);
+        write_exr(
+            &p,
+            4,
+            3,
+            vec![
+                ("R", vals.clone()),
+                ("G", vec![0.5; 12]),
+                ("B", vec![0.0; 12]),
+            ],
+        );
         let m = load_path(&p, &opts()).unwrap();
         assert!((m.texel(3, 2) - (0.2126 + 0.7152 * 0.5)).abs() < 1e-6);
-        let m = load_path(&p, &HeightOptions { channel: Some(Channel::G), ..opts() }).unwrap();
+        let m = load_path(
+            &p,
+            &HeightOptions {
+                channel: Some(Channel::G),
+                ..opts()
+            },
+        )
+        .unwrap();
         assert_eq!(m.texel(0, 0), 0.5);
-        let e = load_path(&p, &HeightOptions { channel: Some(Channel::A), ..opts() }).unwrap_err().to_string();
+        let e = load_path(
+            &p,
+            &HeightOptions {
+                channel: Some(Channel::A),
+                ..opts()
+            },
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("no A channel"), "{e}");
 
         let mut nan = vals.clone();
         nan[6] = f32::NAN;
         write_exr(&p, 4, 3, vec![("Y", nan)]);
         let e = load_path(&p, &opts()).unwrap_err().to_string();
-        assert!(e.contains("(2, 1)") && e.contains("NaN") && e.contains("h.exr"), "{e}");
+        assert!(
+            e.contains("(2, 1)") && e.contains("NaN") && e.contains("h.exr"),
+            "{e}"
+        );
         let mut inf = vals.clone();
         inf[0] = f32::INFINITY;
         write_exr(&p, 4, 3, vec![("Y", inf)]);
-        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("inf"));
+        assert!(load_path(&p, &opts())
+            .unwrap_err()
+            .to_string()
+            .contains("inf"));
 
         let big: Vec<f32> = vals.iter().map(|v| v * 10.0).collect();
         write_exr(&p, 4, 3, vec![("Y", big)]);
@@ -388,7 +536,10 @@ mod tests {
         assert!(e.contains("normalise") && e.contains("[0, 1]"), "{e}");
 
         write_exr(&p, 1, 1, vec![("Y", vec![0.5])]);
-        assert!(load_path(&p, &opts()).unwrap_err().to_string().contains("1x1"));
+        assert!(load_path(&p, &opts())
+            .unwrap_err()
+            .to_string()
+            .contains("1x1"));
 
         std::fs::write(&p, b"v/1\x01garbage").unwrap();
         let e = load_path(&p, &opts()).unwrap_err().to_string();
@@ -398,7 +549,13 @@ mod tests {
     #[test]
     fn png_writers_round_trip() {
         let dir = tempfile::tempdir().unwrap();
-        let m = HeightMap::new(3, 2, vec![0.0, 0.25, 1.0, 0.5, 0.123_456, 0.999], Address::Clamp).unwrap();
+        let m = HeightMap::new(
+            3,
+            2,
+            vec![0.0, 0.25, 1.0, 0.5, 0.123_456, 0.999],
+            Address::Clamp,
+        )
+        .unwrap();
         let p = dir.path().join("h16.png");
         write_height_png16(&p, &m).unwrap();
         let back = load_path(&p, &opts()).unwrap();
@@ -413,9 +570,10 @@ mod tests {
         let img = image::open(&p).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (3, 2));
         for (px, n) in img.pixels().zip(&normals.data) {
-            for c in 0..3 {
+            // +Y up: green is up the image, which is -v.
+            for (c, expect) in [n.x, -n.y, n.z].into_iter().enumerate() {
                 let decoded = px[c] as f32 / 255.0 * 2.0 - 1.0;
-                assert!((decoded - n[c]).abs() <= 1.0 / 255.0 + 1e-6);
+                assert!((decoded - expect).abs() <= 1.0 / 255.0 + 1e-6);
             }
         }
     }

@@ -33,7 +33,9 @@ const VK_FORMAT_R8_UNORM: u32 = 9;
 const VK_FORMAT_R16_SFLOAT: u32 = 76;
 const VK_FORMAT_R32_SFLOAT: u32 = 100;
 
-const IDENTIFIER: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
+const IDENTIFIER: [u8; 12] = [
+    0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A,
+];
 const HEADER_LEN: usize = 80;
 const LEVEL_INDEX_LEN: usize = 24;
 
@@ -76,7 +78,12 @@ fn dfd(format: Format) -> Vec<u8> {
 }
 
 /// The key/value pairs (sorted by key, as the spec requires) for `map`.
-fn key_values(map: &DistanceMap, extent: Extent, format: Format, range: Option<R8Range>) -> Vec<(String, String)> {
+fn key_values(
+    map: &DistanceMap,
+    extent: Extent,
+    format: Format,
+    range: Option<R8Range>,
+) -> Vec<(String, String)> {
     let [ax, ay] = extent.aspect();
     let encoding = match format {
         Format::R8 => "r8: unorm code c decodes to value = min + c / 255 * (max - min), min,max from displace.r8_range",
@@ -123,7 +130,11 @@ fn kvd_bytes(kv: &[(String, String)]) -> Vec<u8> {
 
 /// Encodes `map` (one tile of `extent`) as a KTX2 3D texture in `format`,
 /// rounded down with [`DistanceMap::quantized`] so it stays conservative.
-pub fn to_bytes(map: &DistanceMap, extent: Extent, format: Format) -> std::result::Result<Vec<u8>, FormatError> {
+pub fn to_bytes(
+    map: &DistanceMap,
+    extent: Extent,
+    format: Format,
+) -> std::result::Result<Vec<u8>, FormatError> {
     let [w, h, d] = map.size();
     let (a, b) = (map.aspect(), extent.aspect());
     if (a[0] - b[0]).abs() > 1e-4 * a[0] || (a[1] - b[1]).abs() > 1e-4 * a[1] {
@@ -133,7 +144,9 @@ pub fn to_bytes(map: &DistanceMap, extent: Extent, format: Format) -> std::resul
         )));
     }
     if [w, h, d].iter().any(|&n| n > u32::MAX as usize) {
-        return Err(FormatError::Unsupported(format!("{w}x{h}x{d} exceeds KTX2's 32-bit sizes")));
+        return Err(FormatError::Unsupported(format!(
+            "{w}x{h}x{d} exceeds KTX2's 32-bit sizes"
+        )));
     }
     let (q, range) = map.quantized(format);
     let (vk, type_size) = vk_format(format);
@@ -152,7 +165,12 @@ pub fn to_bytes(map: &DistanceMap, extent: Extent, format: Format) -> std::resul
         // array), faceCount 1, levelCount 1, supercompressionScheme 0.
         out.extend_from_slice(&v.to_le_bytes());
     }
-    for v in [dfd_offset as u32, dfd.len() as u32, kvd_offset as u32, kvd.len() as u32] {
+    for v in [
+        dfd_offset as u32,
+        dfd.len() as u32,
+        kvd_offset as u32,
+        kvd.len() as u32,
+    ] {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out.extend_from_slice(&0u64.to_le_bytes()); // sgdByteOffset
@@ -205,7 +223,9 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
         return Err(FormatError::BadMagic("KTX2"));
     }
     let reader = ::ktx2::Reader::new(bytes).map_err(|e| match e {
-        ::ktx2::ParseError::UnexpectedEnd => FormatError::Truncated("the KTX2 container is cut off".into()),
+        ::ktx2::ParseError::UnexpectedEnd => {
+            FormatError::Truncated("the KTX2 container is cut off".into())
+        }
         other => FormatError::Invalid(format!("KTX2 container: {other:?}")),
     })?;
     let header = reader.header();
@@ -230,7 +250,9 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
         )));
     }
     if header.layer_count > 1 || header.face_count != 1 {
-        return Err(FormatError::Unsupported("array or cube-map textures".into()));
+        return Err(FormatError::Unsupported(
+            "array or cube-map textures".into(),
+        ));
     }
     let size = [
         header.pixel_width as usize,
@@ -261,7 +283,9 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| FormatError::Invalid(format!("`{key}` = `{text}` is not {n} numbers")))?;
         if v.len() != n || v.iter().any(|x| !x.is_finite()) {
-            return Err(FormatError::Invalid(format!("`{key}` = `{text}` is not {n} finite numbers")));
+            return Err(FormatError::Invalid(format!(
+                "`{key}` = `{text}` is not {n} finite numbers"
+            )));
         }
         Ok(v)
     };
@@ -273,14 +297,21 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
     let bound = floats("displace.max_underestimate", 1)?[0];
     let units = get("displace.units")?;
     if units != "shell depths" {
-        return Err(FormatError::Unsupported(format!("`displace.units` = `{units}` (expected `shell depths`)")));
+        return Err(FormatError::Unsupported(format!(
+            "`displace.units` = `{units}` (expected `shell depths`)"
+        )));
     }
     let range = if format == Format::R8 {
         let r = floats("displace.r8_range", 2)?;
-        if !(r[1] > r[0]) {
-            return Err(FormatError::Invalid(format!("`displace.r8_range` {r:?} is empty")));
+        if r[1] <= r[0] {
+            return Err(FormatError::Invalid(format!(
+                "`displace.r8_range` {r:?} is empty"
+            )));
         }
-        Some(R8Range { min: r[0], max: r[1] })
+        Some(R8Range {
+            min: r[0],
+            max: r[1],
+        })
     } else {
         None
     };
@@ -377,8 +408,15 @@ mod tests {
             let block = ::ktx2::dfd::Block::Basic(basic).to_vec();
             let start = h.index.dfd_byte_offset as usize;
             assert_eq!(h.index.dfd_byte_length as usize, 4 + block.len());
-            assert_eq!(&bytes[start + 4..start + 4 + block.len()], &block[..], "{format:?}");
-            assert_eq!(r.transfer_function(), Some(::ktx2::TransferFunction::Linear));
+            assert_eq!(
+                &bytes[start + 4..start + 4 + block.len()],
+                &block[..],
+                "{format:?}"
+            );
+            assert_eq!(
+                r.transfer_function(),
+                Some(::ktx2::TransferFunction::Linear)
+            );
             // Key/value data: sorted, complete, parseable.
             let keys: Vec<&str> = r.key_value_data().map(|(k, _)| k).collect();
             let mut sorted = keys.clone();
@@ -390,12 +428,18 @@ mod tests {
             assert_eq!(kv["displace.addressing"], b"repeat\0");
             assert_eq!(kv["displace.extent"], b"1,0.5,0.125\0");
             assert_eq!(kv["displace.aspect"], b"8,4\0");
-            assert!(kv.contains_key("displace.convention") && kv.contains_key("displace.max_underestimate"));
+            assert!(
+                kv.contains_key("displace.convention")
+                    && kv.contains_key("displace.max_underestimate")
+            );
             assert_eq!(kv.contains_key("displace.r8_range"), format == Format::R8);
             // Level data: aligned, complete.
             let level = r.levels().next().unwrap();
             assert_eq!(level.data.len(), 10 * 6 * 4 * format.bytes_per_voxel());
-            assert_eq!((level.data.as_ptr() as usize - bytes.as_ptr() as usize) % 4, 0);
+            assert_eq!(
+                (level.data.as_ptr() as usize - bytes.as_ptr() as usize) % 4,
+                0
+            );
         }
     }
 
@@ -410,7 +454,11 @@ mod tests {
             assert_eq!(d.map.address(), Address::Clamp);
             assert_eq!(d.map.size(), map.size());
             let (q, _) = map.quantized(format);
-            assert_eq!(d.map.data(), q.data(), "{format:?}: decoded differs from the quantised map");
+            assert_eq!(
+                d.map.data(),
+                q.data(),
+                "{format:?}: decoded differs from the quantised map"
+            );
             assert!((d.map.max_underestimate() - q.max_underestimate()).abs() < 1e-6);
             for (a, b) in d.map.data().iter().zip(map.data()) {
                 assert!(a <= b, "{format:?}: decoded {a} above original {b}");
@@ -425,8 +473,16 @@ mod tests {
         let err = |b: &[u8]| from_bytes(b).unwrap_err().to_string();
         assert!(err(b"").contains("bad magic"));
         assert!(err(b"DDS \x7c\0\0\0").contains("bad magic"));
-        assert!(err(&good[..50]).contains("truncated"), "{}", err(&good[..50]));
-        assert!(err(&good[..good.len() - 1]).contains("truncated"), "{}", err(&good[..good.len() - 1]));
+        assert!(
+            err(&good[..50]).contains("truncated"),
+            "{}",
+            err(&good[..50])
+        );
+        assert!(
+            err(&good[..good.len() - 1]).contains("truncated"),
+            "{}",
+            err(&good[..good.len() - 1])
+        );
         let mut huge = good.clone();
         huge[20..24].copy_from_slice(&100_000u32.to_le_bytes());
         huge[24..28].copy_from_slice(&100_000u32.to_le_bytes());
@@ -441,9 +497,16 @@ mod tests {
         // A KTX2 file without our keys.
         let mut foreign = good.clone();
         let kvd = 104 + 44;
-        let pos = foreign[kvd..].windows(15).position(|w| w == b"displace.extent").unwrap();
+        let pos = foreign[kvd..]
+            .windows(15)
+            .position(|w| w == b"displace.extent")
+            .unwrap();
         foreign[kvd + pos] = b'X';
-        assert!(err(&foreign).contains("displace.extent"), "{}", err(&foreign));
+        assert!(
+            err(&foreign).contains("displace.extent"),
+            "{}",
+            err(&foreign)
+        );
     }
 
     #[test]
@@ -455,12 +518,18 @@ mod tests {
         let (back, e) = read_distance_map(&p).unwrap();
         assert_eq!(e, extent);
         assert_eq!(back.data(), map.data());
-        assert_eq!((back.size(), back.aspect(), back.address()), (map.size(), map.aspect(), map.address()));
+        assert_eq!(
+            (back.size(), back.aspect(), back.address()),
+            (map.size(), map.aspect(), map.address())
+        );
         assert!((back.max_underestimate() - map.max_underestimate()).abs() < 1e-6);
         std::fs::write(&p, &b"\xABKTX 20\xBB\r\n\x1A\n"[..]).unwrap();
         let e = read_distance_map(&p).unwrap_err().to_string();
         assert!(e.contains("m.ktx2") && e.contains("truncated"), "{e}");
         let wrong = Extent::new(2.0, 0.5, 0.125).unwrap();
-        assert!(to_bytes(&map, wrong, Format::R8).unwrap_err().to_string().contains("aspect"));
+        assert!(to_bytes(&map, wrong, Format::R8)
+            .unwrap_err()
+            .to_string()
+            .contains("aspect"));
     }
 }

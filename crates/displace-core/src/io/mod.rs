@@ -91,7 +91,12 @@ impl MapFile {
 /// extension names. `format` applies to KTX2 and DDS; npy is always float32
 /// in the physical units of `extent` (the layout issue 2 fixes for other
 /// tools), so asking for another format there is refused rather than ignored.
-pub fn write_distance_map(path: &Path, map: &DistanceMap, extent: Extent, format: Format) -> Result<()> {
+pub fn write_distance_map(
+    path: &Path,
+    map: &DistanceMap,
+    extent: Extent,
+    format: Format,
+) -> Result<()> {
     match MapFile::from_path(path)? {
         MapFile::Ktx2 => ktx2::write(path, map, extent, format),
         MapFile::Dds => dds::write(path, map, format),

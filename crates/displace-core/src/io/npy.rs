@@ -56,7 +56,11 @@ pub struct Array<T> {
 pub fn header(descr: &str, shape: &[usize]) -> Vec<u8> {
     let dims = match shape.len() {
         1 => format!("{},", shape[0]),
-        _ => shape.iter().map(|n| n.to_string()).collect::<Vec<_>>().join(", "),
+        _ => shape
+            .iter()
+            .map(|n| n.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
     };
     let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({dims}), }}");
     let unpadded = MAGIC.len() + 2 + 2 + dict.len() + 1;
@@ -77,7 +81,10 @@ pub fn write<T: Element>(w: &mut dyn Write, shape: &[usize], data: &[T]) -> std:
     if n != data.len() {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
-            format!("shape {shape:?} holds {n} elements but {} were given", data.len()),
+            format!(
+                "shape {shape:?} holds {n} elements but {} were given",
+                data.len()
+            ),
         ));
     }
     w.write_all(&header(T::DESCR, shape))?;
@@ -117,7 +124,10 @@ pub struct Header {
 pub fn parse_header(bytes: &[u8]) -> std::result::Result<Header, FormatError> {
     if bytes.len() < 8 || &bytes[..6] != MAGIC {
         return Err(if bytes.len() < 8 && MAGIC.starts_with(bytes) {
-            FormatError::Truncated(format!("{} bytes is too short for a .npy header", bytes.len()))
+            FormatError::Truncated(format!(
+                "{} bytes is too short for a .npy header",
+                bytes.len()
+            ))
         } else {
             FormatError::BadMagic("numpy .npy")
         });
@@ -135,7 +145,9 @@ pub fn parse_header(bytes: &[u8]) -> std::result::Result<Header, FormatError> {
     };
     let start = 8 + len_bytes;
     if bytes.len() < start {
-        return Err(FormatError::Truncated("the header length is cut off".into()));
+        return Err(FormatError::Truncated(
+            "the header length is cut off".into(),
+        ));
     }
     let header_len = if len_bytes == 2 {
         u16::from_le_bytes([bytes[8], bytes[9]]) as usize
@@ -155,7 +167,8 @@ pub fn parse_header(bytes: &[u8]) -> std::result::Result<Header, FormatError> {
     if !utf8 && !raw.is_ascii() {
         return Err(FormatError::Invalid("the header is not ASCII".into()));
     }
-    let text = std::str::from_utf8(raw).map_err(|_| FormatError::Invalid("the header is not UTF-8".into()))?;
+    let text = std::str::from_utf8(raw)
+        .map_err(|_| FormatError::Invalid("the header is not UTF-8".into()))?;
     let (descr, fortran_order, shape) = parse_dict(text)?;
     Ok(Header {
         descr,
@@ -194,7 +207,12 @@ pub fn from_bytes_as<T: Element>(bytes: &[u8]) -> std::result::Result<Array<T>, 
         .iter()
         .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128))
         .ok_or_else(|| FormatError::Invalid(format!("shape {:?} overflows", h.shape)))?;
-    check_allocation("npy array", &format!("{:?}", h.shape), count, T::SIZE as u128)?;
+    check_allocation(
+        "npy array",
+        &format!("{:?}", h.shape),
+        count,
+        T::SIZE as u128,
+    )?;
     let need = count as usize * T::SIZE;
     let have = bytes.len() - h.data_offset;
     if have < need {
@@ -210,8 +228,14 @@ pub fn from_bytes_as<T: Element>(bytes: &[u8]) -> std::result::Result<Array<T>, 
             h.shape
         )));
     }
-    let data = bytes[h.data_offset..].chunks_exact(T::SIZE).map(T::get).collect();
-    Ok(Array { shape: h.shape, data })
+    let data = bytes[h.data_offset..]
+        .chunks_exact(T::SIZE)
+        .map(T::get)
+        .collect();
+    Ok(Array {
+        shape: h.shape,
+        data,
+    })
 }
 
 /// Reads a float32 `.npy` file; errors name the file.
@@ -225,7 +249,10 @@ pub fn read_file_as<T: Element>(path: &Path) -> Result<Array<T>> {
         if meta.len() as u128 > MAX_ALLOCATION_BYTES + (1 << 20) {
             return Err(Error::Format {
                 path: path.to_path_buf(),
-                message: format!("{} bytes is larger than any array this program accepts", meta.len()),
+                message: format!(
+                    "{} bytes is larger than any array this program accepts",
+                    meta.len()
+                ),
             });
         }
     }
@@ -269,7 +296,12 @@ pub fn read_distance_map(path: &Path, extent: Extent, address: Address) -> Resul
     if let Some(i) = arr.data.iter().position(|v| v.is_nan()) {
         return Err(Error::Format {
             path: path.to_path_buf(),
-            message: format!("element [{}][{}][{}] is NaN", i / (w * h), (i / w) % h, i % w),
+            message: format!(
+                "element [{}][{}][{}] is NaN",
+                i / (w * h),
+                (i / w) % h,
+                i % w
+            ),
         });
     }
     let inv = 1.0 / extent.sz;
@@ -326,8 +358,12 @@ fn numpy_name(descr: &str) -> &'static str {
 /// The header dict: `{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }`,
 /// a Python literal parsed just far enough for these three keys.
 fn parse_dict(text: &str) -> std::result::Result<(String, bool, Vec<usize>), FormatError> {
-    let bad = |what: &str| FormatError::Invalid(format!("bad header ({what}): {}", text.trim_end()));
-    let mut p = Parser { s: text.as_bytes(), i: 0 };
+    let bad =
+        |what: &str| FormatError::Invalid(format!("bad header ({what}): {}", text.trim_end()));
+    let mut p = Parser {
+        s: text.as_bytes(),
+        i: 0,
+    };
     p.ws();
     if !p.eat(b'{') {
         return Err(bad("expected a dict"));
@@ -347,7 +383,9 @@ fn parse_dict(text: &str) -> std::result::Result<(String, bool, Vec<usize>), For
         match key.as_str() {
             "descr" => {
                 if p.peek() == Some(b'[') {
-                    return Err(FormatError::Unsupported("structured dtypes: expected a plain float32 array".into()));
+                    return Err(FormatError::Unsupported(
+                        "structured dtypes: expected a plain float32 array".into(),
+                    ));
                 }
                 descr = Some(p.string().ok_or_else(|| bad("descr is not a string"))?);
             }
@@ -360,7 +398,12 @@ fn parse_dict(text: &str) -> std::result::Result<(String, bool, Vec<usize>), For
                     return Err(bad("fortran_order is not True or False"));
                 })
             }
-            "shape" => shape = Some(p.tuple().ok_or_else(|| bad("shape is not a tuple of whole numbers"))?),
+            "shape" => {
+                shape = Some(
+                    p.tuple()
+                        .ok_or_else(|| bad("shape is not a tuple of whole numbers"))?,
+                )
+            }
             _ => return Err(bad(&format!("unexpected key `{key}`"))),
         }
         p.ws();
@@ -419,7 +462,9 @@ impl Parser<'_> {
         while self.peek()? != q {
             self.i += 1;
         }
-        let out = std::str::from_utf8(&self.s[start..self.i]).ok()?.to_string();
+        let out = std::str::from_utf8(&self.s[start..self.i])
+            .ok()?
+            .to_string();
         self.i += 1;
         Some(out)
     }
@@ -472,7 +517,8 @@ mod tests {
     fn header_matches_numpy_byte_for_byte() {
         // np.save of np.zeros((2, 3), np.float32), header part.
         let h = header("<f4", &[2, 3]);
-        let expect = b"\x93NUMPY\x01\x00v\x00{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }";
+        let expect =
+            b"\x93NUMPY\x01\x00v\x00{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }";
         assert_eq!(&h[..expect.len()], expect);
         assert_eq!(h.len(), 128);
         assert_eq!(*h.last().unwrap(), b'\n');
@@ -499,14 +545,25 @@ mod tests {
 
     #[test]
     fn reads_versions_2_and_3_and_odd_spacing() {
-        let payload: Vec<u8> = [1.5f32, -2.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let payload: Vec<u8> = [1.5f32, -2.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
         for v in [1u8, 2, 3] {
-            let b = raw(v, "{\"shape\":(2,),\"fortran_order\":False,\"descr\":\"<f4\"}\n", &payload);
+            let b = raw(
+                v,
+                "{\"shape\":(2,),\"fortran_order\":False,\"descr\":\"<f4\"}\n",
+                &payload,
+            );
             let a = from_bytes(&b).unwrap();
             assert_eq!(a.shape, vec![2]);
             assert_eq!(a.data, vec![1.5, -2.0]);
         }
-        let b = raw(1, "{'descr': '<f4', 'fortran_order': False, 'shape': (1L, 2L)}", &payload);
+        let b = raw(
+            1,
+            "{'descr': '<f4', 'fortran_order': False, 'shape': (1L, 2L)}",
+            &payload,
+        );
         assert_eq!(from_bytes(&b).unwrap().shape, vec![1, 2]);
     }
 
@@ -528,27 +585,60 @@ mod tests {
         // Bad magic, empty, truncated header, truncated data, extra data.
         assert!(err(b"PK\x03\x04not numpy at all").contains("bad magic"));
         assert!(err(b"").contains("too short"));
-        assert!(err(&good[..20]).contains("truncated"), "{}", err(&good[..20]));
+        assert!(
+            err(&good[..20]).contains("truncated"),
+            "{}",
+            err(&good[..20])
+        );
         let e = err(&good[..good.len() - 3]);
         assert!(e.contains("truncated") && e.contains("[2, 2]"), "{e}");
         let mut extra = good.clone();
         extra.push(0);
         assert!(err(&extra).contains("unexpected bytes"));
         // Wrong dtypes are named.
-        let e = err(&raw(1, "{'descr': '<f8', 'fortran_order': False, 'shape': (1,), }", &[0; 8]));
-        assert!(e.contains("'<f8'") && e.contains("float64") && e.contains("float32"), "{e}");
-        let e = err(&raw(1, "{'descr': '>f4', 'fortran_order': False, 'shape': (1,), }", &[0; 4]));
+        let e = err(&raw(
+            1,
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (1,), }",
+            &[0; 8],
+        ));
+        assert!(
+            e.contains("'<f8'") && e.contains("float64") && e.contains("float32"),
+            "{e}"
+        );
+        let e = err(&raw(
+            1,
+            "{'descr': '>f4', 'fortran_order': False, 'shape': (1,), }",
+            &[0; 4],
+        ));
         assert!(e.contains("big-endian"), "{e}");
-        let e = err(&raw(1, "{'descr': [('a', '<f4')], 'fortran_order': False, 'shape': (1,), }", &[0; 4]));
+        let e = err(&raw(
+            1,
+            "{'descr': [('a', '<f4')], 'fortran_order': False, 'shape': (1,), }",
+            &[0; 4],
+        ));
         assert!(e.contains("structured"), "{e}");
         // Fortran order.
-        let e = err(&raw(1, "{'descr': '<f4', 'fortran_order': True, 'shape': (1,), }", &[0; 4]));
+        let e = err(&raw(
+            1,
+            "{'descr': '<f4', 'fortran_order': True, 'shape': (1,), }",
+            &[0; 4],
+        ));
         assert!(e.contains("Fortran"), "{e}");
         // Garbled headers and unknown versions.
         assert!(err(&raw(1, "{'descr': '<f4', 'shape': (1,), }", &[0; 4])).contains("required"));
         assert!(err(&raw(1, "['descr']", &[])).contains("bad header"));
-        assert!(err(&raw(1, "{'descr': '<f4', 'fortran_order': Maybe, 'shape': (1,)}", &[])).contains("fortran_order"));
-        assert!(err(&raw(1, "{'descr': '<f4', 'fortran_order': False, 'shape': (-1,)}", &[])).contains("shape"));
+        assert!(err(&raw(
+            1,
+            "{'descr': '<f4', 'fortran_order': Maybe, 'shape': (1,)}",
+            &[]
+        ))
+        .contains("fortran_order"));
+        assert!(err(&raw(
+            1,
+            "{'descr': '<f4', 'fortran_order': False, 'shape': (-1,)}",
+            &[]
+        ))
+        .contains("shape"));
         let mut v9 = good.clone();
         v9[6] = 9;
         assert!(err(&v9).contains("version 9.0"));
@@ -556,7 +646,11 @@ mod tests {
 
     #[test]
     fn refuses_absurd_shapes_before_allocating() {
-        let e = err(&raw(1, "{'descr': '<f4', 'fortran_order': False, 'shape': (100000, 100000, 1000), }", &[]));
+        let e = err(&raw(
+            1,
+            "{'descr': '<f4', 'fortran_order': False, 'shape': (100000, 100000, 1000), }",
+            &[],
+        ));
         assert!(e.contains("too large"), "{e}");
         let e = err(&raw(
             1,
@@ -573,7 +667,9 @@ mod tests {
         std::fs::write(&p, b"garbage").unwrap();
         let e = read_file(&p).unwrap_err().to_string();
         assert!(e.contains("rays.npy") && e.contains("bad magic"), "{e}");
-        let e = read_file(&dir.path().join("missing.npy")).unwrap_err().to_string();
+        let e = read_file(&dir.path().join("missing.npy"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing.npy"), "{e}");
     }
 
@@ -582,7 +678,8 @@ mod tests {
         let size = [3, 2, 2];
         let data: Vec<f32> = (0..12).map(|i| i as f32 * 0.1 - 0.5).collect();
         let extent = Extent::new(1.2, 0.8, 0.2).unwrap();
-        let map = DistanceMap::from_raw(size, extent.aspect(), Address::Repeat, data.clone(), 0.3).unwrap();
+        let map = DistanceMap::from_raw(size, extent.aspect(), Address::Repeat, data.clone(), 0.3)
+            .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("d.npy");
         write_distance_map(&p, &map, extent).unwrap();
@@ -599,7 +696,9 @@ mod tests {
         let e = read_distance_map(&dir.path().join("x.npy"), extent, Address::Clamp).unwrap_err();
         assert!(e.to_string().contains("x.npy"));
         write_file(&p, &[12], &data).unwrap();
-        let e = read_distance_map(&p, extent, Address::Clamp).unwrap_err().to_string();
+        let e = read_distance_map(&p, extent, Address::Clamp)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("(D, H, W)") && e.contains("d.npy"), "{e}");
     }
 }

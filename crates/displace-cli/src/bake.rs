@@ -1,0 +1,213 @@
+//! `displace bake`: height map in, conservative distance map (KTX2, DDS or
+//! npy) and optionally a normal map out. Also the argument parsing shared
+//! with `displace trace` (height sources, sizes, extents).
+
+use crate::progress::{cancel_flag, DelayedBar};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use displace_core::convention::parse_size;
+use displace_core::distance_map::Format;
+use displace_core::io::height::{self, Channel, HeightOptions};
+use displace_core::io::{self as dio, MapFile};
+use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The built-in height map baked when none is given.
+pub const DEFAULT_HEIGHT: &str = "gen:studded";
+
+/// How a height source is read (shared by `bake` and `trace`).
+#[derive(Args, Debug, Clone)]
+pub struct HeightArgs {
+    /// Texels of a generated height map (`gen:...`), WxH [default: the
+    /// distance map's W x H]
+    #[arg(long, value_name = "WxH")]
+    pub height_size: Option<String>,
+    /// Channel of a colour image that holds the height [default: Rec. 709
+    /// luminance]
+    #[arg(long, value_parser = parse_channel)]
+    pub channel: Option<Channel>,
+    /// Texture addressing: a repeating height map bakes a tiling distance map
+    #[arg(long, default_value = "clamp", value_parser = parse_address)]
+    pub address: Address,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// Height map: gen:NAME[?key=value&...] (flat, gaussian, studded,
+    /// grating, text, noise), a PNG (8/16-bit) or an EXR file
+    #[arg(value_name = "HEIGHT", default_value = DEFAULT_HEIGHT)]
+    pub height: String,
+    #[command(flatten)]
+    pub height_args: HeightArgs,
+    /// Distance-map voxels, WxHxD (Donnelly used 256x256x16)
+    #[arg(long, default_value = "256x256x16", value_name = "WxHxD")]
+    pub size: String,
+    /// Physical width, height and displacement depth of one tile of the face
+    #[arg(long, default_value = "1,1,0.1", value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
+    pub extent: Extent,
+    /// Storage format of .ktx2/.dds maps [default: r8; npy is always float32]
+    #[arg(long, value_parser = parse_format)]
+    pub format: Option<Format>,
+    /// Output: .ktx2 (3D texture), .dds (volume texture) or .npy (float32
+    /// (D, H, W) in the units of --extent)
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Also write the tangent-space normal map (+Y up) as a PNG
+    #[arg(long, value_name = "NORMALS.png")]
+    pub normals: Option<PathBuf>,
+}
+
+pub fn parse_channel(s: &str) -> Result<Channel, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+pub fn parse_address(s: &str) -> Result<Address, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+pub fn parse_format(s: &str) -> Result<Format, String> {
+    s.parse().map_err(|e: Error| e.to_string())
+}
+
+/// `SX,SY,SZ`: three positive finite numbers.
+pub fn parse_extent(s: &str) -> Result<Extent, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("`{s}`: expected three numbers SX,SY,SZ"));
+    }
+    let mut v = [0.0f32; 3];
+    for (o, p) in v.iter_mut().zip(&parts) {
+        *o = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{s}`: `{p}` is not a number"))?;
+    }
+    Extent::new(v[0], v[1], v[2]).map_err(|e| e.to_string())
+}
+
+/// `WxHxD`, refused (before anything is allocated) when too large.
+pub fn parse_map_size(s: &str) -> Result<[usize; 3]> {
+    let size = parse_size::<3>(s).with_context(|| format!("--size {s}"))?;
+    DistanceMap::check_size(size).with_context(|| format!("--size {s}"))?;
+    Ok(size)
+}
+
+/// Loads `source`, with generated maps at `--height-size` or `default_size`.
+pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) -> Result<HeightMap> {
+    let size = match &args.height_size {
+        Some(s) => {
+            let size = parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?;
+            HeightMap::check_size(size[0], size[1])
+                .with_context(|| format!("--height-size {s}"))?;
+            size
+        }
+        None => default_size,
+    };
+    let opts = HeightOptions {
+        channel: args.channel,
+        size,
+        address: args.address,
+    };
+    height::load(source, &opts).with_context(|| format!("loading height map `{source}`"))
+}
+
+/// Refuses an output path whose file type or directory cannot work, before
+/// any time is spent baking.
+pub fn check_output(path: &Path) -> Result<MapFile> {
+    let kind = MapFile::from_path(path).with_context(|| format!("output {}", path.display()))?;
+    if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!(
+                "output {}: directory {} does not exist",
+                path.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(kind)
+}
+
+/// `trace` writes `.npy` only; checked before any work is done.
+pub fn check_npy_output(path: &Path) -> Result<()> {
+    if check_output(path)? != MapFile::Npy {
+        bail!("output {}: hits are written as .npy", path.display());
+    }
+    Ok(())
+}
+
+pub fn run(args: BakeArgs) -> Result<()> {
+    let size = parse_map_size(&args.size)?;
+    let extent = args.extent;
+    let kind = check_output(&args.output)?;
+    let format = match (kind, args.format) {
+        (MapFile::Npy, None | Some(Format::R32F)) => Format::R32F,
+        (MapFile::Npy, Some(f)) => bail!(
+            "--format {} with {}: .npy always stores float32 in the units of --extent; \
+             formats apply to .ktx2 and .dds",
+            f.name(),
+            args.output.display()
+        ),
+        (_, f) => f.unwrap_or_default(),
+    };
+    if let Some(n) = &args.normals {
+        let ext = n
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if ext.as_deref() != Some("png") {
+            bail!(
+                "--normals {}: the normal map is written as a .png",
+                n.display()
+            );
+        }
+    }
+    let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
+
+    let bar = DelayedBar::new(format!("baking {}x{}x{}", size[0], size[1], size[2]));
+    let opts = BakeOptions {
+        size,
+        extent,
+        progress: Some(bar.callback()),
+        cancel: Some(cancel_flag()),
+    };
+    let start = Instant::now();
+    let baked = displace_core::bake(&height, &opts);
+    bar.finish();
+    let map = match baked {
+        Err(Error::Cancelled) => bail!("interrupted: nothing was written"),
+        other => other.context("baking the distance map")?,
+    };
+    let seconds = start.elapsed().as_secs_f64();
+
+    dio::write_distance_map(&args.output, &map.distance, extent, format)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(n) = &args.normals {
+        height::write_normal_map_png(n, &map.normals)
+            .with_context(|| format!("writing {}", n.display()))?;
+    }
+
+    let voxels = (size[0] * size[1] * size[2]) as f64;
+    println!(
+        "baked {} ({}x{} texels, {}) to {}x{}x{} {} in {:.3} s ({:.1} Mvoxels/s) -> {}",
+        args.height,
+        height.width(),
+        height.height(),
+        args.height_args.address.name(),
+        size[0],
+        size[1],
+        size[2],
+        if kind == MapFile::Npy {
+            "float32"
+        } else {
+            format.name()
+        },
+        seconds,
+        voxels / seconds / 1e6,
+        args.output.display()
+    );
+    if let Some(n) = &args.normals {
+        println!("normal map -> {}", n.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,286 @@
+//! `displace bench bake`: throughput of the bake next to the `edt` and
+//! `scipy` distance transforms on the same occupancy volume in the same run
+//! (issue 2, "Benchmarks"). A measurement, not a test.
+
+use crate::bake::parse_extent;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use displace_core::convention::texel_centre;
+use displace_core::io::npy;
+use displace_core::{generators, Address, BakeOptions, Extent, HeightMap};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct BenchBakeArgs {
+    /// Small sizes only (a quick check, not the published numbers)
+    #[arg(long)]
+    pub quick: bool,
+    /// Threads for our bake [default: all cores]
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Threads for `edt` (its `parallel` argument)
+    #[arg(long, default_value_t = 2)]
+    pub peer_threads: usize,
+    /// Skip the Python peers
+    #[arg(long)]
+    pub no_peers: bool,
+    /// The peer script [default: scripts/bench_edt_peers.py of this repository]
+    #[arg(long)]
+    pub script: Option<PathBuf>,
+    /// Python interpreter for the peer script
+    #[arg(long, default_value = "python3")]
+    pub python: String,
+    /// Physical extent of the face
+    #[arg(long, default_value = "1,1,0.1", value_parser = parse_extent)]
+    pub extent: Extent,
+}
+
+pub fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            bail!("--threads must be at least 1");
+        }
+        b = b.num_threads(n);
+    }
+    b.build().context("starting the thread pool")
+}
+
+const BAKE_GENERATORS: [&str; 3] = ["studded", "gaussian", "noise"];
+
+pub fn height_for(name: &str, w: usize, h: usize) -> Result<HeightMap> {
+    generators::generate(&format!("gen:{name}"), w, h, Address::Clamp)
+        .with_context(|| format!("generating gen:{name}"))
+}
+
+/// The binary volume the peers transform: voxel `(i, j, k)` is 1 when its
+/// centre lies below the surface at its column centre, the same sign test the
+/// bake uses. Layout `(D, H, W)`, as our npy maps.
+fn occupancy(height: &HeightMap, size: [usize; 3]) -> Vec<u8> {
+    let [w, h, d] = size;
+    let column: Vec<f32> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| height.sample(texel_centre(i, w), texel_centre(j, h)))
+        .collect();
+    (0..d)
+        .flat_map(|k| {
+            let z = texel_centre(k, d);
+            column.iter().map(move |&hc| u8::from(z < hc))
+        })
+        .collect()
+}
+
+fn default_script() -> PathBuf {
+    let local = Path::new("scripts/bench_edt_peers.py");
+    if local.is_file() {
+        return local.to_path_buf();
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/bench_edt_peers.py")
+}
+
+/// What the peer script reported for one volume.
+#[derive(Default, Debug)]
+struct PeerTimes {
+    edt: Option<f64>,
+    scipy: Option<f64>,
+    missing: Vec<String>,
+}
+
+/// Pulls `"key": number` out of the script's one-line JSON object.
+fn json_number(line: &str, key: &str) -> Option<f64> {
+    let at = line.find(&format!("\"{key}\""))? + key.len() + 2;
+    let rest = line[at..].trim_start().strip_prefix(':')?.trim_start();
+    let end = rest.find([',', '}']).unwrap_or(rest.len());
+    rest[..end].trim().parse().ok()
+}
+
+fn json_missing(line: &str) -> Vec<String> {
+    let Some(at) = line.find("\"missing\"") else {
+        return Vec::new();
+    };
+    let rest = &line[at..];
+    let (Some(a), Some(b)) = (rest.find('['), rest.find(']')) else {
+        return Vec::new();
+    };
+    rest[a + 1..b]
+        .split(',')
+        .map(|s| s.trim().trim_matches('"').to_string())
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+fn run_peers(
+    args: &BenchBakeArgs,
+    script: &Path,
+    volume: &Path,
+    spacing: [f32; 3],
+) -> Result<PeerTimes> {
+    let out = Command::new(&args.python)
+        .arg(script)
+        .arg(volume)
+        .arg("--spacing")
+        .arg(format!("{},{},{}", spacing[0], spacing[1], spacing[2]))
+        .arg("--parallel")
+        .arg(args.peer_threads.to_string())
+        .output()
+        .with_context(|| format!("running {} {}", args.python, script.display()))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let Some(line) = stdout
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+    else {
+        bail!(
+            "{} printed no result (exit {}): {}",
+            script.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    };
+    Ok(PeerTimes {
+        edt: json_number(line, "edt_seconds"),
+        scipy: json_number(line, "scipy_seconds"),
+        missing: json_missing(line),
+    })
+}
+
+pub fn run(args: BenchBakeArgs) -> Result<()> {
+    let pool = pool(args.threads)?;
+    let sizes: &[[usize; 3]] = if args.quick {
+        &[[128, 128, 16], [256, 256, 16]]
+    } else {
+        &[[256, 256, 16], [512, 512, 64], [1024, 1024, 64]]
+    };
+    let script = args.script.clone().unwrap_or_else(default_script);
+    let mut peers_ok = !args.no_peers;
+    if peers_ok && !script.is_file() {
+        eprintln!(
+            "peer script {} not found: printing our numbers only",
+            script.display()
+        );
+        peers_ok = false;
+    }
+    let tmp = tempfile::tempdir().context("creating a temporary directory")?;
+    let extent = args.extent;
+    let [ax, ay] = extent.aspect();
+    println!(
+        "bake: extent {},{},{}, {} threads (ours), edt parallel={}; Mvoxels/s, best of up to 3 runs",
+        extent.sx,
+        extent.sy,
+        extent.sz,
+        pool.current_num_threads(),
+        args.peer_threads
+    );
+    println!(
+        "{:<14} {:<9} {:>9} {:>9} {:>9} {:>10} {:>10}",
+        "size", "height", "ours", "edt", "scipy", "ours/edt", "ours/scipy"
+    );
+    let mut warned = false;
+    for &size in sizes {
+        let voxels = (size[0] * size[1] * size[2]) as f64;
+        for name in BAKE_GENERATORS {
+            let height = height_for(name, size[0], size[1])?;
+            let opts = BakeOptions {
+                size,
+                extent,
+                ..BakeOptions::default()
+            };
+            let mut best = f64::INFINITY;
+            let mut total = 0.0;
+            for _ in 0..3 {
+                let t = Instant::now();
+                let map = pool
+                    .install(|| displace_core::bake(&height, &opts))
+                    .context("baking")?;
+                let s = t.elapsed().as_secs_f64();
+                drop(map);
+                best = best.min(s);
+                total += s;
+                if total > 2.0 {
+                    break;
+                }
+            }
+            let ours = voxels / best / 1e6;
+            let mut peers = PeerTimes::default();
+            if peers_ok {
+                let vol = tmp.path().join("occupancy.npy");
+                npy::write_file(
+                    &vol,
+                    &[size[2], size[1], size[0]],
+                    &occupancy(&height, size),
+                )?;
+                let spacing = [
+                    1.0 / size[2] as f32,
+                    ay / size[1] as f32,
+                    ax / size[0] as f32,
+                ];
+                match run_peers(&args, &script, &vol, spacing) {
+                    Ok(p) => peers = p,
+                    Err(e) => {
+                        eprintln!("peer benchmark failed, printing our numbers only: {e:#}");
+                        peers_ok = false;
+                    }
+                }
+                if !peers.missing.is_empty() && !warned {
+                    eprintln!(
+                        "python packages not importable: {}. Install them with\n    \
+                         {} -m pip install -r scripts/requirements-bench.txt",
+                        peers.missing.join(", "),
+                        args.python
+                    );
+                    warned = true;
+                }
+            }
+            let rate = |s: Option<f64>| s.map(|s| voxels / s / 1e6);
+            let (edt, scipy) = (rate(peers.edt), rate(peers.scipy));
+            let show =
+                |v: Option<f64>, prec: usize| v.map_or("-".to_string(), |v| format!("{v:.prec$}"));
+            println!(
+                "{:<14} {:<9} {:>9} {:>9} {:>9} {:>10} {:>10}",
+                format!("{}x{}x{}", size[0], size[1], size[2]),
+                name,
+                format!("{ours:.1}"),
+                show(edt, 1),
+                show(scipy, 1),
+                show(edt.map(|e| ours / e), 2),
+                show(scipy.map(|s| ours / s), 2),
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_the_peer_json() {
+        let line =
+            r#"{"voxels": 1048576, "edt_seconds": 0.0421, "scipy_seconds": 0.25, "missing": []}"#;
+        assert_eq!(json_number(line, "edt_seconds"), Some(0.0421));
+        assert_eq!(json_number(line, "scipy_seconds"), Some(0.25));
+        assert!(json_missing(line).is_empty());
+        let line = r#"{"edt_seconds": null, "scipy_seconds": 1.5, "missing": ["edt"]}"#;
+        assert_eq!(json_number(line, "edt_seconds"), None);
+        assert_eq!(json_missing(line), vec!["edt".to_string()]);
+    }
+
+    #[test]
+    fn occupancy_marks_voxels_below_the_surface() {
+        let h = HeightMap::new(2, 2, vec![0.0, 1.0, 0.5, 0.3], Address::Clamp).unwrap();
+        let occ = occupancy(&h, [2, 2, 4]);
+        // Column (1, 0) is at full height: every voxel below; column (0, 0) none.
+        for k in 0..4 {
+            assert_eq!(occ[k * 4], 0);
+            assert_eq!(occ[k * 4 + 1], 1);
+        }
+        // Column (0, 1) at 0.5: voxel centres 0.125 and 0.375 are below.
+        assert_eq!(
+            (0..4).map(|k| occ[k * 4 + 2]).collect::<Vec<_>>(),
+            vec![1, 1, 0, 0]
+        );
+    }
+}

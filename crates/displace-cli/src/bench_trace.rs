@@ -1,0 +1,180 @@
+//! `displace bench trace`: rays per second of the map-space tracers (sphere,
+//! sphere-fixed, exact) on one core and on all, and the mean iterations per
+//! hit, on every generator. A measurement, not a test.
+
+use crate::bake::parse_extent;
+use crate::bench_bake::{height_for, pool};
+use anyhow::{Context, Result};
+use clap::Args;
+use displace_core::{
+    generators, BakeOptions, DisplacementMap, Extent, MapRay, Method, TraceOptions,
+};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct BenchTraceArgs {
+    /// Fewer rays
+    #[arg(long)]
+    pub quick: bool,
+    /// Threads of the "all cores" run [default: all cores]
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Rays per generator and method
+    #[arg(long)]
+    pub rays: Option<usize>,
+    /// Steps of sphere-fixed (and the cap of sphere)
+    #[arg(long, default_value_t = TraceOptions::default().iterations)]
+    pub iterations: u32,
+    /// Seed of the random rays
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long, default_value = "1,1,0.1", value_parser = parse_extent)]
+    pub extent: Extent,
+}
+
+/// SplitMix64: a seeded, reproducible stream without a dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn next_f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// Rays from just above the shell top, at uniformly random points of the
+/// tile, random azimuths and elevations between 5 and 90 degrees, downwards.
+fn random_rays(aspect: [f32; 2], n: usize, seed: u64) -> Vec<MapRay> {
+    let mut rng = Rng(seed);
+    (0..n)
+        .map(|_| {
+            let o = Vec3::new(
+                rng.next_f32() * aspect[0],
+                rng.next_f32() * aspect[1],
+                1.0 + 1e-3,
+            );
+            let az = rng.next_f32() * std::f32::consts::TAU;
+            let el = (5.0 + rng.next_f32() * 85.0).to_radians();
+            MapRay::new(
+                o,
+                Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), -el.sin()),
+            )
+        })
+        .collect()
+}
+
+struct TraceRun {
+    rays_per_s: f64,
+    hits: usize,
+    iterations: u64,
+}
+
+fn time_trace(
+    pool: &rayon::ThreadPool,
+    map: &DisplacementMap,
+    rays: &[MapRay],
+    opts: &TraceOptions,
+) -> TraceRun {
+    let t = Instant::now();
+    let (hits, iterations) = pool.install(|| {
+        rays.par_iter()
+            .map(|r| match map.trace(r, opts) {
+                Some(h) => (1usize, h.iterations as u64),
+                None => (0, 0),
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    });
+    TraceRun {
+        rays_per_s: rays.len() as f64 / t.elapsed().as_secs_f64(),
+        hits,
+        iterations,
+    }
+}
+
+pub fn run(args: BenchTraceArgs) -> Result<()> {
+    let one = pool(Some(1))?;
+    let all = pool(args.threads)?;
+    let n = args
+        .rays
+        .unwrap_or(if args.quick { 5_000 } else { 100_000 });
+    let size = if args.quick {
+        [128, 128, 16]
+    } else {
+        [256, 256, 16]
+    };
+    let extent = args.extent;
+    let rays = random_rays(extent.aspect(), n, args.seed);
+    println!(
+        "trace: {}x{}x{} maps, extent {},{},{}, {n} rays from above the shell (seed {}), \
+         1 thread vs {} threads; iterations/hit = distance-map steps + patches walked",
+        size[0],
+        size[1],
+        size[2],
+        extent.sx,
+        extent.sy,
+        extent.sz,
+        args.seed,
+        all.current_num_threads()
+    );
+    println!(
+        "{:<9} {:<13} {:>12} {:>12} {:>7} {:>14}",
+        "height", "method", "Mrays/s 1", "Mrays/s all", "hits", "iterations/hit"
+    );
+    for name in generators::NAMES {
+        let height = height_for(name, size[0], size[1])?;
+        let opts = BakeOptions {
+            size,
+            extent,
+            ..BakeOptions::default()
+        };
+        let map = all
+            .install(|| displace_core::bake(&height, &opts))
+            .context("baking")?;
+        for method in [Method::Sphere, Method::SphereFixed, Method::Exact] {
+            let topts = TraceOptions {
+                method,
+                iterations: args.iterations,
+                ..TraceOptions::default()
+            };
+            let single = time_trace(&one, &map, &rays, &topts);
+            let multi = time_trace(&all, &map, &rays, &topts);
+            println!(
+                "{:<9} {:<13} {:>12.3} {:>12.3} {:>7} {:>14.1}",
+                name,
+                method.name(),
+                single.rays_per_s / 1e6,
+                multi.rays_per_s / 1e6,
+                multi.hits,
+                multi.iterations as f64 / multi.hits.max(1) as f64
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn random_rays_start_above_the_shell_and_go_down() {
+        let rays = random_rays([10.0, 5.0], 1000, 7);
+        assert_eq!(rays, random_rays([10.0, 5.0], 1000, 7));
+        for r in &rays {
+            assert!(
+                r.origin.z > 1.0
+                    && (0.0..=10.0).contains(&r.origin.x)
+                    && (0.0..=5.0).contains(&r.origin.y)
+            );
+            let elevation = (-r.dir.z).asin().to_degrees();
+            assert!((4.99..=90.0).contains(&elevation), "{elevation}");
+            assert!((r.dir.length() - 1.0).abs() < 1e-5);
+        }
+    }
+}

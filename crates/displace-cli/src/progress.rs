@@ -1,0 +1,79 @@
+//! Terminal feedback for long jobs: a progress bar that appears only once a
+//! job has run for a second (short bakes stay quiet), on stderr so stdout
+//! keeps only results, and a Ctrl-C flag the bake polls so an interrupted run
+//! stops cleanly and leaves no output file.
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// A progress bar created lazily after `delay`.
+pub struct DelayedBar {
+    start: Instant,
+    delay: Duration,
+    label: String,
+    bar: Mutex<Option<ProgressBar>>,
+}
+
+impl DelayedBar {
+    pub fn new(label: impl Into<String>) -> Arc<Self> {
+        Arc::new(Self {
+            start: Instant::now(),
+            delay: Duration::from_secs(1),
+            label: label.into(),
+            bar: Mutex::new(None),
+        })
+    }
+
+    /// Records `done` of `total` steps.
+    pub fn update(&self, done: usize, total: usize) {
+        if self.start.elapsed() < self.delay {
+            return;
+        }
+        let mut slot = self.bar.lock().unwrap_or_else(|e| e.into_inner());
+        let bar = slot.get_or_insert_with(|| {
+            let bar =
+                ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{msg} [{bar:40}] {pos}/{len} slices, {elapsed} elapsed, ETA {eta}",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
+            );
+            bar.set_message(self.label.clone());
+            bar
+        });
+        bar.set_position(done as u64);
+    }
+
+    /// The callback [`displace_core::BakeOptions::progress`] takes.
+    pub fn callback(self: &Arc<Self>) -> Arc<dyn Fn(usize, usize) + Send + Sync> {
+        let me = Arc::clone(self);
+        Arc::new(move |done, total| me.update(done, total))
+    }
+
+    /// Removes the bar, if it was ever shown.
+    pub fn finish(&self) {
+        if let Some(bar) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// The process-wide Ctrl-C flag. The first call installs the handler; if
+/// another part of the program already installed one, the flag still works
+/// for code that sets it directly but Ctrl-C keeps its default behaviour
+/// (ending the process, which leaves no output file either: outputs are only
+/// renamed into place once complete).
+pub fn cancel_flag() -> Arc<AtomicBool> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let f = Arc::clone(&flag);
+        let _ = ctrlc::set_handler(move || f.store(true, Ordering::SeqCst));
+        flag
+    })
+    .clone()
+}

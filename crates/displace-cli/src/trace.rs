@@ -1,0 +1,173 @@
+//! `displace trace`: batch ray queries against one displaced face, in the
+//! face's physical frame, so users can check our tracer against their own
+//! tools.
+//!
+//! **Frames.** A physical point `(x, y, z)` (x along u in `[0, SX]`, y along
+//! v in `[0, SY]`, z up, the shell in `[0, SZ]`) is map-space point
+//! `(x, y, z) / SZ` (lengths in shell depths, `crate::convention`). The
+//! scale is uniform, so a direction keeps its orientation: the map-space
+//! direction is the physical one normalised, and a map-space distance `t_m`
+//! along it is `t_m * SZ` physical length. The `t` reported is the ray
+//! parameter for the direction *as given*: `hit = origin + t * dir`, i.e.
+//! `t = t_m * SZ / |dir|` (the physical distance when `dir` is unit length).
+
+use crate::bake::{load_height, parse_extent, parse_map_size, HeightArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use displace_core::io::{self as dio, npy};
+use displace_core::{DisplacementMap, Extent, MapRay, Method, NormalMap, TraceOptions};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct TraceArgs {
+    /// Height map: gen:NAME[?...], a PNG or an EXR file
+    #[arg(long, value_name = "HEIGHT")]
+    pub height: String,
+    #[command(flatten)]
+    pub height_args: HeightArgs,
+    /// Physical width, height and displacement depth of the face
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
+    pub extent: Extent,
+    /// Bake a distance map of this many voxels [default: 256x256x16]
+    #[arg(long, value_name = "WxHxD", conflicts_with = "map")]
+    pub size: Option<String>,
+    /// Use a baked distance map (.ktx2; .dds and .npy take --extent and
+    /// --address as they were baked) instead of baking one
+    #[arg(long, value_name = "MAP")]
+    pub map: Option<PathBuf>,
+    /// Rays: float32 .npy of shape (N, 6), origin xyz then direction xyz
+    #[arg(long, value_name = "RAYS.npy")]
+    pub rays: PathBuf,
+    /// Hits: float32 .npy of shape (N, 5): t (inf on a miss), x, y, z (NaN
+    /// on a miss), iterations
+    #[arg(short, long, value_name = "HITS.npy")]
+    pub output: PathBuf,
+    #[arg(long, default_value = "sphere", value_parser = parse_method)]
+    pub method: Method,
+    /// sphere-fixed: the number of steps; sphere: the most steps before the
+    /// rest of the ray is walked exactly
+    #[arg(long, default_value_t = TraceOptions::default().iterations)]
+    pub iterations: u32,
+}
+
+fn parse_method(s: &str) -> Result<Method, String> {
+    s.parse().map_err(|e: displace_core::Error| e.to_string())
+}
+
+/// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
+/// directions. Returned in physical units, as given.
+pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
+    let arr = npy::read_file(path).with_context(|| format!("reading rays {}", path.display()))?;
+    if arr.shape.len() != 2 || arr.shape[1] != 6 {
+        bail!(
+            "rays {}: shape {:?}, expected (N, 6): origin x, y, z then direction x, y, z per row",
+            path.display(),
+            arr.shape
+        );
+    }
+    let rays: Vec<[f32; 6]> = arr
+        .data
+        .chunks_exact(6)
+        .map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]])
+        .collect();
+    for (n, r) in rays.iter().enumerate() {
+        if let Some(c) = r.iter().position(|v| !v.is_finite()) {
+            bail!(
+                "rays {}: ray {n} has {} in column {c}",
+                path.display(),
+                r[c]
+            );
+        }
+        let d = Vec3::new(r[3], r[4], r[5]);
+        if !(d.length() > 0.0 && d.length().is_finite()) {
+            bail!(
+                "rays {}: ray {n} has direction {d}, which has no length",
+                path.display()
+            );
+        }
+    }
+    Ok(rays)
+}
+
+/// Traces one physical-frame ray: `[t, x, y, z, iterations]`.
+pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) -> [f32; 5] {
+    let sz = map.extent.sz;
+    let origin = Vec3::new(r[0], r[1], r[2]);
+    let dir = Vec3::new(r[3], r[4], r[5]);
+    let ray = MapRay::new(origin / sz, dir);
+    match map.trace(&ray, opts) {
+        Some(hit) => {
+            let p = hit.position * sz;
+            [
+                hit.t * sz / dir.length(),
+                p.x,
+                p.y,
+                p.z,
+                hit.iterations as f32,
+            ]
+        }
+        None => [f32::INFINITY, f32::NAN, f32::NAN, f32::NAN, 0.0],
+    }
+}
+
+pub fn run(args: TraceArgs) -> Result<()> {
+    let extent = args.extent;
+    let rays = read_rays(&args.rays)?;
+    crate::bake::check_npy_output(&args.output)?;
+    let address = args.height_args.address;
+    let map = match &args.map {
+        Some(path) => {
+            let distance = dio::read_distance_map(path, extent, address)
+                .with_context(|| format!("reading distance map {}", path.display()))?;
+            let [w, h, _] = distance.size();
+            let height = load_height(&args.height, &args.height_args, [w, h])?;
+            DisplacementMap {
+                normals: NormalMap::from_height(&height, extent),
+                height,
+                distance,
+                extent,
+            }
+        }
+        None => {
+            let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
+            let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
+            let opts = displace_core::BakeOptions {
+                size,
+                extent,
+                ..Default::default()
+            };
+            displace_core::bake(&height, &opts).context("baking the distance map")?
+        }
+    };
+    let opts = TraceOptions {
+        method: args.method,
+        iterations: args.iterations,
+        ..TraceOptions::default()
+    };
+    map.check_trace(&opts).context("trace options")?;
+
+    let start = Instant::now();
+    let hits: Vec<[f32; 5]> = rays
+        .par_iter()
+        .map(|r| trace_physical(&map, &opts, r))
+        .collect();
+    let seconds = start.elapsed().as_secs_f64();
+    let flat: Vec<f32> = hits.iter().flatten().copied().collect();
+    npy::write_file(&args.output, &[hits.len(), 5], &flat)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let n_hit = hits.iter().filter(|h| h[0].is_finite()).count();
+    println!(
+        "traced {} rays ({} hits) with {} in {:.3} s ({:.2} Mrays/s on {} threads) -> {}",
+        rays.len(),
+        n_hit,
+        args.method.name(),
+        seconds,
+        rays.len() as f64 / seconds.max(1e-9) / 1e6,
+        rayon::current_num_threads(),
+        args.output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,92 @@
+#!/usr/bin/env python3
+"""Time the peers of `displace bench bake` on the same occupancy volume.
+
+`displace bench bake` writes the volume it bakes as a uint8 .npy of shape
+(D, H, W): 1 where the voxel centre lies below the displaced surface. This
+script runs, on that same volume,
+
+  * edt.edt(volume, anisotropy=spacing, parallel=N)       (PyPI `edt`)
+  * scipy.ndimage.distance_transform_edt(volume, sampling=spacing)
+
+with the anisotropic voxel spacing of our map (depth units, axis order D, H,
+W), and prints one JSON line:
+
+  {"voxels": ..., "edt_seconds": s|null, "scipy_seconds": s|null, "missing": [...]}
+
+Each time is the best of up to three runs (fewer when one run is long), so
+it compares with our best-of-three bake. Packages that cannot be imported
+are listed in "missing" and their times are null; install them with
+
+  python3 -m pip install -r scripts/requirements-bench.txt
+
+(or just `python3 -m pip install numpy edt scipy`)
+"""
+
+import argparse
+import json
+import sys
+import time
+
+
+def best_time(fn, budget=2.0, runs=3):
+    best = float("inf")
+    total = 0.0
+    for _ in range(runs):
+        t = time.perf_counter()
+        fn()
+        s = time.perf_counter() - t
+        best = min(best, s)
+        total += s
+        if total > budget:
+            break
+    return best
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("volume", help="uint8 .npy occupancy volume (D, H, W)")
+    p.add_argument("--spacing", required=True, help="voxel spacing along D,H,W")
+    p.add_argument("--parallel", type=int, default=2, help="threads for edt")
+    args = p.parse_args()
+
+    result = {"voxels": None, "edt_seconds": None, "scipy_seconds": None, "missing": []}
+    try:
+        import numpy as np
+    except ImportError:
+        result["missing"] = ["numpy", "edt", "scipy"]
+        print(json.dumps(result))
+        return 0
+
+    volume = np.load(args.volume)
+    if volume.ndim != 3:
+        print(f"error: {args.volume}: expected a 3D volume, got shape {volume.shape}", file=sys.stderr)
+        return 2
+    volume = np.ascontiguousarray(volume != 0, dtype=np.uint8)
+    spacing = tuple(float(s) for s in args.spacing.split(","))
+    if len(spacing) != 3:
+        print(f"error: --spacing {args.spacing}: expected three numbers", file=sys.stderr)
+        return 2
+    result["voxels"] = int(volume.size)
+
+    try:
+        import edt
+
+        result["edt_seconds"] = best_time(
+            lambda: edt.edt(volume, anisotropy=spacing, black_border=False, parallel=args.parallel)
+        )
+    except ImportError:
+        result["missing"].append("edt")
+
+    try:
+        from scipy import ndimage
+
+        result["scipy_seconds"] = best_time(lambda: ndimage.distance_transform_edt(volume, sampling=spacing))
+    except ImportError:
+        result["missing"].append("scipy")
+
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
