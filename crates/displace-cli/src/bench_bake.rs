@@ -226,7 +226,8 @@ pub fn run(args: BenchBakeArgs) -> Result<()> {
                 if !peers.missing.is_empty() && !warned {
                     eprintln!(
                         "python packages not importable: {}. Install them with\n    \
-                         {} -m pip install -r scripts/requirements-bench.txt",
+                         {} -m pip install numpy edt scipy\n\
+                         (tested versions: scripts/requirements-bench.txt)",
                         peers.missing.join(", "),
                         args.python
                     );
