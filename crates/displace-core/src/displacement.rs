@@ -77,11 +77,15 @@ impl DisplacementMap {
     /// Checks that `opts` makes sense for this map before tracing many rays.
     pub fn check_trace(&self, opts: &TraceOptions) -> Result<()> {
         if !(opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0)) {
-            return Err(Error::InvalidTrace(format!("tiles {:?} must be positive", opts.tiles)));
+            return Err(Error::InvalidTrace(format!(
+                "tiles {:?} must be positive",
+                opts.tiles
+            )));
         }
         if self.address() == Address::Clamp && opts.tiles != [1.0, 1.0] {
             return Err(Error::InvalidTrace(
-                "a clamped map covers exactly one tile; bake with repeat addressing to tile it".into(),
+                "a clamped map covers exactly one tile; bake with repeat addressing to tile it"
+                    .into(),
             ));
         }
         Ok(())
@@ -109,7 +113,11 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let address = height.address();
     let periodic = address == Address::Repeat;
     let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
-    let cancelled = || opts.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed));
+    let cancelled = || {
+        opts.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    };
 
     let columns = column_ranges(height, w, h);
     if cancelled() {
@@ -120,36 +128,42 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let slack = 0.5 * (hx * hx + hy * hy + hz * hz).sqrt();
     let done = AtomicUsize::new(0);
     let mut data = vec![0.0f32; w * h * d];
-    data.par_chunks_mut(w * h)
-        .enumerate()
-        .try_for_each_init(
-            || (Vec::new(), LineScratch::default()),
-            |(transposed, scratch), (k, slice)| {
-                if cancelled() {
-                    return Err(Error::Cancelled);
-                }
-                let z = texel_centre(k, d);
-                for (g, &(lo, hi, _)) in slice.iter_mut().zip(&columns) {
-                    let dz = (lo - z).max(z - hi).max(0.0);
-                    *g = dz * dz;
-                }
-                transform_2d(slice, w, h, [hx, hy], [periodic, periodic], transposed, scratch);
-                for (v, &(_, _, hc)) in slice.iter_mut().zip(&columns) {
-                    let dist = v.sqrt();
-                    let lower = if z < hc {
-                        -(dist + r_xy).min(hc - z)
-                    } else {
-                        dist - r_xy
-                    };
-                    *v = lower - slack;
-                }
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                if let Some(p) = &opts.progress {
-                    p(n, d);
-                }
-                Ok(())
-            },
-        )?;
+    data.par_chunks_mut(w * h).enumerate().try_for_each_init(
+        || (Vec::new(), LineScratch::default()),
+        |(transposed, scratch), (k, slice)| {
+            if cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let z = texel_centre(k, d);
+            for (g, &(lo, hi, _)) in slice.iter_mut().zip(&columns) {
+                let dz = (lo - z).max(z - hi).max(0.0);
+                *g = dz * dz;
+            }
+            transform_2d(
+                slice,
+                w,
+                h,
+                [hx, hy],
+                [periodic, periodic],
+                transposed,
+                scratch,
+            );
+            for (v, &(_, _, hc)) in slice.iter_mut().zip(&columns) {
+                let dist = v.sqrt();
+                let lower = if z < hc {
+                    -(dist + r_xy).min(hc - z)
+                } else {
+                    dist - r_xy
+                };
+                *v = lower - slack;
+            }
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if let Some(p) = &opts.progress {
+                p(n, d);
+            }
+            Ok(())
+        },
+    )?;
     let distance = DistanceMap::from_raw(size, [ax, ay], address, data, 2.0 * r_xy + 2.0 * slack)?;
     Ok(DisplacementMap {
         normals: NormalMap::from_height(height, extent),
@@ -216,7 +230,11 @@ fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Vec<(f32, f32, f32)>
                         hi = hi.max(x);
                     }
                 }
-                (lo, hi, height.sample(texel_centre(i, w), texel_centre(j, h)))
+                (
+                    lo,
+                    hi,
+                    height.sample(texel_centre(i, w), texel_centre(j, h)),
+                )
             })
         })
         .collect()
@@ -235,9 +253,17 @@ mod tests {
                 let got = column_ranges(&hm, w, h);
                 for j in 0..h {
                     for i in 0..w {
-                        let want = hm.range(i as f32 / w as f32, (i + 1) as f32 / w as f32, j as f32 / h as f32, (j + 1) as f32 / h as f32);
+                        let want = hm.range(
+                            i as f32 / w as f32,
+                            (i + 1) as f32 / w as f32,
+                            j as f32 / h as f32,
+                            (j + 1) as f32 / h as f32,
+                        );
                         let (lo, hi, _) = got[j * w + i];
-                        assert!((lo - want.0).abs() < 1e-6 && (hi - want.1).abs() < 1e-6, "{w}x{h} ({i},{j}): {lo},{hi} vs {want:?}");
+                        assert!(
+                            (lo - want.0).abs() < 1e-6 && (hi - want.1).abs() < 1e-6,
+                            "{w}x{h} ({i},{j}): {lo},{hi} vs {want:?}"
+                        );
                     }
                 }
             }

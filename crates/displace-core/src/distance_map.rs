@@ -90,7 +90,11 @@ impl R8Range {
     /// The range for a map's values: its minimum, rounded down to 1/64.
     pub fn for_values(values: &[f32]) -> Self {
         let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
-        let min = if lo.is_finite() { (lo * 64.0).floor() / 64.0 } else { -1.0 };
+        let min = if lo.is_finite() {
+            (lo * 64.0).floor() / 64.0
+        } else {
+            -1.0
+        };
         Self {
             min,
             max: min + R8_SPAN,
@@ -184,7 +188,8 @@ impl DistanceMap {
             address,
             data,
             max_underestimate: max_underestimate + range.quantum(),
-            codes, range,
+            codes,
+            range,
         })
     }
 
@@ -265,7 +270,9 @@ impl DistanceMap {
         let c10 = lerp(at(i0, j1, k0), at(i1, j1, k0), fx);
         let c01 = lerp(at(i0, j0, k1), at(i1, j0, k1), fx);
         let c11 = lerp(at(i0, j1, k1), at(i1, j1, k1), fx);
-        self.range.min + lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz) * ((self.range.max - self.range.min) / 255.0)
+        self.range.min
+            + lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
+                * ((self.range.max - self.range.min) / 255.0)
     }
 
     /// The same map rounded down to what `format` can store: still
@@ -275,7 +282,11 @@ impl DistanceMap {
         let (data, extra, range): (Vec<f32>, f32, _) = match format {
             Format::R32F => (self.data.clone(), 0.0, None),
             Format::R16F => {
-                let data: Vec<f32> = self.data.iter().map(|&v| f16_round_down(v).to_f32()).collect();
+                let data: Vec<f32> = self
+                    .data
+                    .iter()
+                    .map(|&v| f16_round_down(v).to_f32())
+                    .collect();
                 let extra = self
                     .data
                     .iter()
@@ -290,8 +301,14 @@ impl DistanceMap {
                 (data, r.quantum(), Some(r))
             }
         };
-        let map = Self::from_raw(self.size, self.aspect, self.address, data, self.data_underestimate() + extra)
-            .expect("rounding keeps a valid map valid");
+        let map = Self::from_raw(
+            self.size,
+            self.aspect,
+            self.address,
+            data,
+            self.data_underestimate() + extra,
+        )
+        .expect("rounding keeps a valid map valid");
         (map, range)
     }
 }
@@ -312,7 +329,10 @@ mod tests {
             }
             let h = f16_round_down(v).to_f32();
             // One f16 step: 2^-10 relative (2^-24 absolute among subnormals).
-            assert!(h <= v && v - h <= (v.abs() / 1024.0).max(6e-8), "f16 {v} -> {h}");
+            assert!(
+                h <= v && v - h <= (v.abs() / 1024.0).max(6e-8),
+                "f16 {v} -> {h}"
+            );
         }
     }
 }

@@ -23,7 +23,13 @@ pub struct LineScratch {
 /// of `n` values (infinite values allowed, meaning "no site here"). With
 /// `periodic`, `f` repeats with period `n` and the minimum runs over every
 /// image, as a tiling map needs.
-pub fn transform_line(f: &[f32], spacing: f32, periodic: bool, out: &mut [f32], s: &mut LineScratch) {
+pub fn transform_line(
+    f: &[f32],
+    spacing: f32,
+    periodic: bool,
+    out: &mut [f32],
+    s: &mut LineScratch,
+) {
     let n = f.len();
     debug_assert_eq!(out.len(), n);
     if !periodic {
@@ -123,7 +129,13 @@ pub fn transform_2d(
         let nb = BLOCK.min(h - j0);
         for b in 0..nb {
             let j = j0 + b;
-            transform_line(&g[j * w..(j + 1) * w], spacing[0], periodic[0], &mut lines[b * w..(b + 1) * w], s);
+            transform_line(
+                &g[j * w..(j + 1) * w],
+                spacing[0],
+                periodic[0],
+                &mut lines[b * w..(b + 1) * w],
+                s,
+            );
         }
         for i in 0..w {
             let dst = &mut transposed[i * h + j0..i * h + j0 + nb];
@@ -136,7 +148,13 @@ pub fn transform_2d(
         let nb = BLOCK.min(w - i0);
         for b in 0..nb {
             let i = i0 + b;
-            transform_line(&transposed[i * h..(i + 1) * h], spacing[1], periodic[1], &mut lines[b * h..(b + 1) * h], s);
+            transform_line(
+                &transposed[i * h..(i + 1) * h],
+                spacing[1],
+                periodic[1],
+                &mut lines[b * h..(b + 1) * h],
+                s,
+            );
         }
         for j in 0..h {
             let dst = &mut g[j * w + i0..j * w + i0 + nb];
@@ -161,7 +179,10 @@ pub fn binary_edt_3d(site: &[bool], size: [usize; 3], spacing: [f32; 3]) -> Vec<
     use rayon::prelude::*;
     let [w, h, d] = size;
     let plane = w * h;
-    let mut vol: Vec<f32> = site.iter().map(|&b| if b { 0.0 } else { f32::INFINITY }).collect();
+    let mut vol: Vec<f32> = site
+        .iter()
+        .map(|&b| if b { 0.0 } else { f32::INFINITY })
+        .collect();
     vol.par_chunks_mut(plane.max(1)).for_each_init(
         || (Vec::new(), LineScratch::default()),
         |(t, s), slice| transform_2d(slice, w, h, [spacing[0], spacing[1]], [false, false], t, s),

@@ -11,7 +11,9 @@ pub enum Error {
     InvalidExtent(String),
     #[error("invalid size: {0}")]
     InvalidSize(String),
-    #[error("size {what} = {size} is too large: it would need {bytes} bytes (limit {limit} bytes)")]
+    #[error(
+        "size {what} = {size} is too large: it would need {bytes} bytes (limit {limit} bytes)"
+    )]
     TooLarge {
         what: String,
         size: String,

@@ -23,8 +23,12 @@ pub struct SurfaceHit {
 pub enum Walk {
     Hit(SurfaceHit),
     /// The ray was already under the surface at the segment's start.
-    StartsInside { cells: u32 },
-    Miss { cells: u32 },
+    StartsInside {
+        cells: u32,
+    },
+    Miss {
+        cells: u32,
+    },
 }
 
 /// First point of `o + t d`, `t` in `[t0, t1]`, on the surface
@@ -44,7 +48,13 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
         return Walk::Miss { cells: 0 };
     }
     let p0 = o + d * t0;
-    if p0.z < height.sample((p0.x / aspect[0] as f64) as f32, (p0.y / aspect[1] as f64) as f32) as f64 - 1e-7 {
+    if p0.z
+        < height.sample(
+            (p0.x / aspect[0] as f64) as f32,
+            (p0.y / aspect[1] as f64) as f32,
+        ) as f64
+            - 1e-7
+    {
         return Walk::StartsInside { cells: 0 };
     }
     let mut ci = floor_f64(cx(t0));
@@ -62,8 +72,16 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
     };
     let mut tx = next_boundary(ci, dsx, &cx);
     let mut ty = next_boundary(cj, dsy, &cy);
-    let dtx = if dsx == 0.0 { f64::INFINITY } else { 1.0 / dsx.abs() };
-    let dty = if dsy == 0.0 { f64::INFINITY } else { 1.0 / dsy.abs() };
+    let dtx = if dsx == 0.0 {
+        f64::INFINITY
+    } else {
+        1.0 / dsx.abs()
+    };
+    let dty = if dsy == 0.0 {
+        f64::INFINITY
+    } else {
+        1.0 / dsy.abs()
+    };
     let mut ta = t0;
     let mut cells = 0u32;
     loop {
@@ -188,7 +206,13 @@ mod tests {
 
     #[test]
     fn vertical_ray_lands_on_the_bilinear_surface() {
-        let m = HeightMap::new(4, 4, (0..16).map(|k| (k % 5) as f32 / 4.0).collect(), Address::Clamp).unwrap();
+        let m = HeightMap::new(
+            4,
+            4,
+            (0..16).map(|k| (k % 5) as f32 / 4.0).collect(),
+            Address::Clamp,
+        )
+        .unwrap();
         let aspect = [2.0, 3.0];
         for &(x, y) in &[(0.3f32, 0.4f32), (1.0, 1.5), (1.9, 2.9), (0.01, 0.01)] {
             let o = Vec3::new(x, y, 1.5);

@@ -208,7 +208,10 @@ mod tests {
         let mut shi = f32::NEG_INFINITY;
         for a in 0..=200 {
             for b in 0..=200 {
-                let h = m.sample(u0 + (u1 - u0) * a as f32 / 200.0, v0 + (v1 - v0) * b as f32 / 200.0);
+                let h = m.sample(
+                    u0 + (u1 - u0) * a as f32 / 200.0,
+                    v0 + (v1 - v0) * b as f32 / 200.0,
+                );
                 slo = slo.min(h);
                 shi = shi.max(h);
             }

@@ -241,17 +241,32 @@ pub fn trace(
                 // resolve, and accept an unconverged hit otherwise.
                 return match walk(t, (t + band).min(clip.t_out)) {
                     Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
-                    Walk::StartsInside { cells } => Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, false)),
+                    Walk::StartsInside { cells } => Some(surface(
+                        t as f64,
+                        shading_normal(height, aspect, at(t)),
+                        iterations + cells,
+                        false,
+                    )),
                     Walk::Miss { cells } => {
                         let p = at(t);
-                        Some(surface(t as f64, shading_normal(height, aspect, p), iterations + cells, false))
+                        Some(surface(
+                            t as f64,
+                            shading_normal(height, aspect, p),
+                            iterations + cells,
+                            false,
+                        ))
                     }
                 };
             }
             // Out of steps: finish exactly, which is always right.
             return match walk(t, clip.t_out) {
                 Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
-                Walk::StartsInside { cells } => Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, true)),
+                Walk::StartsInside { cells } => Some(surface(
+                    t as f64,
+                    shading_normal(height, aspect, at(t)),
+                    iterations + cells,
+                    true,
+                )),
                 Walk::Miss { .. } => None,
             };
         }
@@ -263,7 +278,12 @@ pub fn trace(
             match walk(t, t1) {
                 Walk::Hit(h) => return Some(surface(h.t, h.normal, iterations + h.cells, true)),
                 Walk::StartsInside { cells } => {
-                    return Some(surface(t as f64, shading_normal(height, aspect, at(t)), iterations + cells, true))
+                    return Some(surface(
+                        t as f64,
+                        shading_normal(height, aspect, at(t)),
+                        iterations + cells,
+                        true,
+                    ))
                 }
                 Walk::Miss { cells } => {
                     iterations += cells;

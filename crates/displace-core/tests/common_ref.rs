@@ -12,7 +12,10 @@ use glam::{DVec2, DVec3};
 /// space (depth units).
 fn patch_point(h: &HeightMap, aspect: [f64; 2], ci: i64, cj: i64, f: DVec2) -> DVec3 {
     let [h00, h10, h01, h11] = h.cell(ci, cj).map(|v| v as f64);
-    let z = h00 * (1.0 - f.x) * (1.0 - f.y) + h10 * f.x * (1.0 - f.y) + h01 * (1.0 - f.x) * f.y + h11 * f.x * f.y;
+    let z = h00 * (1.0 - f.x) * (1.0 - f.y)
+        + h10 * f.x * (1.0 - f.y)
+        + h01 * (1.0 - f.x) * f.y
+        + h11 * f.x * f.y;
     let u = (ci as f64 + 0.5 + f.x) / h.width() as f64;
     let v = (cj as f64 + 0.5 + f.y) / h.height() as f64;
     DVec3::new(u * aspect[0], v * aspect[1], z)
@@ -26,13 +29,40 @@ pub fn true_distance(h: &HeightMap, aspect: [f32; 2], p: DVec3, tiles: [i64; 4])
     let mut best = f64::INFINITY;
     let (ci0, ci1, cj0, cj1) = match h.address() {
         Address::Clamp => (-1, w - 1, -1, hh - 1),
-        Address::Repeat => (tiles[0] * w - 1, tiles[1] * w - 1, tiles[2] * hh - 1, tiles[3] * hh - 1),
+        Address::Repeat => (
+            tiles[0] * w - 1,
+            tiles[1] * w - 1,
+            tiles[2] * hh - 1,
+            tiles[3] * hh - 1,
+        ),
     };
     for cj in cj0..=cj1 {
         for ci in ci0..=ci1 {
             // The part of the cell inside the face (clamped maps stop at 0 and 1).
-            let lo = DVec2::new(if h.address() == Address::Clamp && ci == -1 { 0.5 } else { 0.0 }, if h.address() == Address::Clamp && cj == -1 { 0.5 } else { 0.0 });
-            let hi = DVec2::new(if h.address() == Address::Clamp && ci == w - 1 { 0.5 } else { 1.0 }, if h.address() == Address::Clamp && cj == hh - 1 { 0.5 } else { 1.0 });
+            let lo = DVec2::new(
+                if h.address() == Address::Clamp && ci == -1 {
+                    0.5
+                } else {
+                    0.0
+                },
+                if h.address() == Address::Clamp && cj == -1 {
+                    0.5
+                } else {
+                    0.0
+                },
+            );
+            let hi = DVec2::new(
+                if h.address() == Address::Clamp && ci == w - 1 {
+                    0.5
+                } else {
+                    1.0
+                },
+                if h.address() == Address::Clamp && cj == hh - 1 {
+                    0.5
+                } else {
+                    1.0
+                },
+            );
             let n = 12;
             let mut local_best = (f64::INFINITY, DVec2::ZERO);
             for b in 0..=n {
@@ -49,7 +79,16 @@ pub fn true_distance(h: &HeightMap, aspect: [f32; 2], p: DVec3, tiles: [i64; 4])
             let mut step = (hi - lo).max_element() / n as f64;
             while step > 1e-7 {
                 let mut improved = false;
-                for dir in [DVec2::X, -DVec2::X, DVec2::Y, -DVec2::Y, DVec2::ONE, -DVec2::ONE, DVec2::new(1.0, -1.0), DVec2::new(-1.0, 1.0)] {
+                for dir in [
+                    DVec2::X,
+                    -DVec2::X,
+                    DVec2::Y,
+                    -DVec2::Y,
+                    DVec2::ONE,
+                    -DVec2::ONE,
+                    DVec2::new(1.0, -1.0),
+                    DVec2::new(-1.0, 1.0),
+                ] {
                     let g = (f + dir * step).clamp(lo, hi);
                     let dd = (patch_point(h, aspect, ci, cj, g) - p).length_squared();
                     if dd < d {
@@ -71,7 +110,10 @@ pub fn true_distance(h: &HeightMap, aspect: [f32; 2], p: DVec3, tiles: [i64; 4])
 /// Signed: negative under the surface.
 pub fn true_signed_distance(h: &HeightMap, aspect: [f32; 2], p: DVec3, tiles: [i64; 4]) -> f64 {
     let d = true_distance(h, aspect, p, tiles);
-    let hs = h.sample((p.x / aspect[0] as f64) as f32, (p.y / aspect[1] as f64) as f32) as f64;
+    let hs = h.sample(
+        (p.x / aspect[0] as f64) as f32,
+        (p.y / aspect[1] as f64) as f32,
+    ) as f64;
     if p.z < hs {
         -d
     } else {
@@ -100,7 +142,13 @@ pub fn random_height(kind: u8, w: usize, h: usize, seed: u64, address: Address) 
         1 => {
             let period = 1 + (rng.next_f64() * 3.0) as usize;
             (0..w * h)
-                .map(|k| if ((k % w) / period + (k / w) / period) % 2 == 0 { 1.0 } else { 0.0 })
+                .map(|k| {
+                    if ((k % w) / period + (k / w) / period) % 2 == 0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                })
                 .collect()
         }
         _ => {

@@ -62,13 +62,18 @@ proptest! {
 #[test]
 fn sharp_steps_are_safe() {
     let (w, h) = (16, 16);
-    let data: Vec<f32> = (0..w * h).map(|k| if (k % w) / 4 % 2 == 0 { 1.0 } else { 0.0 }).collect();
+    let data: Vec<f32> = (0..w * h)
+        .map(|k| if (k % w) / 4 % 2 == 0 { 1.0 } else { 0.0 })
+        .collect();
     let height = displace_core::HeightMap::new(w, h, data, Address::Clamp).unwrap();
-    let map = bake(&height, &BakeOptions {
-        size: [16, 16, 8],
-        extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
-        ..BakeOptions::default()
-    })
+    let map = bake(
+        &height,
+        &BakeOptions {
+            size: [16, 16, 8],
+            extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
     .unwrap();
     let aspect = map.aspect();
     let mut worst = f64::INFINITY;
@@ -77,11 +82,17 @@ fn sharp_steps_are_safe() {
         for z in [0.2, 0.5, 0.9] {
             let p = DVec3::new(x, 0.5 * aspect[1] as f64, z);
             let truth = true_signed_distance(&height, aspect, p, [0, 1, 0, 1]);
-            let stored = map.distance.sample(Vec3::new(x as f32, p.y as f32, z as f32)) as f64;
+            let stored = map
+                .distance
+                .sample(Vec3::new(x as f32, p.y as f32, z as f32)) as f64;
             worst = worst.min(truth - stored);
         }
     }
-    assert!(worst >= -1e-4, "stored exceeded the true distance by {}", -worst);
+    assert!(
+        worst >= -1e-4,
+        "stored exceeded the true distance by {}",
+        -worst
+    );
 }
 
 /// A tiling height map bakes to a tiling distance map: baking a circularly

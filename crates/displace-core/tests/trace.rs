@@ -11,10 +11,18 @@ use proptest::prelude::*;
 /// A ray from above the shell towards a random point of the face, at a
 /// random elevation (grazing ones included).
 fn random_ray(rng: &mut Rng, extent: [f32; 2]) -> MapRay {
-    let target = Vec3::new(rng.next_f64() as f32 * extent[0], rng.next_f64() as f32 * extent[1], rng.next_f64() as f32);
+    let target = Vec3::new(
+        rng.next_f64() as f32 * extent[0],
+        rng.next_f64() as f32 * extent[1],
+        rng.next_f64() as f32,
+    );
     let elevation = (2.0 + rng.next_f64() * 88.0).to_radians() as f32;
     let azimuth = (rng.next_f64() * std::f64::consts::TAU) as f32;
-    let dir = -Vec3::new(elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin());
+    let dir = -Vec3::new(
+        elevation.cos() * azimuth.cos(),
+        elevation.cos() * azimuth.sin(),
+        elevation.sin(),
+    );
     MapRay::new(target - dir * 3.0, dir)
 }
 
@@ -78,7 +86,15 @@ proptest! {
 #[test]
 fn rays_entering_below_the_surface_hit_the_wall() {
     let height = displace_core::HeightMap::new(8, 8, vec![1.0; 64], Address::Clamp).unwrap();
-    let map = bake(&height, &BakeOptions { size: [8, 8, 4], extent: Extent::new(1.0, 1.0, 0.5).unwrap(), ..BakeOptions::default() }).unwrap();
+    let map = bake(
+        &height,
+        &BakeOptions {
+            size: [8, 8, 4],
+            extent: Extent::new(1.0, 1.0, 0.5).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap();
     // From the side, at half height: the slab's wall at x = 0.
     let ray = MapRay::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
     let hit = map.trace(&ray, &TraceOptions::default()).unwrap();
@@ -95,19 +111,40 @@ fn thin_features_are_not_stepped_over() {
     // One raised texel line in a flat map: a fixed-step march at grazing
     // angles jumps over it (seed 000, fig. 8-2); sphere tracing may not.
     let n = 64;
-    let data: Vec<f32> = (0..n * n).map(|k| if k % n == 40 { 1.0 } else { 0.0 }).collect();
+    let data: Vec<f32> = (0..n * n)
+        .map(|k| if k % n == 40 { 1.0 } else { 0.0 })
+        .collect();
     let height = displace_core::HeightMap::new(n, n, data, Address::Clamp).unwrap();
-    let map = bake(&height, &BakeOptions { size: [64, 64, 8], extent: Extent::new(1.0, 1.0, 0.05).unwrap(), ..BakeOptions::default() }).unwrap();
+    let map = bake(
+        &height,
+        &BakeOptions {
+            size: [64, 64, 8],
+            extent: Extent::new(1.0, 1.0, 0.05).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap();
     let aspect = map.aspect();
     let mut hits = 0;
     for k in 0..50 {
         let y = (k as f32 + 0.5) / 50.0 * aspect[1];
         let ray = MapRay::new(Vec3::new(0.0, y, 0.9), Vec3::new(1.0, 0.0, -0.02));
-        let e = map.trace(&ray, &TraceOptions { method: Method::Exact, ..TraceOptions::default() }).unwrap();
+        let e = map
+            .trace(
+                &ray,
+                &TraceOptions {
+                    method: Method::Exact,
+                    ..TraceOptions::default()
+                },
+            )
+            .unwrap();
         let s = map.trace(&ray, &TraceOptions::default()).unwrap();
         assert!((e.t - s.t).abs() < 1e-3);
         // The wall of the line is at u = 40.5/64 - 1/64 .. the peak.
-        assert!(e.position.x / aspect[0] > 39.0 / 64.0 && e.position.x / aspect[0] < 41.0 / 64.0, "{e:?}");
+        assert!(
+            e.position.x / aspect[0] > 39.0 / 64.0 && e.position.x / aspect[0] < 41.0 / 64.0,
+            "{e:?}"
+        );
         hits += 1;
     }
     assert_eq!(hits, 50);
@@ -119,19 +156,53 @@ fn thin_features_are_not_stepped_over() {
 #[test]
 fn hits_on_the_shell_floor_are_found() {
     let n = 64;
-    let data: Vec<f32> = (0..n * n).map(|k| if ((k % n) / 8 + (k / n) / 8) % 2 == 0 { 1.0 } else { 0.0 }).collect();
+    let data: Vec<f32> = (0..n * n)
+        .map(|k| {
+            if ((k % n) / 8 + (k / n) / 8) % 2 == 0 {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let height = displace_core::HeightMap::new(n, n, data, Address::Clamp).unwrap();
-    let map = bake(&height, &BakeOptions { size: [64, 64, 8], extent: Extent::new(1.0, 1.0, 0.1).unwrap(), ..BakeOptions::default() }).unwrap();
+    let map = bake(
+        &height,
+        &BakeOptions {
+            size: [64, 64, 8],
+            extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap();
     let aspect = map.aspect();
     let mut rng = Rng(99);
     for _ in 0..20_000 {
-        let target = Vec3::new(rng.next_f64() as f32 * aspect[0], rng.next_f64() as f32 * aspect[1], 0.0);
+        let target = Vec3::new(
+            rng.next_f64() as f32 * aspect[0],
+            rng.next_f64() as f32 * aspect[1],
+            0.0,
+        );
         let elevation = (5.0 + rng.next_f64() * 85.0).to_radians() as f32;
         let azimuth = (rng.next_f64() * std::f64::consts::TAU) as f32;
-        let dir = -Vec3::new(elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin());
+        let dir = -Vec3::new(
+            elevation.cos() * azimuth.cos(),
+            elevation.cos() * azimuth.sin(),
+            elevation.sin(),
+        );
         let ray = MapRay::new(target - dir * (1.2 / elevation.sin()), dir);
         for method in [Method::Exact, Method::Sphere] {
-            assert!(map.trace(&ray, &TraceOptions { method, ..TraceOptions::default() }).is_some(), "{method:?} missed {ray:?}");
+            assert!(
+                map.trace(
+                    &ray,
+                    &TraceOptions {
+                        method,
+                        ..TraceOptions::default()
+                    }
+                )
+                .is_some(),
+                "{method:?} missed {ray:?}"
+            );
         }
     }
 }
