@@ -157,7 +157,9 @@ pub fn random_height(kind: u8, w: usize, h: usize, seed: u64, address: Address) 
                 .map(|k| {
                     let x = (k % w) as f64 / w as f64;
                     let y = (k / w) as f64 / h as f64;
-                    (0.5 + 0.5 * ((a * x + c) * 6.28).sin() * ((b * y) * 6.28).cos()) as f32
+                    (0.5 + 0.5
+                        * ((a * x + c) * std::f64::consts::TAU).sin()
+                        * ((b * y) * std::f64::consts::TAU).cos()) as f32
                 })
                 .collect()
         }
