@@ -3,7 +3,7 @@
 
 use crate::convention::{texel_centre, Extent};
 use crate::distance_map::DistanceMap;
-use crate::edt::{transform_2d, LineScratch};
+use crate::edt::{transform_2d_with, LineScratch};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
 use crate::{Address, Error, HeightMap, NormalMap, Result};
 use glam::{Vec2, Vec3};
@@ -102,7 +102,7 @@ impl DisplacementMap {
 ///
 /// Cost: `O(W H D)` for the distance transform (two 1D passes of the lower
 /// envelope per depth slice, slices in parallel) plus the exact height range
-/// of every column footprint. Memory: the output plus two `W x H` slices per
+/// of every column footprint. Memory: the output plus one 16-column block per
 /// thread.
 pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let size = opts.size;
@@ -129,34 +129,37 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let done = AtomicUsize::new(0);
     let mut data = vec![0.0f32; w * h * d];
     data.par_chunks_mut(w * h).enumerate().try_for_each_init(
-        || (Vec::new(), LineScratch::default()),
-        |(transposed, scratch), (k, slice)| {
+        LineScratch::default,
+        |scratch, (k, slice)| {
             if cancelled() {
                 return Err(Error::Cancelled);
             }
             let z = texel_centre(k, d);
-            for (g, &(lo, hi, _)) in slice.iter_mut().zip(&columns) {
-                let dz = (lo - z).max(z - hi).max(0.0);
-                *g = dz * dz;
-            }
-            transform_2d(
-                slice,
-                w,
-                h,
-                [hx, hy],
-                [periodic, periodic],
-                transposed,
-                scratch,
-            );
-            for (v, &(_, _, hc)) in slice.iter_mut().zip(&columns) {
-                let dist = v.sqrt();
+            let fill = |j: usize, row: &mut [f32]| {
+                for (g, &(lo, hi, _)) in row.iter_mut().zip(&columns[j * w..(j + 1) * w]) {
+                    let dz = (lo - z).max(z - hi).max(0.0);
+                    *g = dz * dz;
+                }
+            };
+            let finish = |idx: usize, sq: f32| {
+                let (dist, hc) = (sq.sqrt(), columns[idx].2);
                 let lower = if z < hc {
                     -(dist + r_xy).min(hc - z)
                 } else {
                     dist - r_xy
                 };
-                *v = lower - slack;
-            }
+                lower - slack
+            };
+            transform_2d_with(
+                slice,
+                w,
+                h,
+                [hx, hy],
+                [periodic, periodic],
+                scratch,
+                fill,
+                finish,
+            );
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(p) = &opts.progress {
                 p(n, d);

@@ -27,6 +27,7 @@
 use crate::convention::{check_allocation, texel_lerp, Address};
 use crate::{Error, Result};
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Storage format of a distance map in a texture file.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -89,7 +90,10 @@ pub const R8_SPAN: f32 = 4.0;
 impl R8Range {
     /// The range for a map's values: its minimum, rounded down to 1/64.
     pub fn for_values(values: &[f32]) -> Self {
-        let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
+        let lo = values
+            .par_iter()
+            .copied()
+            .reduce(|| f32::INFINITY, f32::min);
         let min = if lo.is_finite() {
             (lo * 64.0).floor() / 64.0
         } else {
@@ -101,14 +105,22 @@ impl R8Range {
         }
     }
 
-    /// Code of the largest representable value not above `v`.
+    /// Code of the largest representable value not above `v` (code 0 when
+    /// even that is above `v`).
     pub fn encode(&self, v: f32) -> u8 {
         let x = (v - self.min) / (self.max - self.min) * 255.0;
-        let mut c = x.floor().clamp(0.0, 255.0) as u8;
-        while c > 0 && self.decode(c) > v {
-            c -= 1;
+        settle(guess(x), v, |c| self.decode(c))
+    }
+
+    /// [`R8Range::encode`] for many values: the 256 decoded values in a
+    /// table, so that a code costs a multiplication and a look-up or two
+    /// rather than a division and several decodes.
+    pub fn encoder(&self) -> R8Encoder {
+        R8Encoder {
+            min: self.min,
+            scale: 255.0 / (self.max - self.min),
+            decoded: std::array::from_fn(|c| self.decode(c as u8)),
         }
-        c
     }
 
     pub fn decode(&self, c: u8) -> f32 {
@@ -118,6 +130,40 @@ impl R8Range {
     pub fn quantum(&self) -> f32 {
         (self.max - self.min) / 255.0
     }
+}
+
+/// See [`R8Range::encoder`]; gives the same codes as [`R8Range::encode`].
+pub struct R8Encoder {
+    min: f32,
+    scale: f32,
+    decoded: [f32; 256],
+}
+
+impl R8Encoder {
+    pub fn encode(&self, v: f32) -> u8 {
+        settle(guess((v - self.min) * self.scale), v, |c| {
+            self.decoded[c as usize]
+        })
+    }
+}
+
+/// `floor(x)` clamped to a code: truncation is floor once `x >= 0`, and a
+/// `NaN` casts to 0.
+fn guess(x: f32) -> u8 {
+    x.clamp(0.0, 255.0) as u8
+}
+
+/// From a guess within rounding of the answer, the largest code whose
+/// decoded value is not above `v`: one step up where the guess rounded low,
+/// then down while it decodes above `v`.
+fn settle(mut c: u8, v: f32, decode: impl Fn(u8) -> f32) -> u8 {
+    if c < 255 && decode(c + 1) <= v {
+        c += 1;
+    }
+    while c > 0 && decode(c) > v {
+        c -= 1;
+    }
+    c
 }
 
 /// The largest half float not above `v`.
@@ -174,14 +220,15 @@ impl DistanceMap {
                 data.len()
             )));
         }
-        if let Some(v) = data.iter().find(|v| v.is_nan()) {
+        if let Some(v) = data.par_iter().find_any(|v| v.is_nan()) {
             return Err(Error::InvalidSize(format!("distance map holds {v}")));
         }
         if !(aspect[0] > 0.0 && aspect[1] > 0.0 && aspect.iter().all(|a| a.is_finite())) {
             return Err(Error::InvalidExtent(format!("aspect {aspect:?}")));
         }
         let range = R8Range::for_values(&data);
-        let codes = data.iter().map(|&v| range.encode(v)).collect();
+        let encoder = range.encoder();
+        let codes = data.par_iter().map(|&v| encoder.encode(v)).collect();
         Ok(Self {
             size,
             aspect,
@@ -327,6 +374,7 @@ mod tests {
             if v <= r.max {
                 assert!(v - q <= r.quantum() + 1e-6, "r8 {v} -> {q}");
             }
+            assert_eq!(r.encoder().encode(v), r.encode(v), "{v}");
             let h = f16_round_down(v).to_f32();
             // One f16 step: 2^-10 relative (2^-24 absolute among subnormals).
             assert!(

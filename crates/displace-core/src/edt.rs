@@ -8,165 +8,186 @@
 //! All functions work on *squared* distances, with per-axis voxel spacing so
 //! that anisotropic grids (a distance map is much wider than it is deep) are
 //! measured in physical units.
+//!
+//! # Precision
+//! The envelope works in `f32` and in sample units: parabola `p` is
+//! `(x - p)^2 + F(p)` with `F = f / spacing^2`. Two parabolas `p < q` meet at
+//! `s = ((F(q) - F(p)) + (q - p)(q + p)) / (2 (q - p))`: the difference of the
+//! `F` values loses nothing to the large `q^2` terms (the integer product is
+//! exact below 2^24), so `s` carries the rounding of `F` only. Where rounding
+//! moves an intersection by `e` samples, the two parabolas it separates differ
+//! there by `2 (q - p) e`, the rounding of the numerator: about one `f32` ulp
+//! of the largest squared distance along the line. Picking the other parabola
+//! near a tie therefore changes a result by its own rounding error.
 
-/// Scratch space for [`transform_line`], reused across lines.
+use std::mem::take;
+
+/// Scratch space for the 1D transforms, reused across lines so that no line
+/// allocates.
 #[derive(Default)]
 pub struct LineScratch {
-    v: Vec<usize>,
-    z: Vec<f64>,
-    key: Vec<f64>,
-    f: Vec<f32>,
-    lines: Vec<f32>,
+    /// The lower envelope, a stack.
+    stack: Vec<Parabola>,
+    /// One periodic line with its wrapped neighbours.
+    ext: Vec<f32>,
+    /// Columns gathered for the second pass of [`transform_2d_with`].
+    block: Vec<f32>,
 }
 
-/// `out[q] = min_p (spacing * (q - p))^2 + f[p]` for a sampled function `f`
-/// of `n` values (infinite values allowed, meaning "no site here"). With
-/// `periodic`, `f` repeats with period `n` and the minimum runs over every
-/// image, as a tiling map needs.
-pub fn transform_line(
-    f: &[f32],
-    spacing: f32,
-    periodic: bool,
-    out: &mut [f32],
-    s: &mut LineScratch,
-) {
-    let n = f.len();
-    debug_assert_eq!(out.len(), n);
+/// One parabola of the lower envelope: site `p` (in samples; an `f32` holds
+/// every index below 2^24 exactly, and saves a conversion per step), `f` and
+/// `g = f / spacing^2` there, and `z`, the left end of its interval of the
+/// envelope in samples. One struct, so that a step of the envelope touches
+/// one cache line.
+#[derive(Clone, Copy, Default)]
+struct Parabola {
+    p: f32,
+    f: f32,
+    g: f32,
+    z: f32,
+}
+
+/// `line[q] <- min_p (spacing * (q - p))^2 + line[p]`, in place, for a sampled
+/// function (infinite values allowed, meaning "no site here"). With
+/// `periodic`, the line repeats with its length as period and the minimum
+/// runs over every image, as a tiling map needs.
+pub fn transform_line(line: &mut [f32], spacing: f32, periodic: bool, s: &mut LineScratch) {
     if !periodic {
-        envelope(f, spacing, out, s);
+        envelope(line, spacing, s);
         return;
     }
-    // One image on each side is enough: a site further than one period away
-    // is never closer than its own nearer image.
-    let mut ext = std::mem::take(&mut s.f);
+    // Every site has an image within half a period of every sample, so half
+    // a period wrapped onto each side is enough (2n samples, not 3n).
+    let n = line.len();
+    let m = n / 2;
+    let mut ext = take(&mut s.ext);
     ext.clear();
-    for _ in 0..3 {
-        ext.extend_from_slice(f);
-    }
-    let mut full = vec![0.0f32; 3 * n];
-    envelope(&ext, spacing, &mut full, s);
-    out.copy_from_slice(&full[n..2 * n]);
-    s.f = ext;
+    ext.extend_from_slice(&line[n - m..]);
+    ext.extend_from_slice(line);
+    ext.extend_from_slice(&line[..m]);
+    envelope(&mut ext, spacing, s);
+    line.copy_from_slice(&ext[m..m + n]);
+    s.ext = ext;
 }
 
-fn envelope(f: &[f32], spacing: f32, out: &mut [f32], s: &mut LineScratch) {
-    let n = f.len();
-    let sp = spacing as f64;
-    // Parabola p's key: f(p) + (p spacing)^2, its position p spacing; two
-    // parabolas p < q meet at (key(q) - key(p)) / (2 (pos(q) - pos(p))).
-    s.key.clear();
-    s.key.extend(f.iter().enumerate().map(|(q, &fq)| {
-        let x = q as f64 * sp;
-        fq as f64 + x * x
-    }));
-    s.v.clear();
-    s.z.clear();
-    s.v.resize(n, 0);
-    s.z.resize(n + 1, 0.0);
-    let (v, z, key) = (&mut s.v[..], &mut s.z[..], &s.key[..]);
-    let Some(q0) = f.iter().position(|x| x.is_finite()) else {
-        out.fill(f32::INFINITY);
-        return;
+/// The lower envelope of the parabolas rooted at the finite samples, then
+/// sampled back into `line`. The envelope keeps each parabola's site and
+/// value on its own stack, so writing the results over the input is safe.
+fn envelope(line: &mut [f32], spacing: f32, s: &mut LineScratch) {
+    let n = line.len();
+    let Some(q0) = line.iter().position(|x| x.is_finite()) else {
+        return; // no site: every value stays infinite
     };
-    let mut k: usize = 0;
-    v[0] = q0;
-    z[0] = f64::NEG_INFINITY;
-    z[1] = f64::INFINITY;
-    for q in q0 + 1..n {
-        if !f[q].is_finite() {
+    let inv = 1.0 / (spacing * spacing);
+    s.stack.resize(n + 1, Parabola::default());
+    let st = &mut s.stack[..];
+    let mut k = 0;
+    st[0] = Parabola {
+        p: q0 as f32,
+        f: line[q0],
+        g: line[q0] * inv,
+        z: f32::NEG_INFINITY,
+    };
+    let mut qf = q0 as f32;
+    for &fq in &line[q0 + 1..] {
+        qf += 1.0;
+        if !fq.is_finite() {
             continue;
         }
-        let kq = key[q];
-        let xq = q as f64 * sp;
+        let gq = fq * inv;
         // Pop while the new parabola is below the top one at the top one's
-        // left boundary; compared by cross-multiplication, so only the final
-        // intersection needs a division. z[0] = -inf stops the loop.
+        // left end; compared by cross-multiplication, so only the pushed
+        // intersection needs a division.
         loop {
-            let p = v[k];
-            let den = 2.0 * (xq - p as f64 * sp);
-            let num = kq - key[p];
-            if num <= z[k] * den {
+            let top = st[k];
+            let d2 = 2.0 * (qf - top.p);
+            let num = (gq - top.g) + 0.5 * d2 * (qf + top.p);
+            if k > 0 && num <= top.z * d2 {
                 k -= 1;
             } else {
                 k += 1;
-                v[k] = q;
-                z[k] = num / den;
-                z[k + 1] = f64::INFINITY;
+                st[k] = Parabola {
+                    p: qf,
+                    f: fq,
+                    g: gq,
+                    z: num / d2,
+                };
                 break;
             }
         }
     }
+    st[k + 1].z = f32::INFINITY;
     let mut k = 0;
-    for (q, o) in out.iter_mut().enumerate() {
-        let x = q as f64 * sp;
-        while z[k + 1] < x {
+    let mut qf = 0.0f32;
+    for o in line.iter_mut() {
+        while st[k + 1].z < qf {
             k += 1;
         }
-        let p = v[k];
-        let d = spacing * (q as f32 - p as f32);
-        *o = d * d + f[p];
+        let d = spacing * (qf - st[k].p);
+        *o = d * d + st[k].f;
+        qf += 1.0;
     }
 }
 
 /// 2D transform of a sampled function `g` (`w x h`, row-major), in place:
 /// `g'(i, j) = min (hx (i - i'))^2 + (hy (j - j'))^2 + g(i', j')`.
-/// Rows first, then columns through a transposed buffer so that both passes
-/// read memory in order; lines go in blocks of [`BLOCK`] so that the
-/// transposing writes fill whole cache lines.
 pub fn transform_2d(
     g: &mut [f32],
     w: usize,
     h: usize,
     spacing: [f32; 2],
     periodic: [bool; 2],
-    transposed: &mut Vec<f32>,
     s: &mut LineScratch,
 ) {
-    transposed.resize(w * h, 0.0);
-    let mut lines = std::mem::take(&mut s.lines);
-    lines.resize(BLOCK * w.max(h), 0.0);
-    for j0 in (0..h).step_by(BLOCK) {
-        let nb = BLOCK.min(h - j0);
-        for b in 0..nb {
-            let j = j0 + b;
-            transform_line(
-                &g[j * w..(j + 1) * w],
-                spacing[0],
-                periodic[0],
-                &mut lines[b * w..(b + 1) * w],
-                s,
-            );
-        }
-        for i in 0..w {
-            let dst = &mut transposed[i * h + j0..i * h + j0 + nb];
-            for (b, d) in dst.iter_mut().enumerate() {
-                *d = lines[b * w + i];
-            }
-        }
-    }
-    for i0 in (0..w).step_by(BLOCK) {
-        let nb = BLOCK.min(w - i0);
-        for b in 0..nb {
-            let i = i0 + b;
-            transform_line(
-                &transposed[i * h..(i + 1) * h],
-                spacing[1],
-                periodic[1],
-                &mut lines[b * h..(b + 1) * h],
-                s,
-            );
-        }
-        for j in 0..h {
-            let dst = &mut g[j * w + i0..j * w + i0 + nb];
-            for (b, d) in dst.iter_mut().enumerate() {
-                *d = lines[b * h + j];
-            }
-        }
-    }
-    s.lines = lines;
+    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, x| x);
 }
 
-/// Lines transformed together before their results are transposed.
+/// [`transform_2d`] with the producer and consumer of the slice fused in:
+/// `fill(j, row)` writes row `j`'s input just before that row is transformed,
+/// while it is in cache, and every result `x` at flat index `idx` is stored
+/// as `finish(idx, x)`, so neither needs a pass of its own over the slice.
+///
+/// Rows are transformed in place; columns go in blocks of [`BLOCK`], gathered
+/// into contiguous lines (each row of a block is one cache line) and
+/// scattered back through `finish`.
+#[allow(clippy::too_many_arguments)]
+pub fn transform_2d_with(
+    g: &mut [f32],
+    w: usize,
+    h: usize,
+    spacing: [f32; 2],
+    periodic: [bool; 2],
+    s: &mut LineScratch,
+    mut fill: impl FnMut(usize, &mut [f32]),
+    mut finish: impl FnMut(usize, f32) -> f32,
+) {
+    debug_assert_eq!(g.len(), w * h);
+    for (j, row) in g.chunks_exact_mut(w).enumerate() {
+        fill(j, row);
+        transform_line(row, spacing[0], periodic[0], s);
+    }
+    let mut block = take(&mut s.block);
+    block.resize(BLOCK * h, 0.0);
+    for i0 in (0..w).step_by(BLOCK) {
+        let nb = BLOCK.min(w - i0);
+        for (j, row) in g.chunks_exact(w).enumerate() {
+            for (b, &x) in row[i0..i0 + nb].iter().enumerate() {
+                block[b * h + j] = x;
+            }
+        }
+        for line in block.chunks_exact_mut(h).take(nb) {
+            transform_line(line, spacing[1], periodic[1], s);
+        }
+        for (j, row) in g.chunks_exact_mut(w).enumerate() {
+            for (b, x) in row[i0..i0 + nb].iter_mut().enumerate() {
+                *x = finish(j * w + i0 + b, block[b * h + j]);
+            }
+        }
+    }
+    s.block = block;
+}
+
+/// Columns transformed together: 16 `f32` are one 64-byte cache line of a row.
 const BLOCK: usize = 16;
 
 /// Classic binary EDT of a 3D volume (`[k][j][i]`, `size = [w, h, d]`):
@@ -174,7 +195,7 @@ const BLOCK: usize = 16;
 /// axis) to the nearest voxel where `site` is true; `inf` when there is none.
 /// This is what `scipy.ndimage.distance_transform_edt` and the `edt` package
 /// compute (on the complement), used to check the transform against brute
-/// force and to benchmark against those packages.
+/// force.
 pub fn binary_edt_3d(site: &[bool], size: [usize; 3], spacing: [f32; 3]) -> Vec<f32> {
     use rayon::prelude::*;
     let [w, h, d] = size;
@@ -183,37 +204,32 @@ pub fn binary_edt_3d(site: &[bool], size: [usize; 3], spacing: [f32; 3]) -> Vec<
         .iter()
         .map(|&b| if b { 0.0 } else { f32::INFINITY })
         .collect();
-    vol.par_chunks_mut(plane.max(1)).for_each_init(
-        || (Vec::new(), LineScratch::default()),
-        |(t, s), slice| transform_2d(slice, w, h, [spacing[0], spacing[1]], [false, false], t, s),
-    );
+    vol.par_chunks_mut(plane.max(1))
+        .for_each_init(LineScratch::default, |s, slice| {
+            transform_2d(slice, w, h, [spacing[0], spacing[1]], [false, false], s)
+        });
     // Along z, in strips of columns so each thread owns disjoint memory.
-    let mut out = vec![0.0f32; vol.len()];
     let columns: Vec<usize> = (0..plane).collect();
     let results: Vec<(usize, Vec<f32>)> = columns
         .par_chunks(256)
         .flat_map_iter(|chunk| {
             let mut s = LineScratch::default();
-            let mut line = vec![0.0f32; d];
-            let mut col = vec![0.0f32; d];
             chunk
                 .iter()
                 .map(|&c| {
-                    for k in 0..d {
-                        col[k] = vol[k * plane + c];
-                    }
-                    transform_line(&col, spacing[2], false, &mut line, &mut s);
-                    (c, line.clone())
+                    let mut col: Vec<f32> = (0..d).map(|k| vol[k * plane + c]).collect();
+                    transform_line(&mut col, spacing[2], false, &mut s);
+                    (c, col)
                 })
                 .collect::<Vec<_>>()
         })
         .collect();
-    for (c, line) in results {
-        for k in 0..d {
-            out[k * plane + c] = line[k].sqrt();
+    for (c, col) in results {
+        for (k, x) in col.into_iter().enumerate() {
+            vol[k * plane + c] = x.sqrt();
         }
     }
-    out
+    vol
 }
 
 #[cfg(test)]
@@ -247,8 +263,8 @@ mod tests {
             spacing in 0.05f32..3.0,
             periodic: bool,
         ) {
-            let mut out = vec![0.0; f.len()];
-            transform_line(&f, spacing, periodic, &mut out, &mut LineScratch::default());
+            let mut out = f.clone();
+            transform_line(&mut out, spacing, periodic, &mut LineScratch::default());
             let want = brute_line(&f, spacing, periodic);
             for (a, b) in out.iter().zip(&want) {
                 if b.is_infinite() {
