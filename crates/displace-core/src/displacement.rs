@@ -102,7 +102,7 @@ impl DisplacementMap {
 ///
 /// Cost: `O(W H D)` for the distance transform (two 1D passes of the lower
 /// envelope per depth slice, slices in parallel) plus the exact height range
-/// of every column footprint. Memory: the output plus one 16-column block per
+/// of every column footprint. Memory: the output plus one 32-column block per
 /// thread.
 pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let size = opts.size;
@@ -136,19 +136,25 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
             }
             let z = texel_centre(k, d);
             let fill = |j: usize, row: &mut [f32]| {
-                for (g, &(lo, hi, _)) in row.iter_mut().zip(&columns[j * w..(j + 1) * w]) {
+                let span = j * w..(j + 1) * w;
+                for ((g, &lo), &hi) in row
+                    .iter_mut()
+                    .zip(&columns.lo[span.clone()])
+                    .zip(&columns.hi[span])
+                {
                     let dz = (lo - z).max(z - hi).max(0.0);
                     *g = dz * dz;
                 }
             };
-            let finish = |idx: usize, sq: f32| {
-                let (dist, hc) = (sq.sqrt(), columns[idx].2);
-                let lower = if z < hc {
-                    -(dist + r_xy).min(hc - z)
-                } else {
-                    dist - r_xy
-                };
-                lower - slack
+            let finish = |start: usize, run: &mut [f32]| {
+                for (v, &hc) in run.iter_mut().zip(&columns.centre[start..]) {
+                    let dist = v.sqrt();
+                    // Both sides computed, one kept: a select, not a branch
+                    // that mispredicts along the surface.
+                    let below = -(dist + r_xy).min(hc - z);
+                    let above = dist - r_xy;
+                    *v = (if z < hc { below } else { above }) - slack;
+                }
             };
             transform_2d_with(
                 slice,
@@ -205,12 +211,23 @@ fn axis_cuts(n: usize, texels: usize) -> (Vec<f32>, Vec<(usize, usize)>) {
     (cuts, spans)
 }
 
+/// Per distance-map column, in row-major order and one array per quantity
+/// so that the per-slice loops stream them.
+struct Columns {
+    /// Minimum of the surface over the column's footprint.
+    lo: Vec<f32>,
+    /// Maximum of the surface over the column's footprint.
+    hi: Vec<f32>,
+    /// Height at the column's centre, which decides the sign.
+    centre: Vec<f32>,
+}
+
 /// For every distance-map column `(i, j)`: the exact minimum and maximum of
 /// the surface over its footprint (via [`HeightMap::range`]'s argument: the
 /// extremes of a bilinear patch lie at the corners of the pieces the texel
 /// grid cuts the footprint into), and the height at its centre. The surface
 /// is evaluated once on the grid of all cuts, shared by neighbouring columns.
-fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Vec<(f32, f32, f32)> {
+fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Columns {
     let (us, uspan) = axis_cuts(w, height.width());
     let (vs, vspan) = axis_cuts(h, height.height());
     let grid: Vec<f32> = vs
@@ -218,7 +235,7 @@ fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Vec<(f32, f32, f32)>
         .flat_map_iter(|&v| us.iter().map(move |&u| height.sample(u, v)))
         .collect();
     let nu = us.len();
-    (0..h)
+    let (lo, hi) = (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
             let (grid, uspan) = (&grid, &uspan);
@@ -233,14 +250,15 @@ fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Vec<(f32, f32, f32)>
                         hi = hi.max(x);
                     }
                 }
-                (
-                    lo,
-                    hi,
-                    height.sample(texel_centre(i, w), texel_centre(j, h)),
-                )
+                (lo, hi)
             })
         })
-        .collect()
+        .unzip();
+    let centre = (0..w * h)
+        .into_par_iter()
+        .map(|idx| height.sample(texel_centre(idx % w, w), texel_centre(idx / w, h)))
+        .collect();
+    Columns { lo, hi, centre }
 }
 
 #[cfg(test)]
@@ -262,7 +280,7 @@ mod tests {
                             j as f32 / h as f32,
                             (j + 1) as f32 / h as f32,
                         );
-                        let (lo, hi, _) = got[j * w + i];
+                        let (lo, hi) = (got.lo[j * w + i], got.hi[j * w + i]);
                         assert!(
                             (lo - want.0).abs() < 1e-6 && (hi - want.1).abs() < 1e-6,
                             "{w}x{h} ({i},{j}): {lo},{hi} vs {want:?}"

@@ -139,16 +139,17 @@ pub fn transform_2d(
     periodic: [bool; 2],
     s: &mut LineScratch,
 ) {
-    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, x| x);
+    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, _| {});
 }
 
 /// [`transform_2d`] with the producer and consumer of the slice fused in:
 /// `fill(j, row)` writes row `j`'s input just before that row is transformed,
-/// while it is in cache, and every result `x` at flat index `idx` is stored
-/// as `finish(idx, x)`, so neither needs a pass of its own over the slice.
+/// while it is in cache, and `finish(start, run)` maps, in place, each run of
+/// results as the second pass stores it (`start` is the flat index of the
+/// run's first value), so neither needs a pass of its own over the slice.
 ///
 /// Rows are transformed in place; columns go in blocks of [`BLOCK`], gathered
-/// into contiguous lines (each row of a block is one cache line) and
+/// into contiguous lines (each row of a block is two cache lines) and
 /// scattered back through `finish`.
 #[allow(clippy::too_many_arguments)]
 pub fn transform_2d_with(
@@ -159,36 +160,43 @@ pub fn transform_2d_with(
     periodic: [bool; 2],
     s: &mut LineScratch,
     mut fill: impl FnMut(usize, &mut [f32]),
-    mut finish: impl FnMut(usize, f32) -> f32,
+    mut finish: impl FnMut(usize, &mut [f32]),
 ) {
     debug_assert_eq!(g.len(), w * h);
     for (j, row) in g.chunks_exact_mut(w).enumerate() {
         fill(j, row);
         transform_line(row, spacing[0], periodic[0], s);
     }
+    // Lines of the block one cache line longer than a column: with a stride
+    // of a power of two (h = 1024 floats is 4 KiB) the lines would all
+    // map to the same cache sets and evict each other while being gathered.
+    let stride = h + BLOCK;
     let mut block = take(&mut s.block);
-    block.resize(BLOCK * h, 0.0);
+    block.resize(BLOCK * stride, 0.0);
     for i0 in (0..w).step_by(BLOCK) {
         let nb = BLOCK.min(w - i0);
         for (j, row) in g.chunks_exact(w).enumerate() {
             for (b, &x) in row[i0..i0 + nb].iter().enumerate() {
-                block[b * h + j] = x;
+                block[b * stride + j] = x;
             }
         }
-        for line in block.chunks_exact_mut(h).take(nb) {
-            transform_line(line, spacing[1], periodic[1], s);
+        for line in block.chunks_exact_mut(stride).take(nb) {
+            transform_line(&mut line[..h], spacing[1], periodic[1], s);
         }
         for (j, row) in g.chunks_exact_mut(w).enumerate() {
-            for (b, x) in row[i0..i0 + nb].iter_mut().enumerate() {
-                *x = finish(j * w + i0 + b, block[b * h + j]);
+            let run = &mut row[i0..i0 + nb];
+            for (b, x) in run.iter_mut().enumerate() {
+                *x = block[b * stride + j];
             }
+            finish(j * w + i0, run);
         }
     }
     s.block = block;
 }
 
-/// Columns transformed together: 16 `f32` are one 64-byte cache line of a row.
-const BLOCK: usize = 16;
+/// Columns transformed together: 32 `f32` are two 64-byte cache lines of a
+/// row, and a block of 1024-sample lines (128 KiB) stays in L2.
+const BLOCK: usize = 32;
 
 /// Classic binary EDT of a 3D volume (`[k][j][i]`, `size = [w, h, d]`):
 /// for every voxel, the Euclidean distance (physical units, `spacing` per
