@@ -1,7 +1,7 @@
 //! The bake (height map -> normal map + conservative distance map) and the
 //! baked [`DisplacementMap`] that renderers trace.
 
-use crate::convention::{texel_centre, Extent};
+use crate::convention::{texel_centre, texel_lerp, Extent};
 use crate::distance_map::DistanceMap;
 use crate::edt::{transform_2d_with, LineScratch};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
@@ -226,39 +226,76 @@ struct Columns {
 /// the surface over its footprint (via [`HeightMap::range`]'s argument: the
 /// extremes of a bilinear patch lie at the corners of the pieces the texel
 /// grid cuts the footprint into), and the height at its centre. The surface
-/// is evaluated once on the grid of all cuts, shared by neighbouring columns.
+/// is evaluated once on the grid of all cuts, shared by neighbouring columns,
+/// and the extremes are taken along u, then along v.
 fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Columns {
     let (us, uspan) = axis_cuts(w, height.width());
     let (vs, vspan) = axis_cuts(h, height.height());
-    let grid: Vec<f32> = vs
-        .par_iter()
-        .flat_map_iter(|&v| us.iter().map(move |&u| height.sample(u, v)))
-        .collect();
-    let nu = us.len();
+    let grid = sample_grid(height, &us, &vs);
+    let extremes = |values: &mut dyn Iterator<Item = (f32, f32)>| {
+        values.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
+            (lo.min(a), hi.max(b))
+        })
+    };
+    // Per row of the grid (one per cut v), the extremes over each column's
+    // u-span: `vs.len() x w`.
+    let (row_lo, row_hi): (Vec<f32>, Vec<f32>) = grid
+        .par_chunks(us.len())
+        .flat_map_iter(|row| {
+            uspan
+                .iter()
+                .map(move |&(u0, u1)| extremes(&mut row[u0..=u1].iter().map(|&x| (x, x))))
+        })
+        .unzip();
     let (lo, hi) = (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
-            let (grid, uspan) = (&grid, &uspan);
             let (v0, v1) = vspan[j];
+            let (row_lo, row_hi) = (&row_lo, &row_hi);
             (0..w).map(move |i| {
-                let (u0, u1) = uspan[i];
-                let mut lo = f32::INFINITY;
-                let mut hi = f32::NEG_INFINITY;
-                for row in grid[v0 * nu..(v1 + 1) * nu].chunks(nu) {
-                    for &x in &row[u0..=u1] {
-                        lo = lo.min(x);
-                        hi = hi.max(x);
-                    }
-                }
-                (lo, hi)
+                extremes(&mut (v0..=v1).map(|b| (row_lo[b * w + i], row_hi[b * w + i])))
             })
         })
         .unzip();
-    let centre = (0..w * h)
-        .into_par_iter()
-        .map(|idx| height.sample(texel_centre(idx % w, w), texel_centre(idx / w, h)))
-        .collect();
+    let centres = |n: usize| (0..n).map(|i| texel_centre(i, n)).collect::<Vec<_>>();
+    let centre = sample_grid(height, &centres(w), &centres(h));
     Columns { lo, hi, centre }
+}
+
+/// The surface at every point of the grid `us x vs` (row-major, one row per
+/// `v`), with exactly the arithmetic of [`HeightMap::sample`] and so the same
+/// values, but with the texel addressing and the weights along u worked out
+/// once per `u` rather than once per point.
+fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
+    let (tw, th, address, data) = (
+        height.width(),
+        height.height(),
+        height.address(),
+        height.data(),
+    );
+    let along_u: Vec<(usize, usize, f32)> = us
+        .iter()
+        .map(|&u| {
+            let (i, fx) = texel_lerp(u, tw);
+            (
+                address.texel_index(i, tw),
+                address.texel_index(i + 1, tw),
+                fx,
+            )
+        })
+        .collect();
+    vs.par_iter()
+        .flat_map_iter(|&v| {
+            let (j, fy) = texel_lerp(v, th);
+            let r0 = &data[address.texel_index(j, th) * tw..][..tw];
+            let r1 = &data[address.texel_index(j + 1, th) * tw..][..tw];
+            along_u.iter().map(move |&(i0, i1, fx)| {
+                let a = r0[i0] + (r0[i1] - r0[i0]) * fx;
+                let b = r1[i0] + (r1[i1] - r1[i0]) * fx;
+                a + (b - a) * fy
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -281,6 +318,8 @@ mod tests {
                             (j + 1) as f32 / h as f32,
                         );
                         let (lo, hi) = (got.lo[j * w + i], got.hi[j * w + i]);
+                        let centre = hm.sample(texel_centre(i, w), texel_centre(j, h));
+                        assert_eq!(got.centre[j * w + i], centre, "{w}x{h} ({i},{j})");
                         assert!(
                             (lo - want.0).abs() < 1e-6 && (hi - want.1).abs() < 1e-6,
                             "{w}x{h} ({i},{j}): {lo},{hi} vs {want:?}"
