@@ -129,8 +129,12 @@ struct Pixels(Vec<[i32; 3]>);
 
 impl Pixels {
     fn load(path: &Path) -> Self {
+        Self::load_sized(path, [W, H])
+    }
+
+    fn load_sized(path: &Path, [w, h]: [u32; 2]) -> Self {
         let img = image::open(path).unwrap().to_rgb8();
-        assert_eq!(img.dimensions(), (W, H), "{}", path.display());
+        assert_eq!(img.dimensions(), (w, h), "{}", path.display());
         Self(img.pixels().map(|p| p.0.map(i32::from)).collect())
     }
 
@@ -227,18 +231,24 @@ impl Viewer {
         c
     }
 
+    /// `view` of the scene for `frames` frames with a screenshot.
+    fn view(&self, png: &str, frames: u32, script: &str) -> Output {
+        let size = format!("{W}x{H}");
+        self.command()
+            .args(["view", "scene.toml", "--size", &size, "--frames"])
+            .arg(frames.to_string())
+            .args(["--screenshot", png, "--script", script])
+            .output()
+            .unwrap()
+    }
+
     /// The screenshot of frame `frames` after `script`.
     fn shot(&self, name: &str, frames: u32, script: &str) -> Pixels {
         let png = format!("{name}.png");
-        let size = format!("{W}x{H}");
-        let out = self
-            .command()
-            .args(["view", "scene.toml", "--size", &size, "--frames"])
-            .arg(frames.to_string())
-            .args(["--screenshot", &png, "--script", script])
-            .output()
-            .unwrap();
-        ok(out, &format!("view {name} ({script})"));
+        ok(
+            self.view(&png, frames, script),
+            &format!("view {name} ({script})"),
+        );
         Pixels::load(&self.dir.path().join(png))
     }
 }
@@ -279,6 +289,39 @@ fn viewer_frames_match_gpu_render_and_controls_act() {
     );
     // Later frames are the same frame again.
     assert!(v.shot("third", 3, "hud off").max_diff(&reference) <= 1);
+
+    // Resized after two frames: the surface and targets follow, and the
+    // frame is gpu-render's at the new size.
+    ok(
+        displace(v.dir.path())
+            .args([
+                "gpu-render",
+                "scene.toml",
+                "--size",
+                "200x150",
+                "-o",
+                "small.png",
+            ])
+            .output()
+            .unwrap(),
+        "gpu-render small",
+    );
+    ok(
+        v.view("resized.png", 4, "hud off; frame 2; size 200x150"),
+        "resize",
+    );
+    let small = |f: &str| Pixels::load_sized(&v.dir.path().join(f), [200, 150]);
+    assert!(small("resized.png").max_diff(&small("small.png")) <= 1);
+
+    // A quit key ends the loop cleanly; one before the screenshot frame is
+    // an error, not a missing file.
+    let quit = v.view("quit.png", 50, "frame 2; key q");
+    let err = String::from_utf8_lossy(&quit.stderr);
+    assert!(
+        !quit.status.success() && err.contains("closed before the screenshot"),
+        "{err}"
+    );
+    assert!(!v.dir.path().join("quit.png").exists());
 
     // The overlay changes only a panel in the top-left corner.
     let hud = v.shot("hud", 1, "");

@@ -40,6 +40,11 @@ pub enum Action {
     /// Back to the scene's own camera, light and settings.
     Reset,
     Quit,
+    /// Script only: ask the window for this inner size.
+    Resize([u32; 2]),
+    /// Script only: hold the commands after this one until this many
+    /// frames have been presented.
+    AfterFrame(u32),
 }
 
 /// Degrees per press of an orbit or light key.
@@ -139,10 +144,11 @@ Keys:
   h                   overlay on/off (the title bar always shows it)
   r                   reset camera, light and settings
   escape q            quit
-Script (--script, `;`-separated, applied before the first frame):
+Script (--script, `;`-separated, applied before the first frame unless
+after a `frame N`, which holds the rest until N frames were shown):
   orbit YAW RAISE | zoom F | depth SCALE | iterations N |
   method sphere|sphere-fixed|early-out|fixed | shadows none|hard|soft |
-  light YAW RAISE | hud on|off | key NAME | reset";
+  light YAW RAISE | hud on|off | key NAME | reset | size WxH | frame N";
 
 /// The [`KEYS`] name of a winit key, lower case.
 pub fn key_name(key: &winit::keyboard::Key) -> Option<String> {
@@ -262,6 +268,23 @@ fn parse_command(cmd: &str) -> std::result::Result<Action, String> {
             key_action(args[0]).ok_or_else(|| format!("no key `{}` (see --help)", args[0]))
         }
         "reset" => want(0).map(|_| Action::Reset),
+        "size" => {
+            want(1)?;
+            let [w, h] =
+                displace_core::convention::parse_size::<2>(args[0]).map_err(|e| e.to_string())?;
+            let max = crate::raster::MAX_IMAGE_EDGE as usize;
+            if w > max || h > max {
+                return Err(format!("each side must be at most {max}"));
+            }
+            Ok(Action::Resize([w as u32, h as u32]))
+        }
+        "frame" => {
+            want(1)?;
+            args[0]
+                .parse::<u32>()
+                .map(Action::AfterFrame)
+                .map_err(|_| format!("`{}` is not a frame count", args[0]))
+        }
         o => Err(format!("unknown command `{o}` (see --help)")),
     }
 }
@@ -283,7 +306,7 @@ mod tests {
     #[test]
     fn scripts_parse_into_actions() {
         let a = parse_script(
-            "orbit 30 -10; depth 0.5 ;method fixed; shadows soft; iterations 8; key m; light 90 0; hud off; zoom 2; reset;",
+            "orbit 30 -10; depth 0.5 ;method fixed; shadows soft; iterations 8; key m; light 90 0; hud off; zoom 2; reset; frame 3; size 20x10",
         )
         .unwrap();
         assert_eq!(
@@ -305,6 +328,8 @@ mod tests {
                 Action::Hud(false),
                 Action::Zoom(2.0),
                 Action::Reset,
+                Action::AfterFrame(3),
+                Action::Resize([20, 10]),
             ]
         );
     }
@@ -323,6 +348,9 @@ mod tests {
             ("key f13", "no key `f13`"),
             ("fly 1", "unknown command `fly`"),
             ("zoom nan", "not a finite number"),
+            ("size 0x4", "size 0x4"),
+            ("size 99999x4", "at most 16384"),
+            ("frame -1", "not a frame count"),
         ] {
             let e = parse_script(script).unwrap_err().to_string();
             assert!(e.contains(needle), "{script}: {e}");

@@ -138,6 +138,8 @@ impl ViewState {
                 self.settings = settings;
             }
             Action::Quit => return true,
+            // The window's business.
+            Action::Resize(_) | Action::AfterFrame(_) => {}
         }
         false
     }

@@ -108,6 +108,10 @@ struct Running {
     title: String,
     dragging: bool,
     cursor: Option<PhysicalPosition<f64>>,
+    /// Script commands still to apply, the next one last.
+    script: Vec<Action>,
+    /// A script command asked to quit.
+    quit: bool,
 }
 
 impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> ApplicationHandler
@@ -144,7 +148,7 @@ impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> Application
                         self.screenshot = Some(shot);
                         event_loop.exit();
                     }
-                    Ok(None) if self.opts.frames.is_some_and(|n| r.frames >= n) => {
+                    Ok(None) if r.quit || self.opts.frames.is_some_and(|n| r.frames >= n) => {
                         event_loop.exit()
                     }
                     Ok(None) => {}
@@ -243,10 +247,7 @@ impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> App<E, F> {
         })?;
         let scene = make(&ctx)?;
         let base: Vec<PlaneScene> = scene.faces.iter().map(|(_, p)| *p).collect();
-        let mut state = ViewState::new(&base)?;
-        for &a in &self.opts.script {
-            state.apply(a);
-        }
+        let state = ViewState::new(&base)?;
         let presenter = Presenter::new(&ctx)?;
         Ok(Running {
             title: self.opts.title.clone(),
@@ -267,6 +268,8 @@ impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> App<E, F> {
             shown_at: None,
             dragging: false,
             cursor: None,
+            script: self.opts.script.iter().rev().copied().collect(),
+            quit: false,
         })
     }
 }
@@ -296,6 +299,10 @@ impl Running {
         frames: Option<u32>,
         screenshot: bool,
     ) -> Result<Option<Screenshot>, Error> {
+        self.run_script();
+        if self.quit {
+            return Ok(None);
+        }
         let PhysicalSize {
             width: w,
             height: h,
@@ -425,6 +432,22 @@ impl Running {
             height: h,
             rgba8,
         }))
+    }
+
+    /// Applies the script's commands up to the next `frame N` not reached.
+    fn run_script(&mut self) {
+        while let Some(&a) = self.script.last() {
+            match a {
+                Action::AfterFrame(n) if self.frames < n => return,
+                Action::Resize([w, h]) => {
+                    // Applied now or announced by a Resized event; the
+                    // frame reads the size from the window either way.
+                    let _ = self.window.request_inner_size(PhysicalSize::new(w, h));
+                }
+                _ => self.quit |= self.state.apply(a),
+            }
+            self.script.pop();
+        }
     }
 
     /// Refreshes the overlay and the title when the settings changed, and
