@@ -104,7 +104,10 @@ fn shadow(p: vec3f, l: vec3f, dist: f32) -> f32 {
     let hi = vec3f(params.aspect.x * params.tiles.x, params.aspect.y * params.tiles.y, 1.0);
     let clip = clip_shell(p, l, hi, params.t_min, min(dist, params.t_max));
     var vis = 1.0;
-    var t = max(clip.t_in, params.tau);
+    // Within `band` of the start the stored distance says nothing (the map
+    // underestimates by up to that much): the ratio would read every lit
+    // point as fully in penumbra. The hard trace above has cleared it.
+    var t = max(clip.t_in, params.band);
     for (var i = 0u; i < max(params.iterations, 1u) && t < clip.t_out; i++) {
         let s = distance_at(p + l * t);
         vis = min(vis, clamp(frame.penumbra_k * s / t, 0.0, 1.0));
