@@ -493,9 +493,15 @@ fn bad_scenes_fail_like_gpu_render() {
         (vec!["--frames", "0"], "--frames must be at least 1"),
         (vec!["--frames", "1", "--screenshot", "x.jpg"], "is a .png"),
         (vec!["--size", "0x10"], "--size 0x10"),
+        // A good scene with no display at all.
+        (
+            vec!["--frames", "1", "--screenshot", "y.png"],
+            "could not open a window",
+        ),
     ] {
         let out = displace(d.path())
             .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
             .arg("view")
             .arg("s.toml")
             .args(&args)
@@ -506,5 +512,7 @@ fn bad_scenes_fail_like_gpu_render() {
             !out.status.success() && err.contains(needle),
             "{args:?}: {err}"
         );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
+    assert!(!d.path().join("y.png").exists());
 }
