@@ -1,13 +1,19 @@
 #!/usr/bin/env bash
 # System packages displace needs beyond a Rust toolchain: Mesa's software
 # Vulkan (lavapipe) so the GPU path runs and is tested on machines without a
-# GPU. Idempotent; uses sudo only when not root.
+# GPU, and Xvfb so the viewer's window is tested without a display.
+# Idempotent; uses sudo only when not root.
 set -euo pipefail
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 need=()
 dpkg -s mesa-vulkan-drivers >/dev/null 2>&1 || need+=(mesa-vulkan-drivers)
 dpkg -s libvulkan1 >/dev/null 2>&1 || need+=(libvulkan1)
+# `displace view` and its tests: a virtual X server, and the X client
+# libraries winit loads at run time.
+for p in xvfb libx11-6 libx11-xcb1 libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0; do
+  dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
+done
 if [ ${#need[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq

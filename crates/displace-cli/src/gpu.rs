@@ -6,7 +6,7 @@
 //! without one it draws a built-in scene (one displaced planar face, a
 //! pinhole camera, a point light) configured by flags.
 
-mod scene;
+pub(crate) mod scene;
 
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
@@ -127,7 +127,7 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f32; N], String> {
     Ok(out)
 }
 
-fn image_size(s: &str) -> Result<[u32; 2]> {
+pub(crate) fn image_size(s: &str) -> Result<[u32; 2]> {
     let [w, h] = parse_size::<2>(s).with_context(|| format!("--size {s}"))?;
     let max = displace_gpu::raster::MAX_IMAGE_EDGE as usize;
     if w > max || h > max {

@@ -12,6 +12,7 @@ mod gpu;
 mod progress;
 mod render;
 mod trace;
+mod view;
 
 use clap::{Parser, Subcommand};
 
@@ -42,6 +43,10 @@ enum Command {
     /// Render a displaced plane on the GPU, offscreen, to PNG (Donnelly's
     /// shaders; a built-in scene configured by flags).
     GpuRender(gpu::GpuRenderArgs),
+    /// Show a scene's displaced faces in a window (GPU raster path): orbit
+    /// camera, live depth, iterations, method, shadows and light.
+    #[command(after_help = displace_gpu::view::controls::KEYS_HELP)]
+    View(view::ViewArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -53,6 +58,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::ExportMesh(args) => export_mesh::run(args),
         Command::GpuRender(args) => gpu::run_render(args),
+        Command::View(args) => view::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -20,6 +20,8 @@ mod params;
 mod shapes;
 mod text;
 
+pub use text::FONT;
+
 use crate::convention::texel_centre;
 use crate::{Address, Error, HeightMap, Result};
 use rayon::prelude::*;

@@ -104,7 +104,10 @@ fn shadow(p: vec3f, l: vec3f, dist: f32) -> f32 {
     let hi = vec3f(params.aspect.x * params.tiles.x, params.aspect.y * params.tiles.y, 1.0);
     let clip = clip_shell(p, l, hi, params.t_min, min(dist, params.t_max));
     var vis = 1.0;
-    var t = max(clip.t_in, params.tau);
+    // Within `band` of the start the stored distance says nothing (the map
+    // underestimates by up to that much): the ratio would read every lit
+    // point as fully in penumbra. The hard trace above has cleared it.
+    var t = max(clip.t_in, params.band);
     for (var i = 0u; i < max(params.iterations, 1u) && t < clip.t_out; i++) {
         let s = distance_at(p + l * t);
         vis = min(vis, clamp(frame.penumbra_k * s / t, 0.0, 1.0));
@@ -138,22 +141,31 @@ fn fs_main(in: VsOut) -> FsOut {
     let p = in.map_pos + dir * h.t;
     let uv = p.xy / params.aspect;
     let depth = 1.0 / frame.inv_bump_depth;
+    // Map space is the face's tangent frame scaled per axis: by the baked
+    // proportions across and by the live depth along the normal. They agree
+    // only at the baked depth; the live factor of listing 8-1 stretches the
+    // normal axis alone, so shading works in the physical tangent frame.
+    let to_phys = vec3f(length(frame.face_t.xyz) / params.aspect.x, length(frame.face_b.xyz) / params.aspect.y, depth);
     // The light vector at the hit: the vertex's, moved from the shell point
-    // to the hit (map space is the tangent frame in units of depth).
-    let to_light = in.tan_light / depth - (p - in.map_pos);
+    // to the hit (an orthogonal face frame).
+    let to_light = in.tan_light - (p - in.map_pos) * to_phys;
     let l = normalize(to_light);
-    var n = h.normal;
+    // The shadow march runs in map space; its direction and length map back.
+    let l_map = normalize(to_light / to_phys);
+    var n_map = h.normal;
     if (h.kind == HIT_SURFACE) {
-        n = normalize(textureSampleGrad(normal_tex, shade_sampler, uv, dx, dy).xyz * 2.0 - 1.0);
+        n_map = normalize(textureSampleGrad(normal_tex, shade_sampler, uv, dx, dy).xyz * 2.0 - 1.0);
     }
+    // The normal map holds the baked proportions (seed 002, 2.2: normals
+    // change with depth); normals map by the inverse transpose of to_phys.
+    let n = normalize(n_map / to_phys);
     let albedo = textureSampleGrad(color_tex, shade_sampler, uv, dx, dy).rgb;
-    var lit = max(dot(n, l), 0.0) * shadow(p + n * params.tau, l, length(to_light));
+    var lit = max(dot(n, l), 0.0) * shadow(p + n_map * params.tau, l_map, length(to_light / to_phys));
     if (frame.falloff == 1u) {
-        // to_light is in units of the depth (an orthogonal face frame).
-        let r = length(to_light) * depth;
+        let r = length(to_light);
         lit = lit / max(r * r, 1e-20);
     }
-    let half_vec = normalize(l - dir);
+    let half_vec = normalize(l - normalize(dir * to_phys));
     let spec = select(0.0, pow(max(dot(n, half_vec), 0.0), frame.shininess), lit > 0.0) * frame.specular * lit;
     let rgb = albedo * (frame.ambient + frame.light_intensity * lit) + vec3f(spec * frame.light_intensity);
     var out: FsOut;

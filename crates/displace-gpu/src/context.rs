@@ -6,6 +6,7 @@ use crate::{Error, Result};
 
 /// An open GPU device and what we learnt about it.
 pub struct GpuContext {
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -30,12 +31,26 @@ impl GpuContext {
         pollster::block_on(Self::open())
     }
 
+    /// Opens an adapter of `instance` that can present to `surface` (the
+    /// viewer's window).
+    pub fn for_surface(instance: &wgpu::Instance, surface: &wgpu::Surface) -> Result<Self> {
+        pollster::block_on(Self::open_with(instance, Some(surface)))
+    }
+
     async fn open() -> Result<Self> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        Self::open_with(&instance, None).await
+    }
+
+    async fn open_with(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Self> {
         let adapter = instance
             .request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
+                compatible_surface: surface,
                 ..Default::default()
             })
             .await
@@ -62,6 +77,7 @@ impl GpuContext {
                 message: e.to_string(),
             })?;
         Ok(Self {
+            adapter,
             device,
             queue,
             info,

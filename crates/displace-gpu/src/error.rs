@@ -17,6 +17,10 @@ pub enum Error {
         size: String,
         limit: String,
     },
+    #[error(
+        "could not open a window: {0} (the viewer needs a display: DISPLAY set, or Xvfb running)"
+    )]
+    Window(String),
     #[error("invalid option: {0}")]
     InvalidOption(String),
     #[error(transparent)]

@@ -8,7 +8,8 @@
 //! question with the same conventions (`shaders/convention.wgsl`); the
 //! raster path of section 8.5 ([`Renderer`]: listing 8-1's vertex stage,
 //! listing 8-2's fragment stage with exact refinement, normal-mapped
-//! shading, self-shadowing); and GPU-timed benchmarks ([`bench`]).
+//! shading, self-shadowing); GPU-timed benchmarks ([`bench`]); and the
+//! interactive viewer ([`view`]).
 
 pub mod bench;
 pub mod context;
@@ -20,6 +21,7 @@ pub mod shaders;
 pub mod test_support;
 pub mod timing;
 pub mod trace;
+pub mod view;
 
 pub use context::GpuContext;
 pub use error::Error;

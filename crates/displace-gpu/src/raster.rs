@@ -611,59 +611,17 @@ pub fn render_faces(
     faces: &[(&Renderer, &PlaneScene)],
     clear: [f64; 3],
 ) -> Result<Image> {
-    let Some((_, first)) = faces.first() else {
-        return Err(Error::InvalidOption("no faces to render".into()));
-    };
-    if faces
-        .iter()
-        .any(|(_, s)| s.size != first.size || s.view_proj() != first.view_proj())
-    {
-        return Err(Error::InvalidOption(
-            "faces drawn together must share the image size and camera".into(),
-        ));
+    let first = check_shared_camera(faces)?;
+    // Sizes and vectors are checked before anything is allocated.
+    for (_, s) in faces {
+        s.check()?;
     }
-    let draws = faces
-        .iter()
-        .map(|(r, s)| r.uniforms(ctx, s).map(|(m, sh)| (*r, m, sh)))
-        .collect::<Result<Vec<_>>>()?;
     let targets = Targets::new(ctx, first.size);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
-    ctx.checked("rendering", || {
-        record(&mut encoder, &targets, &draws, clear, 1, None)
-    })?;
+    encode_faces(ctx, &mut encoder, &targets, faces, clear)?;
     let [w, h] = first.size;
-    let color_row = (w * 4).div_ceil(256) * 256;
-    let aov_row = (w * 16).div_ceil(256) * 256;
-    let readback = |row: u32| {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: row as u64 * h as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    };
-    let (cbuf, abuf) = (readback(color_row), readback(aov_row));
-    for (tex, buf, row) in [
-        (&targets.color_tex, &cbuf, color_row),
-        (&targets.aov_tex, &abuf, aov_row),
-    ] {
-        encoder.copy_texture_to_buffer(
-            tex.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: buf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-    }
+    let (cbuf, color_row) = copy_to_readback(ctx, &mut encoder, &targets.color_tex, 4, first.size);
+    let (abuf, aov_row) = copy_to_readback(ctx, &mut encoder, &targets.aov_tex, 16, first.size);
     let commands = ctx.checked("finishing the render", || encoder.finish())?;
     ctx.queue.submit([commands]);
     let cbytes = ctx.read_buffer(&cbuf)?;
@@ -683,7 +641,107 @@ pub fn render_faces(
     })
 }
 
-struct Targets {
+/// Records a copy of `texture` (`texel_bytes` per texel, `[w, h]`) into a
+/// new mappable buffer; returns it and its padded row pitch.
+pub(crate) fn copy_to_readback(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    texture: &wgpu::Texture,
+    texel_bytes: u32,
+    [w, h]: [u32; 2],
+) -> (wgpu::Buffer, u32) {
+    let row = (w * texel_bytes).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+        * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: row as u64 * h as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
+        },
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+    );
+    (buffer, row)
+}
+
+fn check_shared_camera<'a>(faces: &[(&Renderer, &'a PlaneScene)]) -> Result<&'a PlaneScene> {
+    let Some((_, first)) = faces.first() else {
+        return Err(Error::InvalidOption("no faces to render".into()));
+    };
+    if faces
+        .iter()
+        .any(|(_, s)| s.size != first.size || s.view_proj() != first.view_proj())
+    {
+        return Err(Error::InvalidOption(
+            "faces drawn together must share the image size and camera".into(),
+        ));
+    }
+    Ok(first)
+}
+
+/// Records the draw of every `(renderer, face)` into `targets` on
+/// `encoder`, as [`render_faces`] does, without reading anything back (the
+/// viewer presents the colour target on the GPU). `targets` must have the
+/// faces' image size.
+pub fn encode_faces(
+    ctx: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    targets: &Targets,
+    faces: &[(&Renderer, &PlaneScene)],
+    clear: [f64; 3],
+) -> Result<()> {
+    let first = check_shared_camera(faces)?;
+    if first.size != targets.size {
+        return Err(Error::InvalidOption(format!(
+            "faces of {:?} pixels drawn into targets of {:?}",
+            first.size, targets.size
+        )));
+    }
+    let draws = faces
+        .iter()
+        .map(|(r, s)| r.uniforms(ctx, s).map(|(m, sh)| (*r, m, sh)))
+        .collect::<Result<Vec<_>>>()?;
+    ctx.checked("rendering", || {
+        record(encoder, targets, &draws, clear, 1, None)
+    })
+}
+
+/// Near and far planes that hold the shell boxes of every face in front of
+/// the camera of the first (`None` when all of them lie behind it), for
+/// faces drawn into one depth buffer ([`PlaneScene::depth_range`]).
+pub fn shared_depth_range(faces: &[PlaneScene]) -> Option<[f32; 2]> {
+    let first = faces.first()?;
+    let forward = (first.target - first.eye).normalize();
+    let mut far = 0.0f32;
+    for f in faces {
+        let n = f.normal() * f.depth;
+        for c in 0..8 {
+            let p = f.origin
+                + f.tangent * ((c & 1) as f32 * f.tiles[0])
+                + f.bitangent * (((c >> 1) & 1) as f32 * f.tiles[1])
+                + n * ((c >> 2) & 1) as f32;
+            far = far.max((p - first.eye).dot(forward));
+        }
+    }
+    (far > 0.0).then_some([far * 1.01 * 1e-4, far * 1.01])
+}
+
+/// The colour (sRGB), AOV and depth targets of one image size.
+pub struct Targets {
+    size: [u32; 2],
     color_tex: wgpu::Texture,
     aov_tex: wgpu::Texture,
     color: wgpu::TextureView,
@@ -692,7 +750,7 @@ struct Targets {
 }
 
 impl Targets {
-    fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
+    pub fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
         let make = |format, usage| {
             ctx.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("target"),
@@ -710,17 +768,27 @@ impl Targets {
             })
         };
         let rt = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let color_tex = make(COLOR_FORMAT, rt);
+        let color_tex = make(COLOR_FORMAT, rt | wgpu::TextureUsages::TEXTURE_BINDING);
         let aov_tex = make(AOV_FORMAT, rt);
         let depth = make(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT)
             .create_view(&Default::default());
         Self {
+            size: [w, h],
             color: color_tex.create_view(&Default::default()),
             aov: aov_tex.create_view(&Default::default()),
             color_tex,
             aov_tex,
             depth,
         }
+    }
+
+    pub fn size(&self) -> [u32; 2] {
+        self.size
+    }
+
+    /// The colour view ([`COLOR_FORMAT`], also bindable as a texture).
+    pub fn color_view(&self) -> &wgpu::TextureView {
+        &self.color
     }
 }
 

@@ -9,6 +9,7 @@ pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
+pub const PRESENT: &str = include_str!("../shaders/present.wgsl");
 
 /// How the shaders read the distance map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -92,5 +93,6 @@ pub fn all_modules() -> Vec<(String, String)> {
         ));
     }
     out.push(("fetch-loop/filtered".into(), fetch_loop_source()));
+    out.push(("present".into(), PRESENT.to_string()));
     out
 }

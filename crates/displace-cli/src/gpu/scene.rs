@@ -16,7 +16,7 @@
 
 use anyhow::{bail, Context, Result};
 use displace_core::Method;
-use displace_gpu::raster::render_faces;
+use displace_gpu::raster::{render_faces, shared_depth_range};
 use displace_gpu::{DistanceTexture, GpuContext, Image, PlaneScene, Renderer, Shadows};
 use displace_render::light::Light;
 use displace_render::scene::Shape;
@@ -69,12 +69,22 @@ fn pick_light(scene: &Scene) -> Option<(Vec3, Vec3)> {
     })
 }
 
-pub fn render(
+/// The drawable faces of a scene, each with its renderer and its
+/// [`PlaneScene`] (sharing one camera and depth range), and what was left out.
+pub struct SceneFaces {
+    pub faces: Vec<(Renderer, PlaneScene)>,
+    pub left_out: Vec<String>,
+    /// Linear background colour.
+    pub background: [f64; 3],
+}
+
+/// Uploads every displaced face of `scene` that the GPU path draws.
+pub fn prepare(
     ctx: &GpuContext,
     scene: &Scene,
     texture: DistanceTexture,
     shadows: Shadows,
-) -> Result<SceneImage> {
+) -> Result<SceneFaces> {
     let camera = scene.camera();
     let (forward, _, up, tan_half) = camera.basis();
     let eye = camera.position();
@@ -93,7 +103,6 @@ pub fn render(
     }
     let size = [scene.width(), scene.height()];
     let mut faces = Vec::new();
-    let mut far = 0.0f32;
     let mut skip = |what: &str| left_out.push(what.to_string());
     for (k, prim) in scene.primitives().iter().enumerate() {
         let face = match &prim.shape {
@@ -126,15 +135,6 @@ pub fn render(
         let (tangent, bitangent, up_n) = (m.col(0) * ax, m.col(1) * ay, m.col(2));
         // A `flip_v` quad runs `v` back along its edge: a left-handed frame.
         let mirrored = tangent.cross(bitangent).dot(up_n) < 0.0;
-        for c in 0..8 {
-            let p = origin
-                + m * Vec3::new(
-                    (c & 1) as f32 * ax * trace.tiles[0],
-                    ((c >> 1) & 1) as f32 * ay * trace.tiles[1],
-                    ((c >> 2) & 1) as f32,
-                );
-            far = far.max((p - eye).dot(forward));
-        }
         let mat = &scene.materials()[prim.material as usize];
         if mat.texture.is_some() {
             skip("material textures");
@@ -192,21 +192,35 @@ pub fn render(
     if faces.is_empty() {
         bail!("the scene has no displaced face gpu-render can draw (left out: {left_out:?})");
     }
-    if far <= 0.0 {
-        bail!("every displaced face is behind the camera");
-    }
     // One depth range for all faces, so their exact fragment depths compare.
-    let range = [far * 1.01 * 1e-4, far * 1.01];
+    let planes: Vec<PlaneScene> = faces.iter().map(|(_, p)| *p).collect();
+    let Some(range) = shared_depth_range(&planes) else {
+        bail!("every displaced face is behind the camera");
+    };
     for (_, p) in &mut faces {
         p.depth_range = Some(range);
     }
-    let draws: Vec<(&Renderer, &PlaneScene)> = faces.iter().map(|(r, p)| (r, p)).collect();
     let bg = scene.background();
-    let image = render_faces(ctx, &draws, [bg.x as f64, bg.y as f64, bg.z as f64])
-        .context("rendering the scene on the GPU")?;
+    Ok(SceneFaces {
+        faces,
+        left_out,
+        background: [bg.x as f64, bg.y as f64, bg.z as f64],
+    })
+}
+
+pub fn render(
+    ctx: &GpuContext,
+    scene: &Scene,
+    texture: DistanceTexture,
+    shadows: Shadows,
+) -> Result<SceneImage> {
+    let prepared = prepare(ctx, scene, texture, shadows)?;
+    let draws: Vec<(&Renderer, &PlaneScene)> = prepared.faces.iter().map(|(r, p)| (r, p)).collect();
+    let image =
+        render_faces(ctx, &draws, prepared.background).context("rendering the scene on the GPU")?;
     Ok(SceneImage {
         image,
-        faces: faces.len(),
-        left_out,
+        faces: draws.len(),
+        left_out: prepared.left_out,
     })
 }

@@ -13,7 +13,9 @@ use crate::convention::check_allocation;
 use crate::{HeightMap, Result};
 use ab_glyph::{point, Font, FontRef, GlyphId, PxScale, ScaleFont};
 
-static FONT: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans-Bold.ttf");
+/// The bundled font's bytes (TrueType), shared with other crates that draw
+/// text (the GPU viewer's overlay) so the binary embeds it once.
+pub static FONT: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans-Bold.ttf");
 
 /// Share of the map's width and height that the default size fills.
 const FILL: f32 = 0.9;

@@ -1,0 +1,280 @@
+//! `displace view`: the raster path of section 8.5 in a window, every frame
+//! drawn by the same [`Renderer`] as the headless renders, with an orbit
+//! camera and live controls over what Donnelly's shaders take as run-time
+//! inputs: the inverse bump depth factor of listing 8-1 (depth changes
+//! without a re-bake), the iteration count, fixed or early-out marching and
+//! self-shadowing.
+//!
+//! [`ViewState`] is the part without a window (controls applied to the
+//! scene's faces), [`overlay`] draws text and presents, [`window`] runs the
+//! event loop.
+
+pub mod controls;
+pub mod orbit;
+pub mod overlay;
+pub mod window;
+
+use crate::raster::shared_depth_range;
+use crate::{Error, PlaneScene, Renderer, Result, Shadows};
+use controls::{Action, MAX_ITERATIONS};
+use displace_core::Method;
+use glam::Vec3;
+use orbit::{turn, Orbit};
+
+/// What the viewer draws: each face with its renderer and its plane as the
+/// scene file gives it (all sharing one camera and light), and the linear
+/// background colour.
+pub struct ViewScene {
+    pub faces: Vec<(Renderer, PlaneScene)>,
+    pub background: [f64; 3],
+}
+
+/// The live settings, shown on the overlay and in the title.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Times each face's own displacement depth.
+    pub depth_scale: f32,
+    pub iterations: u32,
+    pub method: Method,
+    pub shadows: Shadows,
+    pub hud: bool,
+}
+
+/// Camera, light and settings of the view of one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewState {
+    pub orbit: Orbit,
+    /// Light position minus the orbit target.
+    light_offset: Vec3,
+    pub settings: Settings,
+    start: Box<(Orbit, Vec3, Settings)>,
+}
+
+impl ViewState {
+    /// The view the scene's first face describes: its camera, its light and
+    /// its trace settings; the orbit target is the point on the view axis
+    /// nearest the centre of all shell boxes.
+    pub fn new(faces: &[PlaneScene]) -> Result<Self> {
+        let Some(first) = faces.first() else {
+            return Err(Error::InvalidOption("the view has no faces".into()));
+        };
+        let mut centre = Vec3::ZERO;
+        for f in faces {
+            centre += f.origin
+                + 0.5 * (f.tangent * f.tiles[0] + f.bitangent * f.tiles[1] + f.normal() * f.depth);
+        }
+        centre /= faces.len() as f32;
+        let forward = (first.target - first.eye).normalize();
+        let along = (centre - first.eye).dot(forward);
+        let reach = if along > 0.0 {
+            along
+        } else {
+            (centre - first.eye).length().max(1e-6)
+        };
+        let target = first.eye + forward * reach;
+        let orbit = Orbit::new(first.eye, target, first.up);
+        let settings = Settings {
+            depth_scale: 1.0,
+            iterations: first.iterations,
+            method: first.method,
+            shadows: first.shadows,
+            hud: true,
+        };
+        let light_offset = first.light - target;
+        Ok(Self {
+            orbit,
+            light_offset,
+            settings,
+            start: Box::new((orbit, light_offset, settings)),
+        })
+    }
+
+    pub fn light(&self) -> Vec3 {
+        self.orbit.target + self.light_offset
+    }
+
+    /// Applies `action`; true when it asks to quit.
+    pub fn apply(&mut self, action: Action) -> bool {
+        let s = &mut self.settings;
+        match action {
+            Action::Orbit { yaw, raise } => self.orbit.orbit(yaw, raise),
+            Action::Zoom(f) => self.orbit.zoom(f),
+            Action::Depth(v) => s.depth_scale = clamp_depth(v, s.depth_scale),
+            Action::DepthBy(f) => s.depth_scale = clamp_depth(s.depth_scale * f, s.depth_scale),
+            Action::Iterations(n) => s.iterations = n.clamp(1, MAX_ITERATIONS),
+            Action::IterationsStep(up) => {
+                s.iterations = if up {
+                    s.iterations.saturating_mul(2)
+                } else {
+                    s.iterations / 2
+                }
+                .clamp(1, MAX_ITERATIONS)
+            }
+            Action::Method(m) => s.method = m,
+            Action::ToggleMethod => {
+                s.method = match s.method {
+                    Method::SphereFixed => Method::Sphere,
+                    _ => Method::SphereFixed,
+                }
+            }
+            Action::Shadows(sh) => s.shadows = sh,
+            Action::CycleShadows => {
+                s.shadows = match s.shadows {
+                    Shadows::None => Shadows::Hard,
+                    Shadows::Hard => Shadows::Soft,
+                    Shadows::Soft => Shadows::None,
+                }
+            }
+            Action::Light { yaw, raise } => {
+                self.light_offset =
+                    turn(self.light_offset, self.orbit.axis(), yaw, raise) * self.light_offset
+            }
+            Action::Hud(on) => s.hud = on,
+            Action::ToggleHud => s.hud = !s.hud,
+            Action::Reset => {
+                let (orbit, light, settings) = *self.start;
+                self.orbit = orbit;
+                self.light_offset = light;
+                self.settings = settings;
+            }
+            Action::Quit => return true,
+            // The window's business.
+            Action::Resize(_) | Action::AfterFrame(_) => {}
+        }
+        false
+    }
+
+    /// The faces as this view draws them at `size` pixels: the orbit's
+    /// camera, the turned light, the live depth and trace settings, and one
+    /// depth range for all.
+    pub fn planes(&self, faces: &[PlaneScene], size: [u32; 2]) -> Vec<PlaneScene> {
+        let s = &self.settings;
+        let mut planes: Vec<PlaneScene> = faces
+            .iter()
+            .map(|f| PlaneScene {
+                size,
+                eye: self.orbit.eye(),
+                target: self.orbit.target,
+                up: self.orbit.up(),
+                light: self.light(),
+                depth: f.depth * s.depth_scale,
+                method: s.method,
+                iterations: s.iterations,
+                shadows: s.shadows,
+                ..*f
+            })
+            .collect();
+        // With every face behind the camera nothing is drawn, and any valid
+        // range will do.
+        let range = shared_depth_range(&planes).unwrap_or([1e-3, 1.0]);
+        for p in &mut planes {
+            p.depth_range = Some(range);
+        }
+        planes
+    }
+
+    /// The settings in a few short lines, with the frame time.
+    pub fn status_lines(&self, frame_ms: Option<f64>) -> Vec<String> {
+        let s = &self.settings;
+        let method = match s.method {
+            Method::SphereFixed => "fixed",
+            _ => "early-out",
+        };
+        let shadows = match s.shadows {
+            Shadows::None => "off",
+            Shadows::Hard => "hard",
+            Shadows::Soft => "soft",
+        };
+        let frame = match frame_ms {
+            Some(ms) => format!("frame {ms:.1} ms ({:.0} fps)", 1000.0 / ms.max(1e-3)),
+            None => "frame -".to_string(),
+        };
+        vec![
+            frame,
+            format!("depth x{:.3}  [ ]", s.depth_scale),
+            format!("iterations {}  , .", s.iterations),
+            format!("method {method}  m"),
+            format!("shadows {shadows}  s"),
+            "light j l i k".to_string(),
+        ]
+    }
+}
+
+/// Depth scales are kept positive and finite (the shell must have a
+/// height); an out-of-range request leaves the scale where it was.
+fn clamp_depth(wanted: f32, current: f32) -> f32 {
+    if wanted.is_finite() && wanted > 0.0 {
+        wanted.clamp(1e-3, 1e3)
+    } else {
+        current
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use displace_core::{bake, Address, BakeOptions, Extent, HeightMap};
+
+    fn plane() -> PlaneScene {
+        let h = HeightMap::new(4, 4, vec![0.5; 16], Address::Clamp).unwrap();
+        let map = bake(
+            &h,
+            &BakeOptions {
+                size: [4, 4, 2],
+                extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
+                ..BakeOptions::default()
+            },
+        )
+        .unwrap();
+        PlaneScene::for_map(&map, [64, 48])
+    }
+
+    #[test]
+    fn the_untouched_view_is_the_scene() {
+        let f = plane();
+        let v = ViewState::new(&[f]).unwrap();
+        let p = v.planes(&[f], f.size);
+        assert_eq!(p[0].eye, f.eye);
+        assert_eq!(p[0].light, f.light);
+        assert_eq!(p[0].depth, f.depth);
+        // The view direction is the scene's (the target may sit elsewhere
+        // on the axis).
+        let d = |a: Vec3, b: Vec3| (a - b).normalize();
+        assert!((d(p[0].target, p[0].eye) - d(f.target, f.eye)).length() < 1e-6);
+        assert_eq!(p[0].depth_range, shared_depth_range(&[f]));
+    }
+
+    #[test]
+    fn controls_change_the_planes_and_reset_restores_them() {
+        let f = plane();
+        let mut v = ViewState::new(&[f]).unwrap();
+        let start = v.clone();
+        v.apply(Action::Depth(0.5));
+        v.apply(Action::IterationsStep(false));
+        v.apply(Action::ToggleMethod);
+        v.apply(Action::CycleShadows);
+        v.apply(Action::Light {
+            yaw: 90.0,
+            raise: 0.0,
+        });
+        v.apply(Action::Orbit {
+            yaw: 10.0,
+            raise: 0.0,
+        });
+        let p = v.planes(&[f], f.size)[0];
+        assert_eq!(p.depth, f.depth * 0.5);
+        assert_eq!(p.iterations, f.iterations / 2);
+        assert_eq!(p.method, Method::SphereFixed);
+        assert_eq!(p.shadows, Shadows::Soft);
+        // The light keeps its distance to the target.
+        let t = v.orbit.target;
+        assert!(((p.light - t).length() - (f.light - t).length()).abs() < 1e-4);
+        assert!((p.light - f.light).length() > 1e-2);
+        assert!((p.eye - f.eye).length() > 1e-2);
+        v.apply(Action::Depth(-1.0));
+        assert_eq!(v.settings.depth_scale, 0.5);
+        v.apply(Action::Reset);
+        assert_eq!(v, start);
+        assert!(v.apply(Action::Quit));
+    }
+}
