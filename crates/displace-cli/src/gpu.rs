@@ -315,8 +315,6 @@ pub fn run_bench(args: BenchGpuArgs) -> Result<()> {
 /// dx, dy, dz]` (the face's units; map space times the depth) in, `[t, x, y,
 /// z, iterations]` out with `t = inf` and NaN coordinates for a miss, the
 /// same records the CPU backend writes.
-// Only the tests call it until `displace trace` grows `--backend gpu`.
-#[allow(dead_code)]
 pub fn trace_physical_gpu(
     ctx: &GpuContext,
     map: &DisplacementMap,
