@@ -15,6 +15,7 @@ pub struct MeshTriangle {
     pub uvs: [Vec2; 3],
 }
 
+#[derive(Clone, Debug)]
 pub struct Mesh {
     pub triangles: Vec<MeshTriangle>,
     pub has_uvs: bool,
