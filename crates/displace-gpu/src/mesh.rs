@@ -9,9 +9,11 @@
 //! map along the eye vector carried into tangent space by the interpolated
 //! frame (listing 8-1). This module draws each triangle as the top of its
 //! shell, lifted by the displacement depth along the vertex normals (so a
-//! smooth mesh's tops meet without cracks), and the mesh's open boundary
-//! edges as side walls from base to top, through which rays enter the shell
-//! as they do through a displaced quad's box. A ray that leaves the map
+//! smooth mesh's tops meet without cracks), and as side walls from base to
+//! top the edges where the tops part: the mesh's open boundary, and creases
+//! (an edge whose two triangles give its ends different normals, as a
+//! cube's). Rays enter the shell through them as they do through a
+//! displaced quad's box, and one entering under the surface hits the wall. A ray that leaves the map
 //! window ([`ShellMesh::tiles`]) sideways or the shell through its bottom is
 //! discarded.
 //!
@@ -147,8 +149,8 @@ pub struct ShellMesh {
     /// coordinates touch for a repeating one, plus one tile all round when
     /// the mesh is closed (so rays cross its texture seams).
     pub tiles: [f32; 2],
-    /// Edges used by one triangle only, each drawn as a wall.
-    pub boundary_edges: usize,
+    /// Triangle edges drawn as walls (boundary and crease edges).
+    pub walls: usize,
 }
 
 impl ShellMesh {
@@ -167,7 +169,8 @@ impl ShellMesh {
             }
         }
         let frames = tangent_frames(tris)?;
-        let boundary = boundary_edges(tris);
+        let closed = open_edges(tris, false).is_empty();
+        let walls = open_edges(tris, true);
         let lo = tris
             .iter()
             .flat_map(|t| t.uvs)
@@ -186,7 +189,7 @@ impl ShellMesh {
                 (Vec2::ZERO, Vec2::ONE)
             }
             Address::Repeat => {
-                let margin = if boundary.is_empty() { 1.0 } else { 0.0 };
+                let margin = if closed { 1.0 } else { 0.0 };
                 let start = lo.floor() - Vec2::splat(margin);
                 let end = hi.ceil().max(lo.floor() + Vec2::ONE) + Vec2::splat(margin);
                 (start, end - start)
@@ -201,13 +204,13 @@ impl ShellMesh {
             uv: (t.uvs[k] - uv_shift).to_array(),
             scale: f.scale.to_array(),
         };
-        let mut vertices = Vec::with_capacity(3 * tris.len() + 6 * boundary.len());
+        let mut vertices = Vec::with_capacity(3 * tris.len() + 6 * walls.len());
         for (t, f) in tris.iter().zip(&frames) {
             for (k, corner) in f.iter().enumerate() {
                 vertices.push(vertex(t, corner, k, 1.0));
             }
         }
-        for &(tri, k) in &boundary {
+        for &(tri, k) in &walls {
             // Edge a -> b runs counter-clockwise round the top, so the quad
             // a0 b0 b1 a1 faces out of the mesh.
             let (t, f) = (&tris[tri], &frames[tri]);
@@ -224,19 +227,33 @@ impl ShellMesh {
             vertices,
             uv_shift,
             tiles: tiles.to_array(),
-            boundary_edges: boundary.len(),
+            walls: walls.len(),
         })
     }
 }
 
 /// `(triangle, k)` for every edge from corner `k` to `k + 1` that no other
-/// triangle shares, vertices matched by position (so texture seams and
-/// split normals do not open the mesh).
-fn boundary_edges(tris: &[MeshTriangle]) -> Vec<(usize, usize)> {
-    let key = |p: Vec3| p.to_array().map(f32::to_bits);
-    let mut count: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+/// triangle shares, corners matched by position (texture seams do not open
+/// a mesh), and with `normals` also by normal (so a crease is open too).
+/// Positions match within about 1e-6 of the mesh's size and normals within
+/// about 1e-4, so corners computed twice (a seam's `cos 0` and `cos 2 pi`)
+/// still meet.
+fn open_edges(tris: &[MeshTriangle], normals: bool) -> Vec<(usize, usize)> {
+    type Corner = [i64; 6];
+    let size = tris
+        .iter()
+        .flat_map(|t| t.positions)
+        .fold(0.0f32, |m, p| m.max(p.abs().max_element()))
+        .max(f32::MIN_POSITIVE);
+    let key = |t: &MeshTriangle, k: usize| -> Corner {
+        let n = if normals { t.normals[k] } else { Vec3::ZERO };
+        let p = (t.positions[k] / size * 1e6).round();
+        let n = (n * 1e4).round();
+        [p.x, p.y, p.z, n.x, n.y, n.z].map(|c| c as i64)
+    };
+    let mut count: HashMap<(Corner, Corner), u32> = HashMap::new();
     let edge = |t: &MeshTriangle, k: usize| {
-        let (a, b) = (key(t.positions[k]), key(t.positions[(k + 1) % 3]));
+        let (a, b) = (key(t, k), key(t, (k + 1) % 3));
         if a <= b {
             (a, b)
         } else {
@@ -284,7 +301,7 @@ mod tests {
     #[test]
     fn a_flat_square_gets_its_exact_frame_and_four_walls() {
         let m = ShellMesh::new(&square(), Address::Clamp).unwrap();
-        assert_eq!(m.boundary_edges, 4);
+        assert_eq!(m.walls, 4);
         assert_eq!(m.vertices.len(), 6 + 4 * 6);
         for v in &m.vertices {
             assert!((Vec3::from_slice(&v.tangent[..3]) - Vec3::X).length() < 1e-6);

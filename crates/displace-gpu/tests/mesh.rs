@@ -119,3 +119,20 @@ fn a_flat_mesh_draws_like_the_shell_box() {
         );
     }
 }
+
+/// Walls go where the lifted tops part: each of a cube's 12 edges is a
+/// crease (one wall per side), its face diagonals are not; a smooth closed
+/// mesh has none, and with a repeating map its window gets a tile of margin
+/// all round so rays cross its texture seams.
+#[test]
+fn walls_stand_on_creases_and_boundaries_only() {
+    let cube = ShellMesh::new(&builtin("cube"), Address::Clamp).unwrap();
+    assert_eq!(cube.walls, 24);
+    let torus = ShellMesh::new(&builtin("torus"), Address::Repeat).unwrap();
+    assert_eq!(torus.walls, 0);
+    assert_eq!(torus.tiles, [3.0, 3.0]);
+    assert_eq!(torus.uv_shift, Vec2::splat(-1.0));
+    let plane = ShellMesh::new(&builtin("plane"), Address::Repeat).unwrap();
+    assert_eq!(plane.walls, 4);
+    assert_eq!(plane.tiles, [1.0, 1.0]);
+}
