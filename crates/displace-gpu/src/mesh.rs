@@ -24,7 +24,10 @@
 //! planar face, such as a quad or a cube's side, and drifts where the
 //! surface curves within the ray's walk), and the lateral scale is the
 //! MikkTSpace magnitudes `|dP/du|`, `|dP/dv|` of the vertex rather than of
-//! the triangle. Both agree on planar faces away from their edges.
+//! the triangle. Both agree on planar faces and at creases; on an open
+//! mesh that covers only part of its map window (a lone triangle), a ray
+//! leaving through a boundary wall may find surface beyond the edge, which
+//! the CPU's prism would not.
 
 use crate::{Error, Result};
 use bevy_mikktspace::{Geometry, TangentSpace};
@@ -168,6 +171,19 @@ impl ShellMesh {
                 )));
             }
         }
+        // The shell grows along the winding's normal, as the CPU's prisms
+        // do: a vertex normal pointing the other way is turned round.
+        let oriented: Vec<MeshTriangle> = tris
+            .iter()
+            .map(|t| {
+                let face = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]);
+                MeshTriangle {
+                    normals: t.normals.map(|n| if n.dot(face) < 0.0 { -n } else { n }),
+                    ..*t
+                }
+            })
+            .collect();
+        let tris = &oriented[..];
         let frames = tangent_frames(tris)?;
         let closed = open_edges(tris, false).is_empty();
         let walls = open_edges(tris, true);
@@ -329,6 +345,11 @@ mod tests {
         assert!(e.contains("repeat"), "{e}");
         let r = ShellMesh::new(&t, Address::Repeat).unwrap();
         assert_eq!(r.tiles, [2.0, 1.0]);
+        // Normals against the winding are turned to follow it.
+        let mut flipped = square();
+        flipped[0].normals = [Vec3::NEG_Z; 3];
+        let f = ShellMesh::new(&flipped, Address::Clamp).unwrap();
+        assert!(f.vertices.iter().all(|v| v.normal == [0.0, 0.0, 1.0]));
         t[1].positions[0] = Vec3::NAN;
         assert!(ShellMesh::new(&t, Address::Repeat).is_err());
     }
