@@ -36,13 +36,12 @@ pub struct FaceArgs {
     pub address: Address,
 }
 
-/// With SCENE, the CPU renderer's scene file: each displaced parallelogram
-/// is drawn by the GPU raster path with its own bake and its
-/// material's colour, lit by the first point light (else the centre of the
-/// first area light, as a point of intensity radiance x area). Left out, and
-/// listed on stderr: non-displaced shapes, displaced triangles and meshes,
-/// textures, reflections, other lights, depth of
-/// field, and shadows between faces. --height, --map-size, --extent,
+/// With SCENE, the CPU renderer's scene file: each displaced parallelogram,
+/// triangle and mesh is drawn by the GPU raster path with its own bake and
+/// its material's colour, lit by the first point light (else the centre of
+/// the first area light, as a point of intensity radiance x area). Left
+/// out, and listed on stderr: non-displaced shapes, textures, reflections,
+/// other lights, depth of field, and shadows between faces. --height, --map-size, --extent,
 /// --address, --method, --iterations, --eye and --light configure the
 /// built-in plane only.
 #[derive(clap::Args, Debug)]
@@ -213,7 +212,7 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     }
     write_outputs(&args.output, &out.image, args.uv_aov)?;
     println!(
-        "rendered {} displaced faces, {}x{} -> {}",
+        "rendered {} displaced faces and meshes, {}x{} -> {}",
         out.faces,
         out.image.width,
         out.image.height,
@@ -315,8 +314,6 @@ pub fn run_bench(args: BenchGpuArgs) -> Result<()> {
 /// dx, dy, dz]` (the face's units; map space times the depth) in, `[t, x, y,
 /// z, iterations]` out with `t = inf` and NaN coordinates for a miss, the
 /// same records the CPU backend writes.
-// Only the tests call it until `displace trace` grows `--backend gpu`.
-#[allow(dead_code)]
 pub fn trace_physical_gpu(
     ctx: &GpuContext,
     map: &DisplacementMap,

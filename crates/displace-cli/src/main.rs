@@ -40,8 +40,9 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
     ExportMesh(export_mesh::ExportMeshArgs),
-    /// Render a displaced plane on the GPU, offscreen, to PNG (Donnelly's
-    /// shaders; a built-in scene configured by flags).
+    /// Render a scene's displaced quads, triangles and meshes on the GPU,
+    /// offscreen, to PNG (Donnelly's shaders); without SCENE, a built-in
+    /// displaced plane configured by flags.
     GpuRender(gpu::GpuRenderArgs),
     /// Show a scene's displaced faces in a window (GPU raster path): orbit
     /// camera, live depth, iterations, method, shadows and light.

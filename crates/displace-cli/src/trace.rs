@@ -16,6 +16,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::{self as dio, npy};
 use displace_core::{DisplacementMap, Extent, MapRay, Method, NormalMap, TraceOptions};
+use displace_gpu::{DistanceTexture, GpuContext};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -51,6 +52,19 @@ pub struct TraceArgs {
     /// rest of the ray is walked exactly
     #[arg(long, default_value_t = TraceOptions::default().iterations)]
     pub iterations: u32,
+    /// cpu (rayon, all cores) or gpu (one compute invocation per ray, the
+    /// same trace in WGSL; every method is supported)
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+}
+
+/// Where the rays are traced. Both answer with the same records: the GPU
+/// runs `displace_core::sphere_trace` mirrored in WGSL, reading the distance
+/// map as exact f32 texel loads so its samples equal the CPU's.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    Cpu,
+    Gpu,
 }
 
 fn parse_method(s: &str) -> Result<Method, String> {
@@ -149,24 +163,37 @@ pub fn run(args: TraceArgs) -> Result<()> {
     };
     map.check_trace(&opts).context("trace options")?;
 
-    let start = Instant::now();
-    let hits: Vec<[f32; 5]> = rays
-        .par_iter()
-        .map(|r| trace_physical(&map, &opts, r))
-        .collect();
-    let seconds = start.elapsed().as_secs_f64();
+    let (hits, seconds, on) = match args.backend {
+        Backend::Cpu => {
+            let start = Instant::now();
+            let hits: Vec<[f32; 5]> = rays
+                .par_iter()
+                .map(|r| trace_physical(&map, &opts, r))
+                .collect();
+            let on = format!("{} threads", rayon::current_num_threads());
+            (hits, start.elapsed().as_secs_f64(), on)
+        }
+        Backend::Gpu => {
+            let ctx = GpuContext::new_headless().context("opening a GPU for --backend gpu")?;
+            // Timed from upload to readback, the cost a caller sees.
+            let start = Instant::now();
+            let hits =
+                crate::gpu::trace_physical_gpu(&ctx, &map, &opts, DistanceTexture::R32Load, &rays)?;
+            (hits, start.elapsed().as_secs_f64(), ctx.describe())
+        }
+    };
     let flat: Vec<f32> = hits.iter().flatten().copied().collect();
     npy::write_file(&args.output, &[hits.len(), 5], &flat)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let n_hit = hits.iter().filter(|h| h[0].is_finite()).count();
     println!(
-        "traced {} rays ({} hits) with {} in {:.3} s ({:.2} Mrays/s on {} threads) -> {}",
+        "traced {} rays ({} hits) with {} in {:.3} s ({:.2} Mrays/s on {}) -> {}",
         rays.len(),
         n_hit,
         args.method.name(),
         seconds,
         rays.len() as f64 / seconds.max(1e-9) / 1e6,
-        rayon::current_num_threads(),
+        on,
         args.output.display()
     );
     Ok(())

@@ -275,6 +275,98 @@ fn trace_agrees_with_the_exact_reference() {
     }
 }
 
+/// `--backend gpu` answers the CPU's question with the CPU's records (issue
+/// 4): on random rays against random height maps, for every method, the
+/// same hit or miss on >= 99.9% of rays and, where both hit, the hit point
+/// within 1e-3 shell depths on >= 99.9% of them (99% for `sphere-fixed`).
+#[test]
+fn gpu_backend_agrees_with_the_cpu() {
+    if displace_gpu::test_support::test_context().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (sx, sy, sz) = (1.0f32, 0.8f32, 0.1f32);
+    let n = 3000;
+    npy::write_file(&d.join("rays.npy"), &[n, 6], &rays(n, sx, sy, sz)).unwrap();
+    for (height, address) in [
+        ("gen:noise?seed=7", "clamp"),
+        ("gen:studded?period=6", "repeat"),
+    ] {
+        for method in ["sphere", "sphere-fixed", "exact"] {
+            let run = |backend: &str| {
+                let out = format!("{backend}.npy");
+                let o = displace(
+                    &[
+                        "trace",
+                        "--height",
+                        height,
+                        "--height-size",
+                        "48x40",
+                        "--address",
+                        address,
+                        "--extent",
+                        "1,0.8,0.1",
+                        "--size",
+                        "24x20x8",
+                        "--rays",
+                        "rays.npy",
+                        "--method",
+                        method,
+                        "--iterations",
+                        "24",
+                        "--backend",
+                        backend,
+                        "-o",
+                        &out,
+                    ],
+                    d,
+                );
+                assert!(o.status.success(), "{backend}: {}", stderr(&o));
+                hits(&d.join(out))
+            };
+            let (cpu, gpu) = (run("cpu"), run("gpu"));
+            assert_eq!(gpu.len(), n);
+            let both_hit = cpu
+                .iter()
+                .zip(&gpu)
+                .filter(|(c, g)| c[0].is_finite() && g[0].is_finite())
+                .count();
+            assert!(both_hit > n / 2, "{height} {method}: {both_hit} hits");
+            let same_kind = cpu
+                .iter()
+                .zip(&gpu)
+                .filter(|(c, g)| c[0].is_finite() == g[0].is_finite())
+                .count();
+            let close = cpu
+                .iter()
+                .zip(&gpu)
+                .filter(|(c, g)| c[0].is_finite() && g[0].is_finite())
+                .filter(|(c, g)| {
+                    let d2: f32 = (1..4).map(|k| (c[k] - g[k]).powi(2)).sum();
+                    d2.sqrt() <= 1e-3 * sz
+                })
+                .count();
+            let (kind_frac, close_frac) =
+                (same_kind as f64 / n as f64, close as f64 / both_hit as f64);
+            // Donnelly's fixed loop may stop short of the surface; such an
+            // unconverged hit is wherever its last step landed, which the
+            // two implementations' f32 rounding moves by more than 1e-3
+            // shell depths on a few rays (0.8% seen here). The other methods
+            // converge to the exact hit.
+            let close_needed = if method == "sphere-fixed" {
+                0.99
+            } else {
+                0.999
+            };
+            assert!(
+                kind_frac >= 0.999 && close_frac >= close_needed,
+                "{height} {method}: same hit/miss on {kind_frac}, hit points close on {close_frac}"
+            );
+        }
+    }
+}
+
 #[test]
 fn trace_converts_units_exactly() {
     // A flat map at full height: a vertical ray from z0 hits at z = SZ, so t

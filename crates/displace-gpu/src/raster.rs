@@ -1,14 +1,17 @@
 //! The raster path: one displaced planar face drawn as its shell box with
-//! Donnelly's vertex and fragment stages (`shaders/raster.wgsl`), rendered
-//! offscreen, with a UV AOV (uv, hit kind, t) beside the colour so renders
-//! can be checked against the CPU trace pixel by pixel.
+//! Donnelly's vertex and fragment stages (`shaders/raster.wgsl`), or a mesh
+//! drawn as the shells of its triangles ([`crate::mesh`],
+//! `shaders/mesh.wgsl`), rendered offscreen, with a UV AOV (uv, hit kind,
+//! t) beside the colour so renders can be checked against the CPU trace
+//! pixel by pixel.
 
 use crate::gpu_map::{GpuMap, MapParams};
-use crate::shaders::{raster_source, DistanceTexture};
+use crate::mesh::{ShellMesh, ShellVertex};
+use crate::shaders::{mesh_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use wgpu::util::DeviceExt;
 
 /// Largest image edge accepted before anything is allocated.
@@ -40,7 +43,10 @@ impl std::str::FromStr for Shadows {
 
 /// A displaced planar face, a pinhole camera and a point light: the built-in
 /// scene of `displace gpu-render`. The face spans `origin + [0,1] t + [0,1]
-/// b` with its shell `depth` high along `normal`.
+/// b` with its shell `depth` high along `normal`. A mesh renderer
+/// ([`Renderer::for_mesh`]) takes the camera, light, shading and `depth`
+/// from it and its faces from the mesh: `origin`, `tangent`, `bitangent`,
+/// `tiles` and `mirrored` are not used there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlaneScene {
     pub size: [u32; 2],
@@ -76,9 +82,33 @@ pub struct PlaneScene {
     /// (a scene quad with `flip_v`, whose `v` runs back along its edge).
     /// Drawn only by a renderer made with the same handedness.
     pub mirrored: bool,
+    /// A mesh draw: the world box `[min, max]` holding the mesh's base
+    /// surface (its shell lies within `depth` of it). `None` for a face.
+    pub bounds: Option<[Vec3; 2]>,
 }
 
 impl PlaneScene {
+    /// Corners of a box holding all this draw can put on screen: the face's
+    /// shell box, or a mesh's bounds grown by the shell depth.
+    pub fn shell_corners(&self) -> [Vec3; 8] {
+        std::array::from_fn(|c| {
+            let bit = |k: usize| ((c >> k) & 1) as f32;
+            match self.bounds {
+                Some([lo, hi]) => {
+                    let grow = Vec3::splat(self.depth.abs());
+                    let (lo, hi) = (lo - grow, hi + grow);
+                    lo + (hi - lo) * Vec3::new(bit(0), bit(1), bit(2))
+                }
+                None => {
+                    self.origin
+                        + self.tangent * (bit(0) * self.tiles[0])
+                        + self.bitangent * (bit(1) * self.tiles[1])
+                        + self.normal() * (self.depth * bit(2))
+                }
+            }
+        })
+    }
+
     /// The face of `map`'s extent at the origin in the xy plane (z up),
     /// seen obliquely, lit from above one corner.
     pub fn for_map(map: &DisplacementMap, size: [u32; 2]) -> Self {
@@ -108,6 +138,7 @@ impl PlaneScene {
             depth_range: None,
             tiles: [1.0, 1.0],
             mirrored: false,
+            bounds: None,
         }
     }
 
@@ -148,6 +179,17 @@ impl PlaneScene {
         MapRay::new(to_map(self.eye - self.origin), to_map(far - self.eye))
     }
 
+    /// The face's own checks (box renderers only).
+    fn check_face(&self) -> Result<()> {
+        if !(self.origin.is_finite() && self.tangent.is_finite() && self.bitangent.is_finite()) {
+            return Err(Error::InvalidOption("face vectors must be finite".into()));
+        }
+        if self.tangent.cross(self.bitangent).length_squared() == 0.0 {
+            return Err(Error::InvalidOption("degenerate face".into()));
+        }
+        Ok(())
+    }
+
     fn check(&self) -> Result<()> {
         let [w, h] = self.size;
         if w == 0 || h == 0 || w > MAX_IMAGE_EDGE || h > MAX_IMAGE_EDGE {
@@ -155,24 +197,14 @@ impl PlaneScene {
                 "image size {w}x{h} (each side must be 1..={MAX_IMAGE_EDGE})"
             )));
         }
-        let vecs = [
-            self.eye,
-            self.target,
-            self.up,
-            self.light,
-            self.origin,
-            self.tangent,
-            self.bitangent,
-        ];
+        let vecs = [self.eye, self.target, self.up, self.light];
         if !(vecs.iter().all(|v| v.is_finite()) && self.depth.is_finite() && self.depth > 0.0) {
             return Err(Error::InvalidOption(
                 "scene vectors must be finite and the depth positive".into(),
             ));
         }
-        if self.tangent.cross(self.bitangent).length_squared() == 0.0
-            || (self.eye - self.target).length_squared() == 0.0
-        {
-            return Err(Error::InvalidOption("degenerate face or camera".into()));
+        if (self.eye - self.target).length_squared() == 0.0 {
+            return Err(Error::InvalidOption("degenerate camera".into()));
         }
         if let Some([near, far]) = self.depth_range {
             if !(near > 0.0 && far > near && far.is_finite()) {
@@ -210,6 +242,8 @@ pub struct FrameUniform {
     shininess: f32,
     light_intensity: f32,
     falloff: u32,
+    uv_shift: [f32; 2],
+    _pad: [f32; 2],
 }
 
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
@@ -225,6 +259,19 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrg
 const AOV_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// What a renderer draws.
+enum Geometry {
+    /// The planar face's shell box, placed by the [`PlaneScene`].
+    ShellBox { mirrored: bool },
+    /// A mesh's shell, in world space ([`ShellMesh`]).
+    Mesh {
+        vertices: wgpu::Buffer,
+        count: u32,
+        uv_shift: Vec2,
+        tiles: [f32; 2],
+    },
+}
+
 /// Pipelines and textures for rendering one displacement map.
 pub struct Renderer {
     map: GpuMap,
@@ -233,13 +280,57 @@ pub struct Renderer {
     normal_view: wgpu::TextureView,
     color_view: wgpu::TextureView,
     sampler: wgpu::Sampler,
-    mirrored: bool,
+    geometry: Geometry,
 }
 
 impl Renderer {
     /// A renderer whose colour texture is Donnelly's checkerboard.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
-        Self::with_colour(ctx, map, texture, &checker_mips(256, 16), 256, false)
+        Self::with_colour(
+            ctx,
+            map,
+            texture,
+            &checker_mips(256, 16),
+            256,
+            Shape::Box { mirrored: false },
+        )
+    }
+
+    /// A renderer of `mesh`'s shell with Donnelly's checkerboard (as
+    /// [`Renderer::new`]).
+    pub fn checker_mesh(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        mesh: &ShellMesh,
+    ) -> Result<Self> {
+        Self::with_colour(
+            ctx,
+            map,
+            texture,
+            &checker_mips(256, 16),
+            256,
+            Shape::Mesh(mesh),
+        )
+    }
+
+    /// A renderer of `mesh`'s shell in the constant linear `albedo` (as
+    /// [`Renderer::with_albedo`]).
+    pub fn for_mesh(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        albedo: [f32; 3],
+        mesh: &ShellMesh,
+    ) -> Result<Self> {
+        Self::with_colour(
+            ctx,
+            map,
+            texture,
+            &[albedo_texel(albedo)],
+            1,
+            Shape::Mesh(mesh),
+        )
     }
 
     /// A renderer whose surface colour is the constant linear `albedo`
@@ -254,9 +345,14 @@ impl Renderer {
         albedo: [f32; 3],
         mirrored: bool,
     ) -> Result<Self> {
-        let e = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
-        let texel = vec![e(albedo[0]), e(albedo[1]), e(albedo[2]), 255];
-        Self::with_colour(ctx, map, texture, &[texel], 1, mirrored)
+        Self::with_colour(
+            ctx,
+            map,
+            texture,
+            &[albedo_texel(albedo)],
+            1,
+            Shape::Box { mirrored },
+        )
     }
 
     fn with_colour(
@@ -265,8 +361,13 @@ impl Renderer {
         texture: DistanceTexture,
         colour_mips: &[Vec<u8>],
         colour_size: u32,
-        mirrored: bool,
+        shape: Shape,
     ) -> Result<Self> {
+        if let Shape::Mesh(mesh) = shape {
+            if mesh.vertices.is_empty() {
+                return Err(Error::InvalidOption("the mesh has no triangles".into()));
+            }
+        }
         let gpu_map = GpuMap::new(ctx, map, texture)?;
         let normals: Vec<u8> = map
             .normals
@@ -309,7 +410,13 @@ impl Renderer {
                 .device
                 .create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("raster"),
-                    source: wgpu::ShaderSource::Wgsl(raster_source(texture).into()),
+                    source: wgpu::ShaderSource::Wgsl(
+                        match shape {
+                            Shape::Box { .. } => raster_source(texture),
+                            Shape::Mesh(_) => mesh_source(texture),
+                        }
+                        .into(),
+                    ),
                 });
             let tex = |binding| wgpu::BindGroupLayoutEntry {
                 binding,
@@ -368,12 +475,18 @@ impl Renderer {
                     layout: Some(&layout),
                     vertex: wgpu::VertexState {
                         module: &module,
-                        entry_point: Some("vs_main"),
+                        entry_point: Some(match shape {
+                            Shape::Box { .. } => "vs_main",
+                            Shape::Mesh(_) => "vs_mesh",
+                        }),
                         compilation_options: Default::default(),
-                        buffers: &[],
+                        buffers: match shape {
+                            Shape::Box { .. } => &[],
+                            Shape::Mesh(_) => &[Some(SHELL_VERTEX_LAYOUT)],
+                        },
                     },
                     primitive: wgpu::PrimitiveState {
-                        front_face: if mirrored {
+                        front_face: if matches!(shape, Shape::Box { mirrored: true }) {
                             wgpu::FrontFace::Cw
                         } else {
                             wgpu::FrontFace::Ccw
@@ -391,7 +504,10 @@ impl Renderer {
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &module,
-                        entry_point: Some("fs_main"),
+                        entry_point: Some(match shape {
+                            Shape::Box { .. } => "fs_main",
+                            Shape::Mesh(_) => "fs_mesh",
+                        }),
                         compilation_options: Default::default(),
                         targets: &[target(COLOR_FORMAT), target(AOV_FORMAT)],
                     }),
@@ -400,6 +516,21 @@ impl Renderer {
                 });
             (pipeline, shade_group)
         })?;
+        let geometry = match shape {
+            Shape::Box { mirrored } => Geometry::ShellBox { mirrored },
+            Shape::Mesh(mesh) => Geometry::Mesh {
+                vertices: ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("shell vertices"),
+                        contents: bytemuck::cast_slice(&mesh.vertices),
+                        usage: wgpu::BufferUsages::VERTEX,
+                    }),
+                count: mesh.vertices.len() as u32,
+                uv_shift: mesh.uv_shift,
+                tiles: mesh.tiles,
+            },
+        };
         Ok(Self {
             map: gpu_map,
             pipeline,
@@ -407,7 +538,7 @@ impl Renderer {
             normal_view,
             color_view,
             sampler,
-            mirrored,
+            geometry,
         })
     }
 
@@ -417,18 +548,28 @@ impl Renderer {
         scene: &PlaneScene,
     ) -> Result<(wgpu::BindGroup, wgpu::BindGroup)> {
         scene.check()?;
-        if scene.mirrored != self.mirrored {
-            return Err(Error::InvalidOption(
-                "the face's handedness differs from the renderer's (PlaneScene::mirrored)".into(),
-            ));
-        }
+        let (tiles, uv_shift) = match &self.geometry {
+            Geometry::ShellBox { mirrored } => {
+                scene.check_face()?;
+                if scene.mirrored != *mirrored {
+                    return Err(Error::InvalidOption(
+                        "the face's handedness differs from the renderer's (PlaneScene::mirrored)"
+                            .into(),
+                    ));
+                }
+                (scene.tiles, Vec2::ZERO)
+            }
+            Geometry::Mesh {
+                tiles, uv_shift, ..
+            } => (*tiles, *uv_shift),
+        };
         let opts = TraceOptions {
             method: scene.method,
             iterations: scene.iterations,
             // The fragment's start point is interpolated: let the clip find
             // the shell's face a hair behind it.
             t_min: -1e-3,
-            tiles: scene.tiles,
+            tiles,
             ..TraceOptions::default()
         };
         let params: MapParams = self.map.params(&opts)?;
@@ -450,6 +591,8 @@ impl Renderer {
             shininess: scene.shininess,
             light_intensity: scene.light_intensity,
             falloff: scene.falloff as u32,
+            uv_shift: uv_shift.to_array(),
+            _pad: [0.0; 2],
         };
         let params_buf = ctx
             .device
@@ -521,6 +664,48 @@ impl Renderer {
 
 /// The built-in scene's background (linear).
 const DEFAULT_CLEAR: [f64; 3] = [0.02, 0.02, 0.03];
+
+/// What [`Renderer::with_colour`] builds a pipeline for.
+#[derive(Clone, Copy)]
+enum Shape<'a> {
+    Box { mirrored: bool },
+    Mesh(&'a ShellMesh),
+}
+
+const SHELL_VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: std::mem::size_of::<ShellVertex>() as u64,
+    step_mode: wgpu::VertexStepMode::Vertex,
+    attributes: &SHELL_VERTEX_ATTRIBUTES,
+};
+
+/// [`ShellVertex`]'s fields at their offsets (the struct pads the normal to
+/// 16 bytes, which `vertex_attr_array!` would not know).
+const SHELL_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 6] = {
+    use std::mem::offset_of;
+    use wgpu::VertexFormat as F;
+    const fn at(format: F, offset: usize, shader_location: u32) -> wgpu::VertexAttribute {
+        wgpu::VertexAttribute {
+            format,
+            offset: offset as u64,
+            shader_location,
+        }
+    }
+    [
+        at(F::Float32x3, offset_of!(ShellVertex, position), 0),
+        at(F::Float32, offset_of!(ShellVertex, lift), 1),
+        at(F::Float32x3, offset_of!(ShellVertex, normal), 2),
+        at(F::Float32x4, offset_of!(ShellVertex, tangent), 3),
+        at(F::Float32x2, offset_of!(ShellVertex, uv), 4),
+        at(F::Float32x2, offset_of!(ShellVertex, scale), 5),
+    ]
+};
+
+/// One 8-bit sRGB texel of the linear colour `albedo`, each channel clamped
+/// to `[0, 1]`.
+fn albedo_texel(albedo: [f32; 3]) -> Vec<u8> {
+    let e = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+    vec![e(albedo[0]), e(albedo[1]), e(albedo[2]), 255]
+}
 
 fn linear_to_srgb(c: f32) -> f32 {
     if c <= 0.003_130_8 {
@@ -597,7 +782,15 @@ fn record(
             pass.set_pipeline(&renderer.pipeline);
             pass.set_bind_group(0, map_group, &[]);
             pass.set_bind_group(1, shade, &[]);
-            pass.draw(0..36, 0..1);
+            match &renderer.geometry {
+                Geometry::ShellBox { .. } => pass.draw(0..36, 0..1),
+                Geometry::Mesh {
+                    vertices, count, ..
+                } => {
+                    pass.set_vertex_buffer(0, vertices.slice(..));
+                    pass.draw(0..*count, 0..1);
+                }
+            }
         }
     }
 }
@@ -725,17 +918,11 @@ pub fn encode_faces(
 pub fn shared_depth_range(faces: &[PlaneScene]) -> Option<[f32; 2]> {
     let first = faces.first()?;
     let forward = (first.target - first.eye).normalize();
-    let mut far = 0.0f32;
-    for f in faces {
-        let n = f.normal() * f.depth;
-        for c in 0..8 {
-            let p = f.origin
-                + f.tangent * ((c & 1) as f32 * f.tiles[0])
-                + f.bitangent * (((c >> 1) & 1) as f32 * f.tiles[1])
-                + n * ((c >> 2) & 1) as f32;
-            far = far.max((p - first.eye).dot(forward));
-        }
-    }
+    let far = faces
+        .iter()
+        .flat_map(PlaneScene::shell_corners)
+        .map(|p| (p - first.eye).dot(forward))
+        .fold(0.0f32, f32::max);
     (far > 0.0).then_some([far * 1.01 * 1e-4, far * 1.01])
 }
 

@@ -7,7 +7,9 @@ pub const DISTANCE_LOAD: &str = include_str!("../shaders/distance_load.wgsl");
 pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.wgsl");
 pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
+pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
 pub const PRESENT: &str = include_str!("../shaders/present.wgsl");
 
@@ -75,7 +77,13 @@ pub fn compute_trace_source(texture: DistanceTexture) -> String {
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
 /// shadowing variants are uniforms of one module).
 pub fn raster_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), RASTER].join("\n")
+    [map_trace_source(texture).as_str(), SHADE, RASTER].join("\n")
+}
+
+/// The mesh variant of the raster path: the same fragment work, started
+/// from each mesh triangle's shell in its MikkTSpace frame.
+pub fn mesh_source(texture: DistanceTexture) -> String {
+    [map_trace_source(texture).as_str(), SHADE, MESH].join("\n")
 }
 
 /// The bare loop of dependent filtered fetches (benchmarks only).
@@ -91,6 +99,8 @@ pub fn all_modules() -> Vec<(String, String)> {
             format!("trace-compute/{}", t.name()),
             compute_trace_source(t),
         ));
+        out.push((format!("raster/{}", t.name()), raster_source(t)));
+        out.push((format!("mesh/{}", t.name()), mesh_source(t)));
     }
     out.push(("fetch-loop/filtered".into(), fetch_loop_source()));
     out.push(("present".into(), PRESENT.to_string()));

@@ -22,6 +22,7 @@
 //! ```
 
 pub mod bake_cache;
+pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
 pub mod displaced;

@@ -8,18 +8,24 @@
 //! renderer's, and every displaced face gets the bake the CPU renderer would
 //! use (the same in-memory sharing and on-disk cache). What the GPU draws of
 //! it: each displaced parallelogram (tiled or not), as its own shell box with
-//! Donnelly's shaders, lit by one point light (the first point light, else
-//! the centre of the first area light) with the CPU's point-light falloff
-//! and Lambert / normalised Blinn-Phong terms. Everything else is left out
-//! and reported: non-displaced shapes, displaced triangles and meshes, textures, reflections, other lights, and
-//! shadows cast by one face onto another (each face shadows only itself).
+//! Donnelly's shaders, and each displaced triangle and mesh (OBJ or
+//! built-in) as the shells of its triangles in their MikkTSpace frames
+//! (`displace_gpu::mesh`, which says where that differs from the CPU's
+//! prisms), lit by one point light (the first point light, else the centre
+//! of the first area light) with the CPU's point-light falloff and Lambert /
+//! normalised Blinn-Phong terms. Everything else is left out and reported:
+//! non-displaced shapes, textures, reflections, other lights, and shadows
+//! cast by one face onto another (each face shadows only itself).
 
 use anyhow::{bail, Context, Result};
 use displace_core::Method;
 use displace_gpu::raster::{render_faces, shared_depth_range};
-use displace_gpu::{DistanceTexture, GpuContext, Image, PlaneScene, Renderer, Shadows};
+use displace_gpu::{
+    DistanceTexture, GpuContext, Image, MeshTriangle, PlaneScene, Renderer, Shadows, ShellMesh,
+};
 use displace_render::light::Light;
-use displace_render::scene::Shape;
+use displace_render::material::Material;
+use displace_render::scene::{SceneMesh, Shape};
 use displace_render::{Scene, SceneOptions};
 use glam::Vec3;
 use std::f32::consts::PI;
@@ -69,8 +75,122 @@ fn pick_light(scene: &Scene) -> Option<(Vec3, Vec3)> {
     })
 }
 
-/// The drawable faces of a scene, each with its renderer and its
+/// The camera and light every draw shares.
+struct View {
+    size: [u32; 2],
+    eye: Vec3,
+    forward: Vec3,
+    up: Vec3,
+    fov_y_degrees: f32,
+    light: Vec3,
+    shadows: Shadows,
+}
+
+impl View {
+    /// A [`PlaneScene`] with this view and `shading`; its face is a unit
+    /// square at the origin until the caller places it (a mesh renderer
+    /// takes its faces from the mesh).
+    fn with(&self, shading: &Shading) -> PlaneScene {
+        PlaneScene {
+            size: self.size,
+            eye: self.eye,
+            target: self.eye + self.forward,
+            up: self.up,
+            fov_y_degrees: self.fov_y_degrees,
+            light: self.light,
+            light_intensity: shading.strength,
+            origin: Vec3::ZERO,
+            tangent: Vec3::X,
+            bitangent: Vec3::Y,
+            depth: 1.0,
+            method: Method::Sphere,
+            iterations: 64,
+            shadows: self.shadows,
+            penumbra_k: 8.0,
+            ambient: 0.0,
+            specular: shading.specular,
+            shininess: shading.shininess,
+            falloff: true,
+            depth_range: None,
+            tiles: [1.0, 1.0],
+            mirrored: false,
+            bounds: None,
+        }
+    }
+}
+
+/// A material as the GPU shades it under a light of radiant intensity
+/// `intensity`.
+struct Shading {
+    albedo: Vec3,
+    strength: f32,
+    specular: f32,
+    shininess: f32,
+    textured: bool,
+    reflects: bool,
+}
+
+impl Shading {
+    /// Reports what of the material is left out.
+    fn note(&self, skip: &mut impl FnMut(&str)) {
+        if self.textured {
+            skip("material textures");
+        }
+        if self.reflects {
+            skip("reflections");
+        }
+    }
+}
+
+fn material_shading(mat: &Material, intensity: Vec3) -> Shading {
+    // The CPU's direct term is `diffuse / pi * I / r^2 * cos`: the GPU's
+    // is `albedo * light_intensity * cos / r^2`, its albedo a [0, 1]
+    // texture, so the largest channel of `diffuse I / pi` becomes the
+    // light's strength and the rest the albedo.
+    let rgb = mat.diffuse * intensity / PI;
+    let strength = rgb.max_element();
+    let strength = if strength > 0.0 { strength } else { 1.0 };
+    // Normalised Blinn-Phong (displace_render::material::brdf) with the
+    // mean of its specular colour and the light's (the GPU highlight is
+    // white).
+    let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
+    let specular = if mat.shininess > 0.0 && mat.specular != Vec3::ZERO {
+        mean(mat.specular) * (mat.shininess + 8.0) / (8.0 * PI) * mean(intensity) / strength
+    } else {
+        0.0
+    };
+    Shading {
+        albedo: rgb / strength,
+        strength,
+        specular,
+        shininess: mat.shininess.max(1.0),
+        textured: mat.texture.is_some(),
+        reflects: mat.reflects(),
+    }
+}
+
+/// The GPU shell of a scene mesh, its texture addressed as its bake is.
+fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMesh> {
+    let tris: Vec<MeshTriangle> = mesh
+        .triangles
+        .iter()
+        .map(|t| MeshTriangle {
+            positions: t.positions,
+            normals: t.normals.unwrap_or_else(|| {
+                let n = (t.positions[1] - t.positions[0])
+                    .cross(t.positions[2] - t.positions[0])
+                    .normalize();
+                [n; 3]
+            }),
+            uvs: t.uvs,
+        })
+        .collect();
+    Ok(ShellMesh::new(&tris, address)?)
+}
+
+/// The drawable faces and meshes of a scene, each with its renderer and its
 /// [`PlaneScene`] (sharing one camera and depth range), and what was left out.
+/// `gpu-render` draws them once; `view` every frame.
 pub struct SceneFaces {
     pub faces: Vec<(Renderer, PlaneScene)>,
     pub left_out: Vec<String>,
@@ -78,7 +198,7 @@ pub struct SceneFaces {
     pub background: [f64; 3],
 }
 
-/// Uploads every displaced face of `scene` that the GPU path draws.
+/// Uploads every displaced face and mesh of `scene` that the GPU path draws.
 pub fn prepare(
     ctx: &GpuContext,
     scene: &Scene,
@@ -101,10 +221,28 @@ pub fn prepare(
             scene.lights().len() - 1
         ));
     }
-    let size = [scene.width(), scene.height()];
+    let view = View {
+        size: [scene.width(), scene.height()],
+        eye,
+        forward,
+        up,
+        fov_y_degrees: 2.0 * tan_half.atan().to_degrees(),
+        light,
+        shadows,
+    };
     let mut faces = Vec::new();
     let mut skip = |what: &str| left_out.push(what.to_string());
+    // Displaced triangles and meshes are drawn as meshes, not per primitive.
+    let meshed: std::collections::HashSet<usize> = scene
+        .meshes()
+        .iter()
+        .filter(|m| m.displacement.is_some())
+        .flat_map(|m| m.prims.clone())
+        .collect();
     for (k, prim) in scene.primitives().iter().enumerate() {
+        if meshed.contains(&k) {
+            continue;
+        }
         let face = match &prim.shape {
             Shape::Displaced(d) => d,
             Shape::Quad(_) if prim.emitter.is_some() => {
@@ -116,10 +254,6 @@ pub fn prepare(
                 continue;
             }
         };
-        if face.is_triangle() {
-            skip("displaced triangles and meshes");
-            continue;
-        }
         let trace = face.trace_options();
         if trace.method == Method::Exact {
             bail!(
@@ -135,56 +269,57 @@ pub fn prepare(
         let (tangent, bitangent, up_n) = (m.col(0) * ax, m.col(1) * ay, m.col(2));
         // A `flip_v` quad runs `v` back along its edge: a left-handed frame.
         let mirrored = tangent.cross(bitangent).dot(up_n) < 0.0;
-        let mat = &scene.materials()[prim.material as usize];
-        if mat.texture.is_some() {
-            skip("material textures");
-        }
-        if mat.reflects() {
-            skip("reflections");
-        }
-        // The CPU's direct term is `diffuse / pi * I / r^2 * cos`: the GPU's
-        // is `albedo * light_intensity * cos / r^2`, its albedo a [0, 1]
-        // texture, so the largest channel of `diffuse I / pi` becomes the
-        // light's strength and the rest the albedo.
-        let rgb = mat.diffuse * intensity / PI;
-        let strength = rgb.max_element();
-        let strength = if strength > 0.0 { strength } else { 1.0 };
-        let albedo = rgb / strength;
-        // Normalised Blinn-Phong (displace_render::material::brdf) with the
-        // mean of its specular colour and the light's (the GPU highlight is
-        // white).
-        let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;
-        let specular = if mat.shininess > 0.0 && mat.specular != Vec3::ZERO {
-            mean(mat.specular) * (mat.shininess + 8.0) / (8.0 * PI) * mean(intensity) / strength
-        } else {
-            0.0
-        };
+        let shading = material_shading(&scene.materials()[prim.material as usize], intensity);
+        shading.note(&mut skip);
         let plane = PlaneScene {
-            size,
-            eye,
-            target: eye + forward,
-            up,
-            fov_y_degrees: 2.0 * tan_half.atan().to_degrees(),
-            light,
-            light_intensity: strength,
             origin,
             tangent,
             bitangent,
             depth: up_n.length(),
             method: trace.method,
             iterations: trace.iterations,
-            shadows,
-            penumbra_k: 8.0,
-            ambient: 0.0,
-            specular,
-            shininess: mat.shininess.max(1.0),
-            falloff: true,
-            depth_range: None,
             tiles: trace.tiles,
             mirrored,
+            ..view.with(&shading)
         };
-        let renderer = Renderer::with_albedo(ctx, map, texture, albedo.to_array(), mirrored)
-            .with_context(|| format!("uploading displaced face {k}"))?;
+        let renderer =
+            Renderer::with_albedo(ctx, map, texture, shading.albedo.to_array(), mirrored)
+                .with_context(|| format!("uploading displaced face {k}"))?;
+        faces.push((renderer, plane));
+    }
+    for (k, mesh) in scene.meshes().iter().enumerate() {
+        let Some(disp) = &mesh.displacement else {
+            continue;
+        };
+        if disp.trace.method == Method::Exact {
+            bail!(
+                "mesh {k}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed"
+            );
+        }
+        if disp.textured {
+            skip("displacement colour textures and normal maps");
+        }
+        let shading = material_shading(&scene.materials()[mesh.material as usize], intensity);
+        shading.note(&mut skip);
+        let shell = shell_of(mesh, disp.map.address())
+            .with_context(|| format!("preparing the shell of mesh {k}"))?;
+        let bounds = mesh
+            .triangles
+            .iter()
+            .flat_map(|t| t.positions)
+            .fold([Vec3::INFINITY, Vec3::NEG_INFINITY], |[lo, hi], p| {
+                [lo.min(p), hi.max(p)]
+            });
+        let plane = PlaneScene {
+            depth: disp.depth,
+            method: disp.trace.method,
+            iterations: disp.trace.iterations,
+            bounds: Some(bounds),
+            ..view.with(&shading)
+        };
+        let renderer =
+            Renderer::for_mesh(ctx, &disp.map, texture, shading.albedo.to_array(), &shell)
+                .with_context(|| format!("uploading displaced mesh {k}"))?;
         faces.push((renderer, plane));
     }
     left_out.sort();

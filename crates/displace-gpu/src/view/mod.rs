@@ -58,12 +58,11 @@ impl ViewState {
         let Some(first) = faces.first() else {
             return Err(Error::InvalidOption("the view has no faces".into()));
         };
-        let mut centre = Vec3::ZERO;
-        for f in faces {
-            centre += f.origin
-                + 0.5 * (f.tangent * f.tiles[0] + f.bitangent * f.tiles[1] + f.normal() * f.depth);
-        }
-        centre /= faces.len() as f32;
+        let centre = faces
+            .iter()
+            .flat_map(PlaneScene::shell_corners)
+            .sum::<Vec3>()
+            / (8 * faces.len()) as f32;
         let forward = (first.target - first.eye).normalize();
         let along = (centre - first.eye).dot(forward);
         let reach = if along > 0.0 {

@@ -2,9 +2,10 @@
 //! Every error names the scene file and the key at fault.
 
 use super::spec::{DisplacementSpec, LightSpec, MaterialSpec, SceneSpec, ShapeSpec, V3};
-use super::world::{Primitive, Shape, TriAttr};
+use super::world::{MeshDisplacement, Primitive, SceneMesh, Shape, TriAttr};
 use super::{Scene, SceneOptions};
 use crate::bake_cache::BakeCache;
+use crate::builtin_mesh;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::displaced::{DisplacedFace, FaceFrame};
@@ -12,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Aabb;
 use crate::light::Light;
 use crate::material::Material;
+use crate::mesh::MeshTriangle;
 use crate::shapes::{box_faces, Quad, Sphere, Triangle};
 use crate::texture::Texture;
 use displace_core::{Address, Extent, HeightMap, Method, TraceOptions};
@@ -172,6 +174,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
     }
 
     let mut attrs = Vec::new();
+    let mut meshes = Vec::new();
     for (k, s) in spec.shapes.iter().enumerate() {
         let what = format!("shapes[{k}]");
         let mat_name = match s {
@@ -184,6 +187,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         let material = *material_index
             .get(mat_name)
             .ok_or_else(|| cx.err(format!("{what}.material: no material named `{mat_name}`")))?;
+        let first_prim = prims.len();
         let mut push = |shape| {
             prims.push(Primitive {
                 shape,
@@ -233,7 +237,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                     }
                     None => [Vec2::ZERO, Vec2::X, Vec2::Y],
                 };
-                match displacement_of(&cx, displacement, &what)? {
+                let shared = match displacement_of(&cx, displacement, &what)? {
                     None => {
                         attrs.push(TriAttr {
                             normals: None,
@@ -242,7 +246,8 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                         push(Shape::Triangle {
                             tri,
                             attr: attrs.len() as u32 - 1,
-                        })
+                        });
+                        None
                     }
                     Some(d) if d.flip_v => {
                         return Err(cx.err(format!("{what}.displacement.flip_v applies to quads only; give the triangle's uvs instead")));
@@ -254,9 +259,20 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                         let dm = DispBuild::new(&mut cx, d, map_extent, &what)?;
                         push(Shape::Displaced(Box::new(
                             dm.triangle(&cx, &tri, &uv, &what)?,
-                        )))
+                        )));
+                        Some(dm.shared())
                     }
-                }
+                };
+                meshes.push(SceneMesh {
+                    triangles: vec![MeshTriangle {
+                        positions: [tri.p0, tri.p0 + tri.e1, tri.p0 + tri.e2],
+                        normals: Some([tri.normal(); 3]),
+                        uvs: uv,
+                    }],
+                    material,
+                    displacement: shared,
+                    prims: first_prim..prims.len(),
+                });
             }
             ShapeSpec::Sphere { center, radius, .. } => {
                 let center = cx.vec(*center, &format!("{what}.center"))?;
@@ -296,8 +312,14 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                         "{what}: scale must be positive and rotate_y finite"
                     )));
                 }
-                let file = cx.base.join(path);
-                let mesh = crate::mesh::load(&file)?;
+                let (file, mut mesh) = match path.strip_prefix(builtin_mesh::PREFIX) {
+                    Some(name) => (PathBuf::from(path), builtin_mesh::generate(name)?),
+                    None => {
+                        let file = cx.base.join(path);
+                        let mesh = crate::mesh::load(&file)?;
+                        (file, mesh)
+                    }
+                };
                 let rot = Mat3::from_rotation_y(rotate_y.to_radians());
                 let xf = |p: Vec3| rot * (p * *scale) + t;
                 let disp = displacement_of(&cx, displacement, &what)?;
@@ -314,6 +336,11 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                             message: "a displaced mesh needs texture coordinates (vt)".into(),
                         });
                     }
+                    // `tiles` repeats the map over the mesh's coordinates.
+                    let tiles = Vec2::from_array(d.tiles);
+                    for t in &mut mesh.triangles {
+                        t.uvs = t.uvs.map(|uv| uv * tiles);
+                    }
                     let extent = mesh_extent(&mesh.triangles, &xf).ok_or_else(|| {
                         cx.err(format!(
                             "{what}: the mesh's texture coordinates are degenerate"
@@ -321,12 +348,21 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                     })?;
                     builder = Some(DispBuild::new(&mut cx, d, extent, &what)?);
                 }
+                let mut world_tris = Vec::with_capacity(mesh.triangles.len());
                 for (k, tri) in mesh.triangles.iter().enumerate() {
                     let p = tri.positions.map(xf);
                     let tr = Triangle::new(p[0], p[1], p[2]);
                     if tr.normal() == Vec3::ZERO {
                         continue;
                     }
+                    world_tris.push(MeshTriangle {
+                        positions: p,
+                        normals: Some(match tri.normals {
+                            Some(n) => n.map(|v| (rot * v).normalize_or(tr.normal())),
+                            None => [tr.normal(); 3],
+                        }),
+                        uvs: tri.uvs,
+                    });
                     match &builder {
                         Some(b) => {
                             let face =
@@ -347,6 +383,12 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                         }
                     }
                 }
+                meshes.push(SceneMesh {
+                    triangles: world_tris,
+                    material,
+                    displacement: builder.as_ref().map(DispBuild::shared),
+                    prims: first_prim..prims.len(),
+                });
             }
         }
     }
@@ -373,6 +415,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         materials,
         lights,
         epsilon: 5e-5 * diag.max(1e-3),
+        meshes,
         cache_stats: cx.cache.stats(),
     })
 }
@@ -575,6 +618,16 @@ impl DispBuild {
             color,
             normal_map,
         })
+    }
+
+    /// What every face of this displacement shares, for [`SceneMesh`].
+    fn shared(&self) -> MeshDisplacement {
+        MeshDisplacement {
+            map: self.map.clone(),
+            depth: self.depth,
+            trace: self.trace,
+            textured: self.color.is_some() || self.normal_map.is_some(),
+        }
     }
 
     fn finish(&self, face: Option<DisplacedFace>, cx: &Ctx, what: &str) -> Result<DisplacedFace> {

@@ -5,7 +5,7 @@ mod build;
 pub mod spec;
 mod world;
 
-pub use world::{Interaction, Primitive, Shape, TriAttr};
+pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriAttr};
 
 use crate::bake_cache::CacheStats;
 use crate::bvh::Bvh;
@@ -49,6 +49,7 @@ pub struct Scene {
     pub(crate) lights: Vec<Light>,
     /// Offset of secondary-ray origins off a surface, world units.
     pub(crate) epsilon: f32,
+    pub(crate) meshes: Vec<SceneMesh>,
     cache_stats: CacheStats,
 }
 
@@ -120,6 +121,11 @@ impl Scene {
     }
     pub fn background(&self) -> Vec3 {
         self.background
+    }
+    /// The scene's meshes and triangles with their vertex data, for
+    /// rasterisers ([`SceneMesh`]).
+    pub fn meshes(&self) -> &[SceneMesh] {
+        &self.meshes
     }
 }
 

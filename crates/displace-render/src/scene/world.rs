@@ -4,15 +4,43 @@
 use super::Scene;
 use crate::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
+use crate::mesh::MeshTriangle;
 use crate::shapes::{Quad, Sphere, Triangle};
-use displace_core::MapHit;
+use displace_core::{DisplacementMap, MapHit, TraceOptions};
 use glam::{Vec2, Vec3};
+use std::sync::Arc;
 
 /// Per-triangle attributes of meshes and textured triangles.
 #[derive(Clone, Copy, Debug)]
 pub struct TriAttr {
     pub normals: Option<[Vec3; 3]>,
     pub uvs: [Vec2; 3],
+}
+
+/// A `mesh` or `triangle` of the scene file as a rasteriser draws it (the
+/// GPU path, which needs what the per-triangle primitives no longer hold:
+/// the vertex normals a smooth shell follows): world-space triangles with
+/// vertex normals (the flat face normal where the file gives none) and
+/// texture coordinates in tiles, and the range of
+/// [`Scene::primitives`] the CPU made of it.
+#[derive(Clone, Debug)]
+pub struct SceneMesh {
+    pub triangles: Vec<MeshTriangle>,
+    pub material: u32,
+    pub displacement: Option<MeshDisplacement>,
+    pub prims: std::ops::Range<usize>,
+}
+
+/// The displacement shared by every triangle of a [`SceneMesh`].
+#[derive(Clone, Debug)]
+pub struct MeshDisplacement {
+    pub map: Arc<DisplacementMap>,
+    /// World units along the normal.
+    pub depth: f32,
+    /// The scene's method and iterations (`tiles` as the file gave them).
+    pub trace: TraceOptions,
+    /// The displacement has its own colour texture or normal map.
+    pub textured: bool,
 }
 
 #[derive(Clone, Debug)]
