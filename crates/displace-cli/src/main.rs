@@ -7,6 +7,7 @@ mod bench;
 mod bench_bake;
 mod bench_render;
 mod bench_trace;
+mod compare;
 mod export_mesh;
 mod gpu;
 mod progress;
@@ -42,6 +43,9 @@ enum Command {
     /// Render a displaced plane on the GPU, offscreen, to PNG (Donnelly's
     /// shaders; a built-in scene configured by flags).
     GpuRender(gpu::GpuRenderArgs),
+    /// Parallax, POM, relief, cone stepping, maximum mipmaps and distance
+    /// mapping against the exact hit: CSV, plots and an image grid.
+    Compare(compare::CompareArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -53,6 +57,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::ExportMesh(args) => export_mesh::run(args),
         Command::GpuRender(args) => gpu::run_render(args),
+        Command::Compare(args) => compare::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

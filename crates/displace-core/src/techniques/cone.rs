@@ -247,6 +247,11 @@ fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
                             continue;
                         }
                         let q = centre(ii, jj);
+                        // The exit point lies past q and below hq: no ratio
+                        // under this one.
+                        if (q - apex_xy).length() >= best * (hq - apex) {
+                            continue;
+                        }
                         // From (apex_xy, 1) through (q, hq), on down: per unit
                         // of horizontal travel the ray falls `fall`.
                         let along = (q - apex_xy).normalize();
