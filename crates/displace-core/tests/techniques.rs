@@ -232,3 +232,37 @@ fn cone_maps_and_pyramid_sizes() {
     assert_eq!(pyramid.levels(), 7);
     assert_eq!(pyramid.node(pyramid.levels() - 1, 0, 0), 1.0);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The two exact techniques on random maps (sharp ones included): with
+    /// budget to spare, maximum mipmaps and distance mapping return the
+    /// exact hit (or miss) on every ray.
+    #[test]
+    fn exact_techniques_match_the_reference_on_random_maps(
+        kind in 0u8..3,
+        w in 2usize..20, h in 2usize..20,
+        sx in 0.5f32..3.0, sz in 0.05f32..0.5,
+        seed in any::<u64>(),
+    ) {
+        let height = random_height(kind, w, h, seed, Address::Clamp);
+        let extent = Extent::new(sx, sx * 0.8, sz).unwrap();
+        let maps = all_maps(height, extent, [8, 8, 4]);
+        let mut rng = Rng(seed ^ 0xabcd);
+        let exact_opts = TraceOptions { method: Method::Exact, ..TraceOptions::default() };
+        for _ in 0..32 {
+            let elevation = 3.0 + rng.next_f64() as f32 * 87.0;
+            let ray = ray_from_top(&mut rng, maps.aspect, elevation);
+            let want = maps.displacement.as_ref().unwrap().trace(&ray, &exact_opts).map(|h| h.t);
+            for tech in [Technique::MaxMip, Technique::Distance] {
+                let got = tech.trace(&maps, &ray, 10_000).unwrap().hit.map(|h| h.t);
+                match (want, got) {
+                    (Some(a), Some(b)) => prop_assert!((a - b).abs() < 1e-4 * (1.0 + a), "{}: {b} vs {a}", tech.name()),
+                    (None, None) => {}
+                    other => prop_assert!(false, "{}: {other:?}", tech.name()),
+                }
+            }
+        }
+    }
+}

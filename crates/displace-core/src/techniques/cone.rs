@@ -322,3 +322,25 @@ pub(crate) fn trace(seg: &Segment, cones: &ConeMap, budget: u32) -> Traced {
     }
     seg.hit_at(t, fetches)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rings_hold_exactly_the_texels_at_their_distance() {
+        let (w, h) = (7i64, 5i64);
+        for (i, j) in [(0i64, 0i64), (3, 2), (6, 4)] {
+            for r in 1..8 {
+                let mut got: Vec<_> = ring(i, j, r, w, h).collect();
+                got.sort_unstable();
+                let mut want: Vec<_> = (0..h)
+                    .flat_map(|jj| (0..w).map(move |ii| (ii, jj)))
+                    .filter(|&(ii, jj)| (ii - i).abs().max((jj - j).abs()) == r)
+                    .collect();
+                want.sort_unstable();
+                assert_eq!(got, want, "({i}, {j}) r {r}");
+            }
+        }
+    }
+}

@@ -119,7 +119,10 @@ pub(crate) fn trace(seg: &Segment, pyramid: &MaxPyramid, budget: u32) -> Traced 
         let exit_x = axis_exit(seg.ray.origin.x, d.x, x0, x1);
         let exit_y = axis_exit(seg.ray.origin.y, d.y, y0, y1);
         let t_exit = exit_x.min(exit_y).min(seg.t_out).max(t);
-        if seg.at(t_exit).z > m {
+        // The margin keeps a ray that ends on a node's top (the floor of a
+        // zero-height region, say) from skipping it by a rounding error;
+        // descending costs a fetch, never correctness.
+        if seg.at(t_exit).z > m + 1e-5 {
             t = t_exit.max(next_after(t));
             level = (level + 1).min(top);
             continue;
