@@ -9,6 +9,7 @@ use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
 use displace_core::io::height::{self, Channel, HeightOptions};
 use displace_core::io::{self as dio, MapFile};
+use displace_core::techniques::{ConeKind, ConeMap};
 use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -56,6 +57,25 @@ pub struct BakeArgs {
     /// Also write the tangent-space normal map (+Y up) as a PNG
     #[arg(long, value_name = "NORMALS.png")]
     pub normals: Option<PathBuf>,
+    /// Also write the cone map for cone step mapping, at the height map's
+    /// resolution: .npy float32 (H, W), row j at v = (j + 0.5) / H, each the
+    /// cone ratio (horizontal over vertical; unitless, for this --extent)
+    #[arg(long, value_name = "CONES.npy")]
+    pub cone: Option<PathBuf>,
+    /// Which cones --cone holds: conservative (Dummer 2006, never pass the
+    /// surface) or relaxed (Policarpo and Oliveira, GPU Gems 3 ch. 18)
+    #[arg(long, default_value = "conservative", value_parser = parse_cone_kind)]
+    pub cone_kind: ConeKind,
+}
+
+pub fn parse_cone_kind(s: &str) -> Result<ConeKind, String> {
+    match s {
+        "conservative" => Ok(ConeKind::Conservative),
+        "relaxed" => Ok(ConeKind::Relaxed),
+        other => Err(format!(
+            "unknown cone kind `{other}` (expected conservative or relaxed)"
+        )),
+    }
 }
 
 pub fn parse_channel(s: &str) -> Result<Channel, String> {
@@ -162,6 +182,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             );
         }
     }
+    if let Some(c) = &args.cone {
+        if check_output(c).with_context(|| format!("--cone {}", c.display()))? != MapFile::Npy {
+            bail!("--cone {}: the cone map is written as .npy", c.display());
+        }
+    }
     let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
 
     let bar = DelayedBar::new(format!("baking {}x{}x{}", size[0], size[1], size[2]));
@@ -208,6 +233,22 @@ pub fn run(args: BakeArgs) -> Result<()> {
     );
     if let Some(n) = &args.normals {
         println!("normal map -> {}", n.display());
+    }
+    if let Some(c) = &args.cone {
+        let start = Instant::now();
+        let cones = ConeMap::build(&height, extent.aspect(), args.cone_kind);
+        let seconds = start.elapsed().as_secs_f64();
+        dio::npy::write_file(c, &[cones.height(), cones.width()], cones.data())
+            .with_context(|| format!("writing {}", c.display()))?;
+        println!(
+            "{} cone map {}x{} in {:.3} s ({} KiB) -> {}",
+            args.cone_kind.name(),
+            cones.width(),
+            cones.height(),
+            seconds,
+            cones.bytes() / 1024,
+            c.display()
+        );
     }
     Ok(())
 }

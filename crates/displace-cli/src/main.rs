@@ -7,6 +7,7 @@ mod bench;
 mod bench_bake;
 mod bench_render;
 mod bench_trace;
+mod compare;
 mod export_mesh;
 mod gpu;
 mod progress;
@@ -48,6 +49,9 @@ enum Command {
     /// camera, live depth, iterations, method, shadows and light.
     #[command(after_help = displace_gpu::view::controls::KEYS_HELP)]
     View(view::ViewArgs),
+    /// Parallax, POM, relief, cone stepping, maximum mipmaps and distance
+    /// mapping against the exact hit: CSV, plots and an image grid.
+    Compare(compare::CompareArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -60,6 +64,7 @@ fn main() -> std::process::ExitCode {
         Command::ExportMesh(args) => export_mesh::run(args),
         Command::GpuRender(args) => gpu::run_render(args),
         Command::View(args) => view::run(args),
+        Command::Compare(args) => compare::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -647,3 +647,53 @@ fn bad_inputs_are_refused_cleanly() {
         &["m.ktx2", "addressing"],
     );
 }
+
+#[test]
+fn bakes_cone_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for kind in ["conservative", "relaxed"] {
+        let cone = format!("{kind}.npy");
+        let o = displace(
+            &[
+                "bake",
+                "gen:noise",
+                "--height-size",
+                "20x12",
+                "--size",
+                "8x8x4",
+                "-o",
+                "m.npy",
+                "--cone",
+                &cone,
+                "--cone-kind",
+                kind,
+            ],
+            d,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let a = npy::read_file(&d.join(&cone)).unwrap();
+        assert_eq!(a.shape, vec![12, 20]);
+        assert!(a.data.iter().all(|&c| c > 0.0 && c.is_finite()), "{kind}");
+    }
+    refuses(
+        d,
+        &["bake", "--size", "8x8x4", "-o", "x.npy", "--cone", "c.png"],
+        &["--cone", ".npy"],
+    );
+    refuses(
+        d,
+        &[
+            "bake",
+            "--size",
+            "8x8x4",
+            "-o",
+            "x.npy",
+            "--cone",
+            "c.npy",
+            "--cone-kind",
+            "wide",
+        ],
+        &["cone kind", "wide"],
+    );
+}

@@ -74,6 +74,12 @@ impl DisplacementMap {
         sphere_trace::trace(&self.height, &self.distance, ray, opts)
     }
 
+    /// [`Self::trace`] with its fetch count (distance samples plus patches
+    /// walked), which misses report too.
+    pub fn trace_counted(&self, ray: &MapRay, opts: &TraceOptions) -> (Option<MapHit>, u32) {
+        sphere_trace::trace_counted(&self.height, &self.distance, ray, opts)
+    }
+
     /// Checks that `opts` makes sense for this map before tracing many rays.
     pub fn check_trace(&self, opts: &TraceOptions) -> Result<()> {
         if !(opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0)) {

@@ -36,6 +36,7 @@ pub mod heightmap;
 pub mod io;
 pub mod normal_map;
 pub mod sphere_trace;
+pub mod techniques;
 
 mod displacement;
 

@@ -123,15 +123,18 @@ pub struct MapHit {
 }
 
 /// The shell's box, and where the ray crosses it.
-struct Clip {
-    t_in: f32,
-    t_out: f32,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clip {
+    pub t_in: f32,
+    pub t_out: f32,
     /// Outward normal of the face the ray entered through (zero if the ray
     /// starts inside).
-    entry_normal: Vec3,
+    pub entry_normal: Vec3,
 }
 
-fn clip(ray: &MapRay, hi: Vec3, t_min: f32, t_max: f32) -> Option<Clip> {
+/// Where `ray` crosses the box `[0, hi]` within `[t_min, t_max]` (slabs), or
+/// `None` when it misses it. Every map-space tracer clips with this.
+pub fn clip(ray: &MapRay, hi: Vec3, t_min: f32, t_max: f32) -> Option<Clip> {
     let mut t_in = t_min;
     let mut t_out = t_max;
     let mut entry_normal = Vec3::ZERO;
@@ -172,9 +175,23 @@ pub fn trace(
     ray: &MapRay,
     opts: &TraceOptions,
 ) -> Option<MapHit> {
+    trace_counted(height, distance, ray, opts).0
+}
+
+/// [`trace`], also returning the fetches it made (distance samples plus
+/// patches walked) on a miss as on a hit: what `displace compare` charges.
+pub fn trace_counted(
+    height: &HeightMap,
+    distance: &DistanceMap,
+    ray: &MapRay,
+    opts: &TraceOptions,
+) -> (Option<MapHit>, u32) {
     let aspect = distance.aspect();
     let hi = Vec3::new(aspect[0] * opts.tiles[0], aspect[1] * opts.tiles[1], 1.0);
-    let clip = clip(ray, hi, opts.t_min, opts.t_max)?;
+    let Some(clip) = clip(ray, hi, opts.t_min, opts.t_max) else {
+        return (None, 0);
+    };
+    let hit = |h: MapHit| (Some(h), h.iterations);
     let at = |t: f32| ray.origin + ray.dir * t;
     let uv_of = |p: Vec3| Vec2::new(p.x / aspect[0], p.y / aspect[1]);
     let surface = |t: f64, normal: Vec3, iterations: u32, converged: bool| {
@@ -212,13 +229,13 @@ pub fn trace(
     // Under the surface where the ray enters: the wall of the slab.
     let entry = at(clip.t_in);
     if entry.z < height.sample(entry.x / aspect[0], entry.y / aspect[1]) {
-        return Some(wall(clip.t_in, 0));
+        return hit(wall(clip.t_in, 0));
     }
     if opts.method == Method::Exact {
         return match walk(clip.t_in, clip.t_out) {
-            Walk::Hit(h) => Some(surface(h.t, h.normal, h.cells, true)),
-            Walk::StartsInside { cells } => Some(wall(clip.t_in, cells)),
-            Walk::Miss { .. } => None,
+            Walk::Hit(h) => hit(surface(h.t, h.normal, h.cells, true)),
+            Walk::StartsInside { cells } => hit(wall(clip.t_in, cells)),
+            Walk::Miss { cells } => (None, cells),
         };
     }
 
@@ -240,8 +257,8 @@ pub fn trace(
                 // Donnelly's loop ends here: refine what the map can no longer
                 // resolve, and accept an unconverged hit otherwise.
                 return match walk(t, (t + band).min(clip.t_out)) {
-                    Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
-                    Walk::StartsInside { cells } => Some(surface(
+                    Walk::Hit(h) => hit(surface(h.t, h.normal, iterations + h.cells, true)),
+                    Walk::StartsInside { cells } => hit(surface(
                         t as f64,
                         shading_normal(height, aspect, at(t)),
                         iterations + cells,
@@ -249,7 +266,7 @@ pub fn trace(
                     )),
                     Walk::Miss { cells } => {
                         let p = at(t);
-                        Some(surface(
+                        hit(surface(
                             t as f64,
                             shading_normal(height, aspect, p),
                             iterations + cells,
@@ -260,14 +277,14 @@ pub fn trace(
             }
             // Out of steps: finish exactly, which is always right.
             return match walk(t, clip.t_out) {
-                Walk::Hit(h) => Some(surface(h.t, h.normal, iterations + h.cells, true)),
-                Walk::StartsInside { cells } => Some(surface(
+                Walk::Hit(h) => hit(surface(h.t, h.normal, iterations + h.cells, true)),
+                Walk::StartsInside { cells } => hit(surface(
                     t as f64,
                     shading_normal(height, aspect, at(t)),
                     iterations + cells,
                     true,
                 )),
-                Walk::Miss { .. } => None,
+                Walk::Miss { cells } => (None, iterations + cells),
             };
         }
         let s = distance.sample(at(t));
@@ -276,9 +293,9 @@ pub fn trace(
         if !fixed && s < tau {
             let t1 = (t + band).min(clip.t_out);
             match walk(t, t1) {
-                Walk::Hit(h) => return Some(surface(h.t, h.normal, iterations + h.cells, true)),
+                Walk::Hit(h) => return hit(surface(h.t, h.normal, iterations + h.cells, true)),
                 Walk::StartsInside { cells } => {
-                    return Some(surface(
+                    return hit(surface(
                         t as f64,
                         shading_normal(height, aspect, at(t)),
                         iterations + cells,
@@ -288,7 +305,7 @@ pub fn trace(
                 Walk::Miss { cells } => {
                     iterations += cells;
                     if t1 >= clip.t_out {
-                        return None;
+                        return (None, iterations);
                     }
                     t = t1;
                 }
@@ -299,7 +316,7 @@ pub fn trace(
             t = (t + s).max(clip.t_in);
         }
     }
-    None
+    (None, iterations)
 }
 
 /// Normal of the bilinear surface at map-space point `p` (used where a hit

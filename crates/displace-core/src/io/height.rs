@@ -289,15 +289,14 @@ fn encode_png(
 /// place that encoding is defined). Row `j` of the image is texel row `j`, as
 /// the height map was read, so the two line up pixel for pixel.
 pub fn write_normal_map_png(path: &Path, normals: &NormalMap) -> Result<()> {
-    let bytes = normals.to_rgb8();
+    write_rgb8_png(path, normals.width, normals.height, &normals.to_rgb8())
+}
+
+/// Writes `width x height` 8-bit RGB pixels (row-major, top row first) as a
+/// PNG, atomically.
+pub fn write_rgb8_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
     super::atomic::write_atomic(path, |out| {
-        encode_png(
-            out,
-            normals.width,
-            normals.height,
-            &bytes,
-            image::ExtendedColorType::Rgb8,
-        )
+        encode_png(out, width, height, rgb, image::ExtendedColorType::Rgb8)
     })
 }
 

@@ -1,0 +1,582 @@
+//! `displace compare`: every technique of [`displace_core::techniques`]
+//! against the exact reference on seeded rays, over height maps, view
+//! elevations and budgets (issue 5). Writes `compare.csv` (one row per map,
+//! elevation, technique and budget), `precompute.csv` (time and memory of
+//! each technique's precomputation per map), one plot of error against cost
+//! per map, and an image grid of one view rendered by each technique at
+//! equal cost beside the exact render and error heat maps.
+
+mod grid;
+mod plot;
+
+use crate::bake::{load_height, parse_extent, HeightArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use displace_core::convention::parse_size;
+use displace_core::io::atomic::write_atomic;
+use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique};
+use displace_core::{bake, generators, Address, BakeOptions, Extent, MapRay, Method, TraceOptions};
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Output directory (created if missing): compare.csv, precompute.csv,
+    /// plot_MAP.png per map, grid.png
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// More height maps to compare on (PNG, EXR or gen:...), beside every
+    /// built-in generator; repeat the flag for several
+    #[arg(long = "height", value_name = "HEIGHT")]
+    pub heights: Vec<String>,
+    /// Only these height maps (no built-in generators unless --height names
+    /// them)
+    #[arg(long)]
+    pub only_given: bool,
+    /// Texels of generated maps, WxH [default: 128x128; --quick: 32x32]
+    #[arg(long, value_name = "WxH")]
+    pub height_size: Option<String>,
+    /// Physical width, height and displacement depth of the face
+    #[arg(long, default_value = "1,1,0.1", value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
+    pub extent: Extent,
+    /// Depth slices of the distance map (its W x H is the height map's)
+    #[arg(long, default_value_t = 16)]
+    pub depth: usize,
+    /// Techniques, comma-separated [default: all]
+    #[arg(long, value_delimiter = ',')]
+    pub techniques: Option<Vec<String>>,
+    /// Budgets (layers, steps or node visits), comma-separated
+    /// [default: 4,8,16,32,64,128; --quick: 4,16]
+    #[arg(long)]
+    pub budgets: Option<String>,
+    /// View elevations in degrees above the face, comma-separated
+    /// [default: 5,10,20,45,90; --quick: 10,60]
+    #[arg(long)]
+    pub elevations: Option<String>,
+    /// Rays per map and elevation [default: 2000; --quick: 64]
+    #[arg(long)]
+    pub rays: Option<usize>,
+    /// Seed of the ray sets
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Fetches per ray the image grid's techniques may spend (each gets its
+    /// largest budget within it)
+    #[arg(long, default_value_t = 32.0)]
+    pub grid_fetches: f64,
+    /// Small sizes, for tests
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// One row of compare.csv.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub map: String,
+    pub elevation: f32,
+    pub technique: Technique,
+    pub budget: u32,
+    pub rays: usize,
+    pub wrong: f64,
+    pub mean_error: f64,
+    pub p99_error: f64,
+    pub fetches: f64,
+    pub ns_per_ray: f64,
+}
+
+pub const CSV_HEADER: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray";
+
+/// The settings after defaults and `--quick`.
+struct Plan {
+    techniques: Vec<Technique>,
+    budgets: Vec<u32>,
+    elevations: Vec<f32>,
+    rays: usize,
+    size: [usize; 2],
+}
+
+fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
+    let v: Result<Vec<T>> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<T>()
+                .map_err(|_| anyhow::anyhow!("--{what} {s}: `{p}` is not a number"))
+        })
+        .collect();
+    let v = v?;
+    if v.is_empty() {
+        bail!("--{what}: empty list");
+    }
+    Ok(v)
+}
+
+fn plan(args: &CompareArgs) -> Result<Plan> {
+    let techniques = match &args.techniques {
+        None => Technique::ALL.to_vec(),
+        Some(names) => names
+            .iter()
+            .map(|n| n.trim().parse::<Technique>().context("--techniques"))
+            .collect::<Result<_>>()?,
+    };
+    let budgets: Vec<u32> = parse_list(
+        args.budgets.as_deref().unwrap_or(if args.quick {
+            "4,16"
+        } else {
+            "4,8,16,32,64,128"
+        }),
+        "budgets",
+    )?;
+    if let Some(b) = budgets.iter().find(|&&b| b == 0 || b > 1 << 16) {
+        bail!("--budgets: {b} is out of range (1 to 65536)");
+    }
+    let elevations: Vec<f32> = parse_list(
+        args.elevations
+            .as_deref()
+            .unwrap_or(if args.quick { "10,60" } else { "5,10,20,45,90" }),
+        "elevations",
+    )?;
+    if let Some(e) = elevations.iter().find(|e| !(**e > 0.0 && **e <= 90.0)) {
+        bail!("--elevations: {e} is not in (0, 90] degrees");
+    }
+    let rays = args.rays.unwrap_or(if args.quick { 64 } else { 2000 });
+    if rays == 0 {
+        bail!("--rays must be positive");
+    }
+    let size = match &args.height_size {
+        Some(s) => parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?,
+        None if args.quick => [32, 32],
+        None => [128, 128],
+    };
+    if args.depth < 2 {
+        bail!("--depth must be at least 2");
+    }
+    Ok(Plan {
+        techniques,
+        budgets,
+        elevations,
+        rays,
+        size,
+    })
+}
+
+/// Short name of a height source for the CSV and file names.
+fn map_name(spec: &str) -> String {
+    let base = spec
+        .strip_prefix(generators::PREFIX)
+        .map(str::to_string)
+        .unwrap_or_else(|| {
+            Path::new(spec)
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| spec.to_string())
+        });
+    base.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Time and memory of one precomputation.
+struct Precompute {
+    name: &'static str,
+    seconds: f64,
+    bytes: usize,
+}
+
+/// Builds every precomputation the plan's techniques need, timed.
+fn prepare(
+    height: displace_core::HeightMap,
+    extent: Extent,
+    depth: usize,
+    techniques: &[Technique],
+) -> Result<(Maps, Vec<Precompute>)> {
+    use displace_core::techniques::Needs;
+    let aspect = extent.aspect();
+    let mut maps = Maps::new(height.clone(), aspect);
+    let mut report = Vec::new();
+    let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
+    let timed = |f: &mut dyn FnMut()| {
+        let start = Instant::now();
+        f();
+        start.elapsed().as_secs_f64()
+    };
+    if needs(Needs::ConservativeCones) {
+        let mut c = None;
+        let seconds =
+            timed(&mut || c = Some(ConeMap::build(&height, aspect, ConeKind::Conservative)));
+        let c = c.expect("built");
+        report.push(Precompute {
+            name: "cone map",
+            seconds,
+            bytes: c.bytes(),
+        });
+        maps.cones = Some(c);
+    }
+    if needs(Needs::RelaxedCones) {
+        let mut c = None;
+        let seconds = timed(&mut || c = Some(ConeMap::build(&height, aspect, ConeKind::Relaxed)));
+        let c = c.expect("built");
+        report.push(Precompute {
+            name: "relaxed cone map",
+            seconds,
+            bytes: c.bytes(),
+        });
+        maps.relaxed = Some(c);
+    }
+    if needs(Needs::Pyramid) {
+        let mut p = None;
+        let seconds = timed(&mut || p = Some(MaxPyramid::build(&height)));
+        let p = p.expect("built");
+        report.push(Precompute {
+            name: "max pyramid",
+            seconds,
+            bytes: p.bytes(),
+        });
+        maps.pyramid = Some(p);
+    }
+    // The exact reference traces through the baked map's `Method::Exact`,
+    // so the distance map is always built; it is reported only when a
+    // distance technique is compared.
+    let opts = BakeOptions {
+        size: [height.width(), height.height(), depth],
+        extent,
+        ..BakeOptions::default()
+    };
+    let start = Instant::now();
+    let baked = bake(&height, &opts).context("baking the distance map")?;
+    let seconds = start.elapsed().as_secs_f64();
+    if needs(Needs::DistanceMap) {
+        report.push(Precompute {
+            name: "distance map",
+            seconds,
+            bytes: baked.distance.data().len() * 4,
+        });
+    }
+    maps.displacement = Some(baked);
+    Ok((maps, report))
+}
+
+/// SplitMix64: the seeded ray sets.
+struct Rng(u64);
+
+impl Rng {
+    fn next_f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// `n` rays entering the top of the face at uniform random points,
+/// `elevation` degrees above it, uniform random azimuth.
+fn rays(aspect: [f32; 2], elevation: f32, n: usize, seed: u64) -> Vec<MapRay> {
+    let mut rng = Rng(seed);
+    let e = elevation.to_radians();
+    (0..n)
+        .map(|_| {
+            let o = Vec3::new(rng.next_f32() * aspect[0], rng.next_f32() * aspect[1], 1.0);
+            let a = rng.next_f32() * std::f32::consts::TAU;
+            MapRay::new(o, Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()))
+        })
+        .collect()
+}
+
+/// The exact hit's texture coordinate, per ray.
+pub fn exact_hits(maps: &Maps, rays: &[MapRay]) -> Vec<Option<Vec2>> {
+    let map = maps.displacement.as_ref().expect("always baked");
+    let opts = TraceOptions {
+        method: Method::Exact,
+        ..TraceOptions::default()
+    };
+    rays.iter()
+        .map(|r| map.trace(r, &opts).map(|h| h.uv))
+        .collect()
+}
+
+/// Hit error in texels (`None`: wrong hit/miss; `Some(0)` for agreeing
+/// misses is not counted as a hit error).
+pub fn texel_error(
+    height: [usize; 2],
+    want: Option<Vec2>,
+    got: Option<Vec2>,
+) -> Option<Option<f32>> {
+    match (want, got) {
+        (Some(w), Some(g)) => Some(Some(
+            ((g - w) * Vec2::new(height[0] as f32, height[1] as f32)).length(),
+        )),
+        (None, None) => Some(None),
+        _ => None,
+    }
+}
+
+/// Rays per timed chunk of [`measure`].
+const CHUNK: usize = 100;
+
+/// Runs `tech` at `budget` on `rays` on this thread. Returns the hits, the
+/// mean fetches per ray and the time per ray: the median over chunks of
+/// [`CHUNK`] rays, so that a chunk preempted by another process on a
+/// shared machine does not move the figure.
+fn measure(
+    maps: &Maps,
+    tech: Technique,
+    budget: u32,
+    rays: &[MapRay],
+) -> Result<(Vec<Option<Vec2>>, f64, f64)> {
+    let mut got = Vec::with_capacity(rays.len());
+    let mut fetches = 0u64;
+    let mut per_ray = Vec::new();
+    for chunk in rays.chunks(CHUNK) {
+        let start = Instant::now();
+        for ray in chunk {
+            let t = tech.trace(maps, ray, budget)?;
+            fetches += t.fetches as u64;
+            got.push(t.hit.map(|h| h.uv));
+        }
+        per_ray.push(start.elapsed().as_nanos() as f64 / chunk.len() as f64);
+    }
+    per_ray.sort_by(f64::total_cmp);
+    Ok((
+        got,
+        fetches as f64 / rays.len() as f64,
+        per_ray[per_ray.len() / 2],
+    ))
+}
+
+fn score(size: [usize; 2], exact: &[Option<Vec2>], got: &[Option<Vec2>]) -> (f64, f64, f64) {
+    let mut wrong = 0usize;
+    let mut errors = Vec::new();
+    for (w, g) in exact.iter().zip(got) {
+        match texel_error(size, *w, *g) {
+            None => wrong += 1,
+            Some(Some(e)) => errors.push(e as f64),
+            Some(None) => {}
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let mean = if errors.is_empty() {
+        0.0
+    } else {
+        errors.iter().sum::<f64>() / errors.len() as f64
+    };
+    let p99 = if errors.is_empty() {
+        0.0
+    } else {
+        errors[((errors.len() as f64 * 0.99) as usize).min(errors.len() - 1)]
+    };
+    (wrong as f64 / exact.len() as f64, mean, p99)
+}
+
+/// Error bound of the equal-error table: issue 5's 99th percentile below
+/// half a texel, with at most 1% of rays getting hit/miss wrong.
+pub const EQUAL_ERROR_TEXELS: f64 = 0.5;
+
+/// For every map, elevation and technique (first row of each group), the
+/// cheapest row (fewest fetches) within [`EQUAL_ERROR_TEXELS`], if any.
+fn equal_error(rows: &[Row]) -> Vec<(&Row, Option<&Row>)> {
+    let mut out: Vec<(&Row, Option<&Row>)> = Vec::new();
+    for r in rows {
+        let ok = r.p99_error < EQUAL_ERROR_TEXELS && r.wrong <= 0.01;
+        let same =
+            |o: &Row| o.map == r.map && o.elevation == r.elevation && o.technique == r.technique;
+        match out.iter_mut().find(|(g, _)| same(g)) {
+            Some((_, best)) => {
+                if ok && best.is_none_or(|b| r.fetches < b.fetches) {
+                    *best = Some(r);
+                }
+            }
+            None => out.push((r, ok.then_some(r))),
+        }
+    }
+    out
+}
+
+pub fn run(args: CompareArgs) -> Result<()> {
+    let plan = plan(&args)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating the output directory {}", args.out.display()))?;
+    let mut sources: Vec<String> = if args.only_given {
+        Vec::new()
+    } else {
+        generators::NAMES
+            .iter()
+            .map(|n| format!("{}{n}", generators::PREFIX))
+            .collect()
+    };
+    sources.extend(args.heights.iter().cloned());
+    if sources.is_empty() {
+        bail!("--only-given with no --height: nothing to compare");
+    }
+    let height_args = HeightArgs {
+        height_size: Some(format!("{}x{}", plan.size[0], plan.size[1])),
+        channel: None,
+        address: Address::Clamp,
+    };
+    // Read every map first: a bad file fails before minutes of work.
+    let heights = sources
+        .iter()
+        .map(|s| load_height(s, &height_args, plan.size).map(|h| (map_name(s), h)))
+        .collect::<Result<Vec<_>>>()?;
+
+    let started = Instant::now();
+    let mut rows = Vec::new();
+    let mut precompute = Vec::new();
+    let mut grid_maps = None;
+    for (k, (name, height)) in heights.into_iter().enumerate() {
+        let size = [height.width(), height.height()];
+        let (maps, report) = prepare(height, args.extent, args.depth, &plan.techniques)?;
+        for p in report {
+            precompute.push((name.clone(), p));
+        }
+        for &elevation in &plan.elevations {
+            let seed = args.seed ^ ((k as u64) << 32) ^ (elevation.to_bits() as u64);
+            let rays = rays(maps.aspect, elevation, plan.rays, seed);
+            let exact = exact_hits(&maps, &rays);
+            for &tech in &plan.techniques {
+                let budgets: &[u32] = if tech.uses_budget() {
+                    &plan.budgets
+                } else {
+                    &[1]
+                };
+                for &budget in budgets {
+                    let (got, fetches, ns) = measure(&maps, tech, budget, &rays)?;
+                    let (wrong, mean_error, p99_error) = score(size, &exact, &got);
+                    rows.push(Row {
+                        map: name.clone(),
+                        elevation,
+                        technique: tech,
+                        budget,
+                        rays: rays.len(),
+                        wrong,
+                        mean_error,
+                        p99_error,
+                        fetches,
+                        ns_per_ray: ns,
+                    });
+                }
+            }
+        }
+        // The grid shows the first map the user gave, else the text map.
+        let wanted = if args.heights.is_empty() {
+            "text".to_string()
+        } else {
+            map_name(&args.heights[0])
+        };
+        if name == wanted || (grid_maps.is_none() && k == 0) {
+            grid_maps = Some((name.clone(), maps));
+        }
+    }
+
+    let csv = args.out.join("compare.csv");
+    write_atomic(&csv, |w| {
+        writeln!(w, "{CSV_HEADER}")?;
+        for r in &rows {
+            writeln!(
+                w,
+                "{},{},{},{},{},{:.6},{:.6},{:.6},{:.3},{:.1}",
+                r.map,
+                r.elevation,
+                r.technique.name(),
+                r.budget,
+                r.rays,
+                r.wrong,
+                r.mean_error,
+                r.p99_error,
+                r.fetches,
+                r.ns_per_ray
+            )?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", csv.display()))?;
+    let pre = args.out.join("precompute.csv");
+    write_atomic(&pre, |w| {
+        writeln!(w, "map,precomputation,seconds,bytes")?;
+        for (map, p) in &precompute {
+            writeln!(w, "{map},{},{:.4},{}", p.name, p.seconds, p.bytes)?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", pre.display()))?;
+
+    let equal = args.out.join("equal_error.csv");
+    write_atomic(&equal, |w| {
+        writeln!(
+            w,
+            "map,elevation_deg,technique,budget,fetches_per_ray,ns_per_ray"
+        )?;
+        for (r, cheapest) in equal_error(&rows) {
+            match cheapest {
+                Some(c) => writeln!(
+                    w,
+                    "{},{},{},{},{:.3},{:.1}",
+                    r.map,
+                    r.elevation,
+                    r.technique.name(),
+                    c.budget,
+                    c.fetches,
+                    c.ns_per_ray
+                )?,
+                None => writeln!(w, "{},{},{},,,", r.map, r.elevation, r.technique.name())?,
+            }
+        }
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", equal.display()))?;
+
+    let plots = plot::write_all(&args.out, &rows, &plan.techniques)?;
+    let (grid_name, grid_maps) = grid_maps.expect("at least one map");
+    let grid_path = args.out.join("grid.png");
+    let picked = grid::write(
+        &grid_path,
+        &grid_maps,
+        &plan.techniques,
+        &plan.budgets,
+        args.grid_fetches,
+        if args.quick { 48 } else { 128 },
+    )?;
+
+    println!(
+        "compared {} techniques on {} maps x {} elevations x {} rays in {:.1} s",
+        plan.techniques.len(),
+        rows.iter()
+            .map(|r| &r.map)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len(),
+        plan.elevations.len(),
+        plan.rays,
+        started.elapsed().as_secs_f64()
+    );
+    for (map, p) in &precompute {
+        println!(
+            "  precompute {map:>10} {:<17} {:>8.3} s {:>8} KiB",
+            p.name,
+            p.seconds,
+            p.bytes / 1024
+        );
+    }
+    println!("-> {}", csv.display());
+    println!("-> {}", pre.display());
+    println!("-> {}", equal.display());
+    for p in plots {
+        println!("-> {}", p.display());
+    }
+    println!(
+        "-> {} ({grid_name}; at about {} fetches per ray: {})",
+        grid_path.display(),
+        args.grid_fetches,
+        picked
+            .iter()
+            .map(|(t, b)| format!("{} {b}", t.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}

@@ -1,0 +1,142 @@
+//! `displace compare --quick` end to end: the CSV has the expected columns
+//! and one row per map, elevation, technique and budget with sane values;
+//! plots and grid are valid PNGs; bad input fails cleanly.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn displace(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_displace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run displace")
+}
+
+const COLUMNS: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray";
+
+#[test]
+fn quick_compare_writes_csv_plots_and_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A user height map beside the generators.
+    let img =
+        image::GrayImage::from_fn(24, 24, |x, y| image::Luma([((x * 7 + y * 3) % 256) as u8]));
+    img.save(d.join("mine.png")).unwrap();
+    let o = displace(
+        &["compare", "--quick", "--out", "out", "--height", "mine.png"],
+        d,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(d.join("out/compare.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some(COLUMNS));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // 7 maps x 2 elevations x (10 techniques x 2 budgets + parallax once).
+    assert_eq!(rows.len(), 7 * 2 * 21);
+    let maps: std::collections::BTreeSet<&str> = rows.iter().map(|r| r[0]).collect();
+    for m in [
+        "flat", "gaussian", "studded", "grating", "text", "noise", "mine",
+    ] {
+        assert!(maps.contains(m), "{m} missing from {maps:?}");
+    }
+    for r in &rows {
+        assert_eq!(r.len(), 10);
+        let wrong: f64 = r[5].parse().unwrap();
+        let p99: f64 = r[7].parse().unwrap();
+        let fetches: f64 = r[8].parse().unwrap();
+        assert!(
+            (0.0..=1.0).contains(&wrong) && p99 >= 0.0 && fetches >= 1.0,
+            "{r:?}"
+        );
+    }
+    // Ours is exact everywhere; steep parallax at 4 layers is not.
+    let worst = |tech: &str, budget: &str| {
+        rows.iter()
+            .filter(|r| r[2] == tech && r[3] == budget)
+            .map(|r| r[7].parse::<f64>().unwrap() + r[5].parse::<f64>().unwrap())
+            .fold(0.0, f64::max)
+    };
+    assert!(worst("distance", "4") < 1e-3);
+    assert!(worst("steep", "4") > 0.5);
+    // One equal-error row per map, elevation and technique; distance
+    // mapping always reaches the bound at the smallest budget.
+    let equal = std::fs::read_to_string(d.join("out/equal_error.csv")).unwrap();
+    assert_eq!(equal.lines().count(), 1 + 7 * 2 * 11);
+    assert!(equal
+        .lines()
+        .filter(|l| l.split(',').nth(2) == Some("distance"))
+        .all(|l| l.split(',').nth(3) == Some("4")));
+    let pre = std::fs::read_to_string(d.join("out/precompute.csv")).unwrap();
+    assert!(pre.starts_with("map,precomputation,seconds,bytes"));
+    assert_eq!(pre.lines().count(), 1 + 7 * 4);
+    for m in &maps {
+        let p = d.join(format!("out/plot_{m}.png"));
+        let img = image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert!(img.width() > 100 && img.height() > 100);
+    }
+    let grid = image::open(d.join("out/grid.png")).unwrap();
+    assert_eq!(grid.width(), 12 * 48);
+}
+
+fn refuses(args: &[&str], needle: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let o = displace(args, dir.path());
+    let msg = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(!msg.contains("panicked"), "{msg}");
+    assert!(
+        msg.to_lowercase().contains(&needle.to_lowercase()),
+        "`{needle}` not in {msg}"
+    );
+    assert!(!dir.path().join("out/compare.csv").exists());
+}
+
+#[test]
+fn bad_input_is_refused() {
+    refuses(
+        &[
+            "compare",
+            "--quick",
+            "--out",
+            "out",
+            "--techniques",
+            "pom,warp",
+        ],
+        "unknown technique `warp`",
+    );
+    refuses(
+        &["compare", "--quick", "--out", "out", "--budgets", "4,x"],
+        "--budgets",
+    );
+    refuses(
+        &["compare", "--quick", "--out", "out", "--budgets", "0"],
+        "out of range",
+    );
+    refuses(
+        &["compare", "--quick", "--out", "out", "--elevations", "95"],
+        "--elevations",
+    );
+    refuses(
+        &[
+            "compare",
+            "--quick",
+            "--out",
+            "out",
+            "--height",
+            "missing.png",
+        ],
+        "missing.png",
+    );
+    refuses(
+        &[
+            "compare",
+            "--quick",
+            "--out",
+            "out",
+            "--height",
+            "gen:bogus",
+        ],
+        "bogus",
+    );
+}

@@ -1,0 +1,346 @@
+//! Cone step mapping (Dummer 2006) and relaxed cone stepping (Policarpo and
+//! Oliveira, GPU Gems 3 ch. 18), with their cone maps.
+//!
+//! A cone map stores, per height texel, a cone ratio `c` (horizontal over
+//! vertical, in map units: shell depths both ways, so the ratio depends on
+//! the face's proportions). Tracing reads the height `h` under the current
+//! point (bilinear) and the ratio of the texel it lies in (nearest), and
+//! steps to where the ray meets the cone of apex `(x, y, h)`: with the ray
+//! falling `s_v` and moving `s_h` sideways per unit length, and `z - h`
+//! above the surface (texture space's `depth_surface - depth_ray`), the step
+//! is `c (z - h) / (c s_v + s_h)`, Dummer's formula with depth turned into
+//! height.
+//!
+//! **Conservative cones** ([`ConeKind::Conservative`]) contain no surface,
+//! for any apex in the texel, so a step never passes the first hit. Dummer
+//! bakes them from texel samples, which is not safe on the bilinear
+//! surface; here the ratio of texel `T` (footprint `[i, i + 1] / W`) is the
+//! largest `c` with `h(q) - h(p) <= |q - p| / c` for every `p` in `T` and
+//! every surface point `q` of the face, bounded exactly from below:
+//! texels `Q` next to `T` through the steepest slope over the 3x3 block
+//! (the segment `p -> q` stays in it; a bilinear patch is steepest at a
+//! corner), farther ones through `dist(T, Q) / (max_Q h - min_T h)`.
+//!
+//! **Relaxed cones** ([`ConeKind::Relaxed`]) may contain surface, but no
+//! point where a viewing ray through the top of the texel's column leaves
+//! the surface after entering it, so one step crosses the surface at most
+//! once and a binary search on the last step finds the hit. Baked as
+//! Policarpo and Oliveira's listing 18-5: for each other texel `Q`, the ray
+//! from `(T, top)` through `Q`'s surface point is marched on until it comes
+//! out of the surface, and the ratio is capped by that exit point. The
+//! march steps a quarter texel; a ray that only comes out past the face or
+//! the floor does not constrain the cone.
+
+use super::linear::{bisect, Bracket, BINARY_STEPS};
+use super::{Segment, Traced};
+use crate::convention::texel_centre;
+use crate::HeightMap;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Largest ratio stored: a cone that wide covers any face the tests and
+/// `displace compare` use from any height.
+pub const MAX_RATIO: f32 = 1.0e6;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ConeKind {
+    Conservative,
+    Relaxed,
+}
+
+impl ConeKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            ConeKind::Conservative => "conservative",
+            ConeKind::Relaxed => "relaxed",
+        }
+    }
+}
+
+/// Cone ratios, one per height texel, row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConeMap {
+    kind: ConeKind,
+    width: usize,
+    height: usize,
+    /// Texel size in map units.
+    texel: Vec2,
+    data: Vec<f32>,
+}
+
+impl ConeMap {
+    /// Bakes the cone map of `height` for a tile of `aspect` (shell depths),
+    /// texels in parallel.
+    pub fn build(height: &HeightMap, aspect: [f32; 2], kind: ConeKind) -> Self {
+        let (w, h) = (height.width(), height.height());
+        let texel = Vec2::new(aspect[0] / w as f32, aspect[1] / h as f32);
+        let data = match kind {
+            ConeKind::Conservative => conservative(height, texel),
+            ConeKind::Relaxed => relaxed(height, aspect, texel),
+        };
+        Self {
+            kind,
+            width: w,
+            height: h,
+            texel,
+            data,
+        }
+    }
+
+    pub fn kind(&self) -> ConeKind {
+        self.kind
+    }
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Row-major ratios, `data[j * width + i]`.
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    pub fn bytes(&self) -> usize {
+        self.data.len() * 4
+    }
+
+    /// The ratio of the texel under map-space `p` (nearest, clamped).
+    pub fn ratio_at(&self, p: Vec3) -> f32 {
+        let i = ((p.x / self.texel.x) as i64).clamp(0, self.width as i64 - 1) as usize;
+        let j = ((p.y / self.texel.y) as i64).clamp(0, self.height as i64 - 1) as usize;
+        self.data[j * self.width + i]
+    }
+}
+
+/// Exact range of the surface over every texel footprint.
+fn footprint_ranges(height: &HeightMap) -> Vec<(f32, f32)> {
+    let (w, h) = (height.width(), height.height());
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            (0..w).map(move |i| {
+                height.range(
+                    i as f32 / w as f32,
+                    (i + 1) as f32 / w as f32,
+                    j as f32 / h as f32,
+                    (j + 1) as f32 / h as f32,
+                )
+            })
+        })
+        .collect()
+}
+
+/// Steepest slope (height per map unit) of every bilinear cell, indexed by
+/// cell + 1 as [`super::MaxPyramid`] does: `(W + 1) x (H + 1)`.
+fn cell_slopes(height: &HeightMap, texel: Vec2) -> Vec<f32> {
+    let (w, h) = (height.width() + 1, height.height() + 1);
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            (0..w).map(move |i| {
+                let [h00, h10, h01, h11] = height.cell(i as i64 - 1, k as i64 - 1);
+                let (a, b, c) = (h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
+                let mut s = 0.0f32;
+                for (fx, fy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                    let gx = (a + c * fy) / texel.x;
+                    let gy = (b + c * fx) / texel.y;
+                    s = s.max((gx * gx + gy * gy).sqrt());
+                }
+                s
+            })
+        })
+        .collect()
+}
+
+fn conservative(height: &HeightMap, texel: Vec2) -> Vec<f32> {
+    let (w, h) = (height.width() as i64, height.height() as i64);
+    let ranges = footprint_ranges(height);
+    let slopes = cell_slopes(height, texel);
+    let range = |i: i64, j: i64| ranges[(j * w + i) as usize];
+    let ring_gap = texel.min_element();
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            let (range, slopes) = (&range, &slopes);
+            (0..w).map(move |i| {
+                let lo = range(i, j).0;
+                // Texels next to T: the steepest slope over the 3x3 block,
+                // whose bilinear cells are indices i - 1 ..= i + 2.
+                let mut best = MAX_RATIO;
+                let mut rises = false;
+                let mut slope = 0.0f32;
+                for jj in (j - 1).max(0)..=(j + 1).min(h - 1) {
+                    for ii in (i - 1).max(0)..=(i + 1).min(w - 1) {
+                        rises |= range(ii, jj).1 > lo;
+                    }
+                }
+                if rises {
+                    for k in (j - 1).max(0)..=(j + 2).min(h) {
+                        for c in (i - 1).max(0)..=(i + 2).min(w) {
+                            slope = slope.max(slopes[(k * (w + 1) + c) as usize]);
+                        }
+                    }
+                    if slope > 0.0 {
+                        best = best.min(1.0 / slope);
+                    }
+                }
+                // Farther texels, ring by ring until no texel of a ring can
+                // beat the best ratio (no surface rises above 1).
+                let rise = 1.0 - lo;
+                let mut r = 2i64;
+                while rise > 0.0 && r < w.max(h) && (r - 1) as f32 * ring_gap < best * rise {
+                    for (ii, jj) in ring(i, j, r, w, h) {
+                        let hi = range(ii, jj).1;
+                        if hi > lo {
+                            let dx = ((ii - i).abs() - 1) as f32 * texel.x;
+                            let dy = ((jj - j).abs() - 1) as f32 * texel.y;
+                            let dx = dx.max(0.0);
+                            let dy = dy.max(0.0);
+                            best = best.min((dx * dx + dy * dy).sqrt() / (hi - lo));
+                        }
+                    }
+                    r += 1;
+                }
+                best
+            })
+        })
+        .collect()
+}
+
+/// Texels at Chebyshev distance `r` from `(i, j)` inside a `w x h` map.
+fn ring(i: i64, j: i64, r: i64, w: i64, h: i64) -> impl Iterator<Item = (i64, i64)> {
+    (j - r..=j + r)
+        .flat_map(move |jj| {
+            let edge = (jj - j).abs() == r;
+            let step = if edge { 1 } else { 2 * r };
+            (i - r..=i + r)
+                .step_by(step as usize)
+                .map(move |ii| (ii, jj))
+        })
+        .filter(move |&(ii, jj)| ii >= 0 && jj >= 0 && ii < w && jj < h)
+}
+
+fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
+    let (w, h) = (height.width() as i64, height.height() as i64);
+    let centre = |i: i64, j: i64| {
+        Vec2::new(
+            texel_centre(i as usize, w as usize) * aspect[0],
+            texel_centre(j as usize, h as usize) * aspect[1],
+        )
+    };
+    let surface = |p: Vec2| height.sample(p.x / aspect[0], p.y / aspect[1]);
+    let march = 0.25 * texel.min_element();
+    let ring_gap = texel.min_element();
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            (0..w).map(move |i| {
+                let apex_xy = centre(i, j);
+                let apex = height.texel(i, j);
+                let rise = 1.0 - apex;
+                let mut best = MAX_RATIO;
+                let mut r = 1i64;
+                while rise > 0.0 && r < w.max(h) && r as f32 * ring_gap < best * rise {
+                    for (ii, jj) in ring(i, j, r, w, h) {
+                        let hq = height.texel(ii, jj);
+                        if hq <= apex {
+                            continue;
+                        }
+                        let q = centre(ii, jj);
+                        // The exit point lies past q and below hq: no ratio
+                        // under this one.
+                        if (q - apex_xy).length() >= best * (hq - apex) {
+                            continue;
+                        }
+                        // From (apex_xy, 1) through (q, hq), on down: per unit
+                        // of horizontal travel the ray falls `fall`.
+                        let along = (q - apex_xy).normalize();
+                        let fall = (1.0 - hq) / (q - apex_xy).length();
+                        let mut s = march;
+                        loop {
+                            let xy = q + along * s;
+                            let z = hq - fall * s;
+                            if z <= 0.0
+                                || xy.x < 0.0
+                                || xy.y < 0.0
+                                || xy.x > aspect[0]
+                                || xy.y > aspect[1]
+                            {
+                                break;
+                            }
+                            if z > surface(xy) {
+                                if z > apex {
+                                    best = best.min((xy - apex_xy).length() / (z - apex));
+                                }
+                                break;
+                            }
+                            s += march;
+                        }
+                    }
+                    r += 1;
+                }
+                best
+            })
+        })
+        .collect()
+}
+
+/// Cone stepping with `cones` for at most `budget` steps (two fetches each:
+/// the height and the ratio). Conservative cones stop on the surface or
+/// where the budget ends; relaxed cones finish with a binary search once a
+/// step lands under the surface.
+pub(crate) fn trace(seg: &Segment, cones: &ConeMap, budget: u32) -> Traced {
+    let d = seg.ray.dir;
+    let s_v = -d.z;
+    let s_h = (d.x * d.x + d.y * d.y).sqrt();
+    let mut t = seg.t_in;
+    let mut fetches = 0;
+    let mut above = None;
+    for _ in 0..budget {
+        if t > seg.t_out {
+            return Traced { hit: None, fetches };
+        }
+        let probe = seg.probe(t);
+        let c = cones.ratio_at(seg.at(t));
+        fetches += 2;
+        if probe.gap <= 0.0 {
+            return match above {
+                Some(above) if cones.kind == ConeKind::Relaxed => {
+                    let b = Bracket {
+                        above,
+                        below: probe,
+                        fetches,
+                    };
+                    let (t, fetches) = bisect(seg, b, BINARY_STEPS);
+                    seg.hit_at(t, fetches)
+                }
+                _ => seg.hit_at(t, fetches),
+            };
+        }
+        above = Some(probe);
+        t += c * probe.gap / (c * s_v + s_h);
+    }
+    seg.hit_at(t, fetches)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rings_hold_exactly_the_texels_at_their_distance() {
+        let (w, h) = (7i64, 5i64);
+        for (i, j) in [(0i64, 0i64), (3, 2), (6, 4)] {
+            for r in 1..8 {
+                let mut got: Vec<_> = ring(i, j, r, w, h).collect();
+                got.sort_unstable();
+                let mut want: Vec<_> = (0..h)
+                    .flat_map(|jj| (0..w).map(move |ii| (ii, jj)))
+                    .filter(|&(ii, jj)| (ii - i).abs().max((jj - j).abs()) == r)
+                    .collect();
+                want.sort_unstable();
+                assert_eq!(got, want, "({i}, {j}) r {r}");
+            }
+        }
+    }
+}
