@@ -8,7 +8,9 @@
 //! question with the same conventions (`shaders/convention.wgsl`); the
 //! raster path of section 8.5 ([`Renderer`]: listing 8-1's vertex stage,
 //! listing 8-2's fragment stage with exact refinement, normal-mapped
-//! shading, self-shadowing); and GPU-timed benchmarks ([`bench`]).
+//! shading, self-shadowing); the techniques engines ship, beside distance
+//! mapping, run on batches of rays ([`TechniqueTracer`], issue 5); and
+//! GPU-timed benchmarks ([`bench`]).
 
 pub mod bench;
 pub mod context;
@@ -17,6 +19,8 @@ pub mod error;
 pub mod gpu_map;
 pub mod raster;
 pub mod shaders;
+pub mod technique_maps;
+pub mod techniques;
 pub mod test_support;
 pub mod timing;
 pub mod trace;
@@ -26,6 +30,7 @@ pub use error::Error;
 pub use gpu_map::{GpuMap, MapParams};
 pub use raster::{Image, PlaneScene, Renderer, Shadows};
 pub use shaders::DistanceTexture;
+pub use techniques::{technique_costs, TechniqueCost, TechniqueTracer};
 pub use trace::{trace_rays, GpuHit, GpuTraceOptions, RayTracer};
 
 /// Result type of this crate.

@@ -9,6 +9,8 @@ pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
+pub const TECHNIQUES: &str = include_str!("../shaders/techniques.wgsl");
+pub const TECHNIQUE_COMPUTE: &str = include_str!("../shaders/technique_compute.wgsl");
 
 /// How the shaders read the distance map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -18,6 +20,12 @@ pub enum DistanceTexture {
     /// at full precision, on any GPU (R32Float need not be filterable).
     #[default]
     R32Load,
+    /// The CPU tracer's own 8-bit codes ([`displace_core::DistanceMap::sample`]),
+    /// stored as R32Float, interpolated by `textureLoad` in its order of
+    /// operations and decoded as it decodes them: bit for bit the distances
+    /// the CPU reads, so Donnelly's fixed loop stops where the CPU's does
+    /// (`displace compare` runs the CPU and WGSL techniques side by side).
+    R8Load,
     /// R16Float rounded down, through a linear sampler (Donnelly's way).
     R16Linear,
     /// R8Unorm rounded down over the map's range, through a linear sampler:
@@ -26,18 +34,20 @@ pub enum DistanceTexture {
 }
 
 impl DistanceTexture {
-    pub const ALL: [DistanceTexture; 3] = [Self::R32Load, Self::R16Linear, Self::R8Linear];
+    pub const ALL: [DistanceTexture; 4] =
+        [Self::R32Load, Self::R8Load, Self::R16Linear, Self::R8Linear];
 
     pub fn name(self) -> &'static str {
         match self {
             Self::R32Load => "r32-load",
+            Self::R8Load => "r8-load",
             Self::R16Linear => "r16-linear",
             Self::R8Linear => "r8-linear",
         }
     }
 
     pub fn filtered(self) -> bool {
-        self != Self::R32Load
+        matches!(self, Self::R16Linear | Self::R8Linear)
     }
 }
 
@@ -49,7 +59,7 @@ impl std::str::FromStr for DistanceTexture {
             .find(|d| d.name() == s)
             .ok_or_else(|| {
                 crate::Error::InvalidOption(format!(
-                    "unknown distance texture `{s}` (expected r32-load, r16-linear or r8-linear)"
+                    "unknown distance texture `{s}` (expected r32-load, r8-load, r16-linear or r8-linear)"
                 ))
             })
     }
@@ -71,6 +81,16 @@ pub fn compute_trace_source(texture: DistanceTexture) -> String {
     [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
 }
 
+/// The batch query of every issue-5 technique (`shaders/techniques.wgsl`).
+pub fn technique_compute_source(texture: DistanceTexture) -> String {
+    [
+        map_trace_source(texture).as_str(),
+        TECHNIQUES,
+        TECHNIQUE_COMPUTE,
+    ]
+    .join("\n")
+}
+
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
 /// shadowing variants are uniforms of one module).
 pub fn raster_source(texture: DistanceTexture) -> String {
@@ -89,6 +109,12 @@ pub fn all_modules() -> Vec<(String, String)> {
         out.push((
             format!("trace-compute/{}", t.name()),
             compute_trace_source(t),
+        ));
+    }
+    for t in DistanceTexture::ALL {
+        out.push((
+            format!("technique-compute/{}", t.name()),
+            technique_compute_source(t),
         ));
     }
     out.push(("fetch-loop/filtered".into(), fetch_loop_source()));

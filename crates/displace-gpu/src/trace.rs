@@ -16,14 +16,55 @@ use wgpu::util::DeviceExt;
 /// What [`trace_rays`] returns per ray: the CPU's hit record.
 pub type GpuHit = MapHit;
 
-/// Mirror of WGSL `RayIn`.
+/// Mirror of WGSL `RayIn` (convention.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct RayIn {
+pub(crate) struct RayIn {
     origin: [f32; 3],
     _pad0: f32,
     dir: [f32; 3],
     _pad1: f32,
+}
+
+impl RayIn {
+    /// The shader's copies of `rays`.
+    pub(crate) fn all(rays: &[MapRay]) -> Vec<RayIn> {
+        rays.iter()
+            .map(|r| RayIn {
+                origin: r.origin.to_array(),
+                _pad0: 0.0,
+                dir: r.dir.to_array(),
+                _pad1: 0.0,
+            })
+            .collect()
+    }
+}
+
+/// Refuses rays the shaders cannot trace, naming the first bad one.
+pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
+    for (index, r) in rays.iter().enumerate() {
+        if !(r.origin.is_finite() && r.dir.is_finite()) {
+            return Err(Error::InvalidRay {
+                index,
+                reason: format!("origin {} and direction {} must be finite", r.origin, r.dir),
+            });
+        }
+        if r.dir.length_squared() == 0.0 {
+            return Err(Error::InvalidRay {
+                index,
+                reason: "direction is zero".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Rays per dispatch: what one storage binding of `per_hit`-byte results
+/// and one dispatch dimension allow, at most 2^20.
+pub(crate) fn chunk_size(ctx: &GpuContext, per_hit: u64) -> usize {
+    let by_buffer = ctx.limits.max_storage_buffer_binding_size / per_hit;
+    let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP as u64;
+    by_buffer.min(by_dispatch).clamp(WORKGROUP as u64, 1 << 20) as usize
 }
 
 /// Mirror of WGSL `HitOut`.
@@ -39,7 +80,7 @@ struct HitOut {
     flags: u32,
 }
 
-const WORKGROUP: u32 = 64;
+pub(crate) const WORKGROUP: u32 = 64;
 
 /// Options of the GPU query beyond the CPU's [`TraceOptions`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -115,24 +156,8 @@ impl RayTracer {
         opts: &TraceOptions,
     ) -> Result<Vec<Option<GpuHit>>> {
         let params = self.map.params(opts)?;
-        for (index, r) in rays.iter().enumerate() {
-            if !(r.origin.is_finite() && r.dir.is_finite()) {
-                return Err(Error::InvalidRay {
-                    index,
-                    reason: format!("origin {} and direction {} must be finite", r.origin, r.dir),
-                });
-            }
-            if r.dir.length_squared() == 0.0 {
-                return Err(Error::InvalidRay {
-                    index,
-                    reason: "direction is zero".into(),
-                });
-            }
-        }
-        let per_hit = std::mem::size_of::<HitOut>() as u64;
-        let by_buffer = ctx.limits.max_storage_buffer_binding_size / per_hit;
-        let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP as u64;
-        let chunk = by_buffer.min(by_dispatch).clamp(WORKGROUP as u64, 1 << 20) as usize;
+        check_rays(rays)?;
+        let chunk = chunk_size(ctx, std::mem::size_of::<HitOut>() as u64);
         let params_buf = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -204,15 +229,7 @@ impl RayTracer {
     }
 
     fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let input: Vec<RayIn> = rays
-            .iter()
-            .map(|r| RayIn {
-                origin: r.origin.to_array(),
-                _pad0: 0.0,
-                dir: r.dir.to_array(),
-                _pad1: 0.0,
-            })
-            .collect();
+        let input = RayIn::all(rays);
         let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
         let ray_buf = ctx
             .device
