@@ -12,6 +12,7 @@
 //! mapping, run on batches of rays ([`TechniqueTracer`], issue 5); and
 //! GPU-timed benchmarks ([`bench`]).
 
+mod batch;
 pub mod bench;
 pub mod context;
 pub mod convention;

@@ -9,12 +9,15 @@
 //! uploaded as [`DistanceTexture::R8Load`], the CPU tracer's own 8-bit codes,
 //! so distance mapping reads bit for bit what the CPU reads.
 
+use crate::batch::{
+    chunk_size, compute_pipeline, dispatch_and_read, storage_entry, time_dispatches, uniform_buffer,
+};
 use crate::convention::{technique_code, FLAG_CELL_CAP};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{technique_compute_source, DistanceTexture};
 use crate::technique_maps::TechniqueTextures;
-use crate::timing::{compute_writes, time_frames, Timing};
-use crate::trace::{check_rays, chunk_size, RayIn, WORKGROUP};
+use crate::timing::Timing;
+use crate::trace::{check_rays, RayIn};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::techniques::{Hit, Maps, Needs, Technique, Traced};
@@ -72,33 +75,14 @@ impl TechniqueTracer {
             None => GpuMap::for_height(ctx, &maps.height, maps.aspect)?,
         };
         let textures = TechniqueTextures::new(ctx, maps)?;
-        let (pipeline, rays_layout) = ctx.checked("building the technique pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("techniques"),
-                    source: wgpu::ShaderSource::Wgsl(technique_compute_source(texture).into()),
-                });
-            let rays_layout = rays_layout(&ctx.device);
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("techniques"),
-                    bind_group_layouts: &[Some(&map.layout), Some(&rays_layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("techniques"),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some("technique_main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            (pipeline, rays_layout)
-        })?;
+        let rays_layout = rays_layout(&ctx.device);
+        let pipeline = compute_pipeline(
+            ctx,
+            "techniques",
+            technique_compute_source(texture),
+            "technique_main",
+            &[&map.layout, &rays_layout],
+        )?;
         Ok(Self {
             map,
             has_distance: maps.displacement.is_some(),
@@ -158,21 +142,13 @@ impl TechniqueTracer {
         }
         let uniforms = self.uniforms(ctx, technique, budget)?;
         let (rays_group, _hits) = self.ray_buffers(ctx, &uniforms, rays);
-        let groups = (rays.len() as u32).div_ceil(WORKGROUP);
-        time_frames(ctx, frames, |encoder, query| {
-            let frames = frames.max(1);
-            for f in 0..frames {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("techniques"),
-                    timestamp_writes: compute_writes(query, f, frames),
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &uniforms.map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
-            }
-            Ok(())
-        })
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [&uniforms.map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
     }
 
     /// The map's bind group and the technique's uniform; refuses a
@@ -201,25 +177,13 @@ impl TechniqueTracer {
             ..TraceOptions::default()
         };
         let params: MapParams = self.map.params(&opts)?;
-        let map_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("technique map params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let map_buf = uniform_buffer(ctx, "technique map params", &params);
         let technique = TechniqueParams {
             technique: technique_code(technique),
             budget,
             _pad: [0; 2],
         };
-        let technique_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("technique params"),
-                contents: bytemuck::bytes_of(&technique),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let technique_buf = uniform_buffer(ctx, "technique params", &technique);
         Ok(Uniforms {
             map_group: self.map.bind_group(ctx, &map_buf),
             technique: technique_buf,
@@ -285,32 +249,9 @@ impl TechniqueTracer {
         uniforms: &Uniforms,
         rays: &[MapRay],
     ) -> Result<Vec<TechniqueHitOut>> {
-        if rays.is_empty() {
-            return Ok(Vec::new());
-        }
-        let size = (rays.len() * std::mem::size_of::<TechniqueHitOut>()) as u64;
-        ctx.checked("tracing technique rays", || {
-            let (rays_group, hit_buf) = self.ray_buffers(ctx, uniforms, rays);
-            let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("technique hits readback"),
-                size,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &uniforms.map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups((rays.len() as u32).div_ceil(WORKGROUP), 1, 1);
-            }
-            encoder.copy_buffer_to_buffer(&hit_buf, 0, &readback, 0, size);
-            ctx.queue.submit([encoder.finish()]);
-            readback
+        dispatch_and_read(ctx, &self.pipeline, &uniforms.map_group, rays.len(), || {
+            self.ray_buffers(ctx, uniforms, rays)
         })
-        .and_then(|readback| ctx.read_buffer(&readback))
-        .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
     }
 }
 
@@ -339,11 +280,6 @@ fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
         ty,
         count: None,
     };
-    let storage = |read_only| wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Storage { read_only },
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    };
     let texture = wgpu::BindingType::Texture {
         sample_type: wgpu::TextureSampleType::Float { filterable: false },
         view_dimension: wgpu::TextureViewDimension::D2,
@@ -352,8 +288,8 @@ fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("technique rays"),
         entries: &[
-            entry(0, storage(true)),
-            entry(1, storage(false)),
+            storage_entry(0, true),
+            storage_entry(1, false),
             entry(
                 2,
                 wgpu::BindingType::Buffer {

@@ -3,6 +3,9 @@
 //! returning the CPU's own [`MapHit`] so the two backends are
 //! interchangeable.
 
+use crate::batch::{
+    chunk_size, compute_pipeline, dispatch_and_read, storage_entry, time_dispatches, uniform_buffer,
+};
 use crate::convention::{FLAG_CELL_CAP, FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
@@ -59,14 +62,6 @@ pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
     Ok(())
 }
 
-/// Rays per dispatch: what one storage binding of `per_hit`-byte results
-/// and one dispatch dimension allow, at most 2^20.
-pub(crate) fn chunk_size(ctx: &GpuContext, per_hit: u64) -> usize {
-    let by_buffer = ctx.limits.max_storage_buffer_binding_size / per_hit;
-    let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP as u64;
-    by_buffer.min(by_dispatch).clamp(WORKGROUP as u64, 1 << 20) as usize
-}
-
 /// Mirror of WGSL `HitOut`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -79,8 +74,6 @@ struct HitOut {
     iterations: u32,
     flags: u32,
 }
-
-pub(crate) const WORKGROUP: u32 = 64;
 
 /// Options of the GPU query beyond the CPU's [`TraceOptions`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -99,48 +92,19 @@ pub struct RayTracer {
 impl RayTracer {
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
-        let (pipeline, rays_layout) = ctx.checked("building the ray-query pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("trace_compute"),
-                    source: wgpu::ShaderSource::Wgsl(compute_trace_source(texture).into()),
-                });
-            let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
-            let rays_layout =
-                ctx.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("rays"),
-                        entries: &[storage(0, true), storage(1, false)],
-                    });
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("trace"),
-                    bind_group_layouts: &[Some(&gpu_map.layout), Some(&rays_layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("trace"),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some("trace_main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            (pipeline, rays_layout)
-        })?;
+        let rays_layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("rays"),
+                entries: &[storage_entry(0, true), storage_entry(1, false)],
+            });
+        let pipeline = compute_pipeline(
+            ctx,
+            "ray-query",
+            compute_trace_source(texture),
+            "trace_main",
+            &[&gpu_map.layout, &rays_layout],
+        )?;
         Ok(Self {
             map: gpu_map,
             pipeline,
@@ -158,13 +122,7 @@ impl RayTracer {
         let params = self.map.params(opts)?;
         check_rays(rays)?;
         let chunk = chunk_size(ctx, std::mem::size_of::<HitOut>() as u64);
-        let params_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("trace params"),
-                contents: bytemuck::bytes_of::<MapParams>(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
         let map_group = self.map.bind_group(ctx, &params_buf);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
@@ -193,39 +151,16 @@ impl RayTracer {
         frames: u32,
     ) -> Result<crate::timing::Timing> {
         let params = self.map.params(opts)?;
-        let params_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("trace params"),
-                contents: bytemuck::bytes_of::<MapParams>(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
         let map_group = self.map.bind_group(ctx, &params_buf);
         let (rays_group, _hits) = self.ray_buffers(ctx, rays);
-        let groups = (rays.len() as u32).div_ceil(WORKGROUP);
-        if groups > ctx.limits.max_compute_workgroups_per_dimension {
-            return Err(Error::Limit {
-                what: "ray batch".into(),
-                size: rays.len().to_string(),
-                limit: format!(
-                    "{} workgroups of {WORKGROUP}",
-                    ctx.limits.max_compute_workgroups_per_dimension
-                ),
-            });
-        }
-        crate::timing::time_frames(ctx, frames, |encoder, query| {
-            for f in 0..frames.max(1) {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("trace"),
-                    timestamp_writes: crate::timing::compute_writes(query, f, frames.max(1)),
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
-            }
-            Ok(())
-        })
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [&map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
     }
 
     fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
@@ -267,32 +202,9 @@ impl RayTracer {
         map_group: &wgpu::BindGroup,
         rays: &[MapRay],
     ) -> Result<Vec<HitOut>> {
-        if rays.is_empty() {
-            return Ok(Vec::new());
-        }
-        let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
-        ctx.checked("tracing rays", || {
-            let (rays_group, hit_buf) = self.ray_buffers(ctx, rays);
-            let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hits readback"),
-                size,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups((rays.len() as u32).div_ceil(WORKGROUP), 1, 1);
-            }
-            encoder.copy_buffer_to_buffer(&hit_buf, 0, &readback, 0, size);
-            ctx.queue.submit([encoder.finish()]);
-            readback
+        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
+            self.ray_buffers(ctx, rays)
         })
-        .and_then(|readback| ctx.read_buffer(&readback))
-        .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
     }
 }
 
