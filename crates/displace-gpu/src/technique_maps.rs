@@ -6,6 +6,7 @@
 //! techniques can run.
 
 use crate::gpu_map::upload;
+use crate::raster::texture_2d;
 use crate::{Error, GpuContext, Result};
 use displace_core::techniques::{ConeMap, Maps, MaxPyramid, Needs};
 
@@ -133,46 +134,28 @@ fn pyramid_view(
             limit: format!("{max2} texels per side"),
         });
     }
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("max pyramid"),
-        size: wgpu::Extent3d {
-            width: padded[0] as u32,
-            height: padded[1] as u32,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: levels as u32,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::R32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    for (level, &[w, h]) in dims.iter().enumerate() {
-        let mut texels = Vec::with_capacity(w * h);
-        for j in 0..h {
-            texels.extend((0..w).map(|i| pyramid.node(level, i, j)));
-        }
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: level as u32,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            bytemuck::cast_slice(&texels),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w as u32 * 4),
-                rows_per_image: Some(h as u32),
-            },
-            wgpu::Extent3d {
-                width: w as u32,
-                height: h as u32,
-                depth_or_array_layers: 1,
-            },
-        );
-    }
-    Ok(texture.create_view(&Default::default()))
+    let mips: Vec<Vec<u8>> = dims
+        .iter()
+        .enumerate()
+        .map(|(level, &[w, h])| {
+            let pw = (padded[0] >> level).max(1);
+            let ph = (padded[1] >> level).max(1);
+            let mut texels = vec![f32::MIN; pw * ph];
+            for j in 0..h {
+                for i in 0..w {
+                    texels[j * pw + i] = pyramid.node(level, i, j);
+                }
+            }
+            bytemuck::cast_slice(&texels).to_vec()
+        })
+        .collect();
+    Ok(texture_2d(
+        ctx,
+        "max pyramid",
+        [padded[0] as u32, padded[1] as u32],
+        wgpu::TextureFormat::R32Float,
+        &mips,
+    ))
 }
 
 #[cfg(test)]
