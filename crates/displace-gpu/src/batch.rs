@@ -115,6 +115,18 @@ pub(crate) fn dispatch_and_read<T: Pod>(
     .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
 }
 
+/// Refuses a result whose exact walk hit its cell cap (`FLAG_CELL_CAP`): a
+/// bug guard, never expected.
+pub(crate) fn check_cell_cap(flags: u32, during: &str) -> Result<()> {
+    if flags & crate::convention::FLAG_CELL_CAP == 0 {
+        return Ok(());
+    }
+    Err(Error::Gpu {
+        during: during.to_string(),
+        message: "the exact walk ran past its cell budget (a bug: please report the ray)".into(),
+    })
+}
+
 /// GPU time of `frames` dispatches over `rays` rays (timestamps around
 /// them, [`crate::timing`]).
 pub(crate) fn time_dispatches(

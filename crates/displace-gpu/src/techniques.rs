@@ -10,9 +10,10 @@
 //! so distance mapping reads bit for bit what the CPU reads.
 
 use crate::batch::{
-    chunk_size, compute_pipeline, dispatch_and_read, storage_entry, time_dispatches, uniform_buffer,
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
+    time_dispatches, uniform_buffer,
 };
-use crate::convention::{technique_code, FLAG_CELL_CAP};
+use crate::convention::technique_code;
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{technique_compute_source, DistanceTexture};
 use crate::technique_maps::TechniqueTextures;
@@ -107,14 +108,7 @@ impl TechniqueTracer {
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
             for h in self.trace_chunk(ctx, &uniforms, batch)? {
-                if h.flags & FLAG_CELL_CAP != 0 {
-                    return Err(Error::Gpu {
-                        during: format!("tracing rays with {}", technique.name()),
-                        message:
-                            "the exact walk ran past its cell budget (a bug: please report the ray)"
-                                .into(),
-                    });
-                }
+                check_cell_cap(h.flags, &format!("tracing rays with {}", technique.name()))?;
                 out.push(to_traced(&h));
             }
         }

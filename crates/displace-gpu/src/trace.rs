@@ -4,9 +4,10 @@
 //! interchangeable.
 
 use crate::batch::{
-    chunk_size, compute_pipeline, dispatch_and_read, storage_entry, time_dispatches, uniform_buffer,
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
+    time_dispatches, uniform_buffer,
 };
-use crate::convention::{FLAG_CELL_CAP, FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
+use crate::convention::{FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
@@ -127,14 +128,7 @@ impl RayTracer {
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
             for h in self.trace_chunk(ctx, &map_group, batch)? {
-                if h.flags & FLAG_CELL_CAP != 0 {
-                    return Err(Error::Gpu {
-                        during: "tracing rays".into(),
-                        message:
-                            "the exact walk ran past its cell budget (a bug: please report the ray)"
-                                .into(),
-                    });
-                }
+                check_cell_cap(h.flags, "tracing rays")?;
                 out.push(to_hit(&h)?);
             }
         }
