@@ -71,7 +71,7 @@ pub struct GpuRenderArgs {
     /// none, hard or soft (a second march towards the light).
     #[arg(long, default_value = "hard")]
     pub shadows: Shadows,
-    /// r32-load, r16-linear or r8-linear.
+    /// r32-load, r8-load, r16-linear or r8-linear.
     #[arg(long, default_value = "r8-linear")]
     pub distance: DistanceTexture,
     /// Camera position [default: oblique, above the face].

@@ -62,6 +62,14 @@ struct MapParams {
     _pad: u32,
 }
 
+// One map-space ray of a batch query (Rust: `trace::RayIn`).
+struct RayIn {
+    origin: vec3f,
+    _pad0: f32,
+    dir: vec3f,
+    _pad1: f32,
+}
+
 @group(0) @binding(0) var<uniform> params: MapParams;
 @group(0) @binding(1) var height_tex: texture_2d<f32>;
 

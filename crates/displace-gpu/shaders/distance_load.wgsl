@@ -1,6 +1,7 @@
 // Distance lookups by textureLoad from an R32Float 3D texture, interpolated
 // by hand exactly as DistanceMap::sample does it on the CPU: same texel
-// centres, same addressing, same order of lerps.
+// centres, same addressing, same order of lerps, then decoded (the identity
+// for stored distances; `min + s * quantum` for the CPU tracer's 8-bit codes).
 
 @group(0) @binding(2) var distance_tex: texture_3d<f32>;
 
@@ -23,5 +24,5 @@ fn distance_at(p: vec3f) -> f32 {
     let c10 = lerp(distance_voxel(i0, j1, k0), distance_voxel(i1, j1, k0), lx.y);
     let c01 = lerp(distance_voxel(i0, j0, k1), distance_voxel(i1, j0, k1), lx.y);
     let c11 = lerp(distance_voxel(i0, j1, k1), distance_voxel(i1, j1, k1), lx.y);
-    return lerp(lerp(c00, c10, ly.y), lerp(c01, c11, ly.y), lz.y);
+    return params.decode_offset + params.decode_scale * lerp(lerp(c00, c10, ly.y), lerp(c01, c11, ly.y), lz.y);
 }

@@ -237,8 +237,9 @@ struct TraceHit {
     converged: bool,
 }
 
-fn trace_none() -> TraceHit {
-    return TraceHit(HIT_NONE, 0.0, vec3f(0.0), 0u, false);
+// A miss still reports what it cost (sphere_trace.rs `trace_counted`).
+fn trace_miss(iterations: u32) -> TraceHit {
+    return TraceHit(HIT_NONE, 0.0, vec3f(0.0), iterations, false);
 }
 
 fn surface_at(o: vec3f, d: vec3f, t: f32, iterations: u32, converged: bool) -> TraceHit {
@@ -253,7 +254,7 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
     let hi = vec3f(params.aspect.x * params.tiles.x, params.aspect.y * params.tiles.y, 1.0);
     let clip = clip_shell(o, d, hi, params.t_min, params.t_max);
     if (!clip.ok) {
-        return trace_none();
+        return trace_miss(0u);
     }
     // Under the surface where the ray enters: the wall of the slab.
     let entry = o + d * clip.t_in;
@@ -269,7 +270,7 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
         if (w.kind == WALK_HIT) {
             return TraceHit(HIT_SURFACE, w.t, w.normal, w.cells, true);
         }
-        return trace_none();
+        return trace_miss(w.cells);
     }
     let fixed = params.method == METHOD_SPHERE_FIXED;
     let max_steps = max(params.iterations, 1u);
@@ -295,7 +296,7 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
             if (w.kind == WALK_INSIDE) {
                 return surface_at(o, d, t, iterations + w.cells, true);
             }
-            return trace_none();
+            return trace_miss(iterations + w.cells);
         }
         let s = distance_at(o + d * t);
         steps += 1u;
@@ -311,7 +312,7 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
             }
             iterations += w.cells;
             if (t1 >= clip.t_out) {
-                return trace_none();
+                return trace_miss(iterations);
             }
             t = t1;
         } else {
@@ -319,5 +320,5 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
             t = max(t + s, clip.t_in);
         }
     }
-    return trace_none();
+    return trace_miss(iterations);
 }

@@ -1,13 +1,6 @@
 // Batch ray query: one invocation per map-space ray (issue 4, "A
 // compute-shader path for the march"). Rust mirrors: `RayIn`, `HitOut`.
 
-struct RayIn {
-    origin: vec3f,
-    _pad0: f32,
-    dir: vec3f,
-    _pad1: f32,
-}
-
 struct HitOut {
     position: vec3f,
     t: f32,

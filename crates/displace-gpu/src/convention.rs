@@ -3,6 +3,7 @@
 //! `convention_constants_match_rust` parses the WGSL file and checks every
 //! constant against these and against the core functions they mirror.
 
+use displace_core::techniques::Technique;
 use displace_core::{Address, Method};
 
 pub const TEXEL_CENTRE: f32 = 0.5;
@@ -48,4 +49,14 @@ pub fn method_code(m: Method) -> u32 {
         Method::SphereFixed => METHOD_SPHERE_FIXED,
         Method::Exact => METHOD_EXACT,
     }
+}
+
+/// Technique codes of `shaders/techniques.wgsl` (`TECH_*`), in the order of
+/// [`Technique::ALL`]; the test `technique_constants_match_rust` checks the
+/// WGSL side.
+pub fn technique_code(t: Technique) -> u32 {
+    Technique::ALL
+        .iter()
+        .position(|&x| x == t)
+        .expect("every technique is in ALL") as u32
 }

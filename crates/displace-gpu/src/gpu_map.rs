@@ -6,8 +6,8 @@ use crate::convention::{address_code, method_code, BAND_FACTOR, FILTER_WEIGHT_BI
 use crate::shaders::DistanceTexture;
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
-use displace_core::distance_map::Format;
-use displace_core::{Address, DisplacementMap, DistanceMap, TraceOptions};
+use displace_core::distance_map::{Format, R8Range};
+use displace_core::{Address, DisplacementMap, DistanceMap, HeightMap, TraceOptions};
 
 /// Mirror of WGSL `MapParams` (convention.wgsl), 80 bytes.
 #[repr(C)]
@@ -46,7 +46,24 @@ impl GpuMap {
     /// ([`DistanceMap::quantized`]) and widened by the worst filter error, so
     /// the GPU's distances stay conservative.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
-        let [w, h, d] = map.distance.size();
+        Self::build(ctx, &map.height, map.aspect(), Some(&map.distance), texture)
+    }
+
+    /// Only the height map, for traces that read nothing else (parallax,
+    /// POM, relief, cones, pyramids): the distance binding holds a 2x2x2
+    /// placeholder that no such trace reads.
+    pub fn for_height(ctx: &GpuContext, height: &HeightMap, aspect: [f32; 2]) -> Result<Self> {
+        Self::build(ctx, height, aspect, None, DistanceTexture::R32Load)
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        height: &HeightMap,
+        aspect: [f32; 2],
+        distance: Option<&DistanceMap>,
+        texture: DistanceTexture,
+    ) -> Result<Self> {
+        let [w, h, d] = distance.map_or([2, 2, 2], DistanceMap::size);
         let max3 = ctx.limits.max_texture_dimension_3d as usize;
         if w.max(h).max(d) > max3 {
             return Err(Error::Limit {
@@ -55,7 +72,7 @@ impl GpuMap {
                 limit: format!("{max3} texels per side"),
             });
         }
-        let (hw, hh) = (map.height.width(), map.height.height());
+        let (hw, hh) = (height.width(), height.height());
         let max2 = ctx.limits.max_texture_dimension_2d as usize;
         if hw.max(hh) > max2 {
             return Err(Error::Limit {
@@ -70,9 +87,25 @@ impl GpuMap {
             wgpu::TextureDimension::D2,
             [hw, hh, 1],
             wgpu::TextureFormat::R32Float,
-            bytemuck::cast_slice(map.height.data()),
+            bytemuck::cast_slice(height.data()),
         );
-        let (distance, bytes, format, decode) = encode_distance(&map.distance, texture);
+        let (bytes, format, decode, voxel) = match distance {
+            Some(map) => {
+                let (bytes, format, decode) = encode_distance(map, texture);
+                (bytes, format, decode, map.voxel_size())
+            }
+            None => (
+                vec![0u8; 4 * w * h * d],
+                wgpu::TextureFormat::R32Float,
+                Decode {
+                    scale: 1.0,
+                    offset: 0.0,
+                    margin: 0.0,
+                    underestimate: 0.0,
+                },
+                glam::Vec3::ONE,
+            ),
+        };
         let distance_tex = upload(
             ctx,
             "distance",
@@ -81,24 +114,21 @@ impl GpuMap {
             format,
             &bytes,
         );
-        let voxel = distance.voxel_size();
         let tau = TAU_VOXELS * voxel.min_element();
         let base = MapParams {
-            aspect: map.aspect(),
+            aspect,
             tiles: [1.0, 1.0],
             dist_size: [w as u32, h as u32, d as u32],
-            address: address_code(map.address()),
+            address: address_code(height.address()),
             height_size: [hw as u32, hh as u32],
             tau,
-            // `data_underestimate`: the bound of the values uploaded, without the
-            // CPU tracer's own 8-bit copy.
-            band: BAND_FACTOR * (distance.data_underestimate() + decode.margin) + tau,
+            band: BAND_FACTOR * decode.underestimate + tau,
             decode_scale: decode.scale,
             decode_offset: decode.offset - decode.margin,
             ..MapParams::default()
         };
         let sampler = texture.filtered().then(|| {
-            let across = match map.address() {
+            let across = match height.address() {
                 Address::Clamp => wgpu::AddressMode::ClampToEdge,
                 Address::Repeat => wgpu::AddressMode::Repeat,
             };
@@ -121,7 +151,7 @@ impl GpuMap {
             distance_view: distance_tex.create_view(&Default::default()),
             sampler,
             base,
-            address: map.address(),
+            address: height.address(),
         })
     }
 
@@ -200,26 +230,46 @@ struct Decode {
     offset: f32,
     /// Worst overestimate a fixed-point filter can add.
     margin: f32,
+    /// Bound on how far the decoded values lie below the true distance,
+    /// filter included: it sets the width of the exact walk after the
+    /// early out.
+    underestimate: f32,
 }
 
-/// The values the GPU will see (rounded down to the format), the texel
-/// bytes, the texture format and the decoding.
+/// The texel bytes, the texture format and the decoding of the values the
+/// GPU will see (rounded down to the format).
 fn encode_distance(
     map: &DistanceMap,
     texture: DistanceTexture,
-) -> (DistanceMap, Vec<u8>, wgpu::TextureFormat, Decode) {
+) -> (Vec<u8>, wgpu::TextureFormat, Decode) {
     let exact = Decode {
         scale: 1.0,
         offset: 0.0,
         margin: 0.0,
+        underestimate: map.data_underestimate(),
     };
     match texture {
         DistanceTexture::R32Load => (
-            map.clone(),
             bytemuck::cast_slice(map.data()).to_vec(),
             wgpu::TextureFormat::R32Float,
             exact,
         ),
+        DistanceTexture::R8Load => {
+            // The same range and codes as `DistanceMap::from_raw` makes.
+            let r = R8Range::for_values(map.data());
+            let codes: Vec<f32> = map.data().iter().map(|&v| r.encode(v) as f32).collect();
+            let decode = Decode {
+                scale: (r.max - r.min) / 255.0,
+                offset: r.min,
+                margin: 0.0,
+                underestimate: map.max_underestimate(),
+            };
+            (
+                bytemuck::cast_slice(&codes).to_vec(),
+                wgpu::TextureFormat::R32Float,
+                decode,
+            )
+        }
         DistanceTexture::R16Linear => {
             let (q, _) = map.quantized(Format::R16F);
             let bytes: Vec<u8> = q
@@ -228,11 +278,15 @@ fn encode_distance(
                 .flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes())
                 .collect();
             let margin = filter_margin(&q, 0.0);
+            let underestimate = q.data_underestimate() + margin;
             (
-                q,
                 bytes,
                 wgpu::TextureFormat::R16Float,
-                Decode { margin, ..exact },
+                Decode {
+                    margin,
+                    underestimate,
+                    ..exact
+                },
             )
         }
         DistanceTexture::R8Linear => {
@@ -246,8 +300,9 @@ fn encode_distance(
                 scale: r.max - r.min,
                 offset: r.min,
                 margin,
+                underestimate: q.data_underestimate() + margin,
             };
-            (q, bytes, wgpu::TextureFormat::R8Unorm, decode)
+            (bytes, wgpu::TextureFormat::R8Unorm, decode)
         }
     }
 }
@@ -278,7 +333,7 @@ fn filter_margin(map: &DistanceMap, quantum: f32) -> f32 {
     weight_error * (diff.iter().sum::<f32>() + 3.0 * quantum)
 }
 
-fn upload(
+pub(crate) fn upload(
     ctx: &GpuContext,
     label: &str,
     dimension: wgpu::TextureDimension,

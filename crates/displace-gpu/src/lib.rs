@@ -8,9 +8,11 @@
 //! question with the same conventions (`shaders/convention.wgsl`); the
 //! raster path of section 8.5 ([`Renderer`]: listing 8-1's vertex stage,
 //! listing 8-2's fragment stage with exact refinement, normal-mapped
-//! shading, self-shadowing); GPU-timed benchmarks ([`bench`]); and the
-//! interactive viewer ([`view`]).
+//! shading, self-shadowing); the techniques engines ship, beside distance
+//! mapping, run on batches of rays ([`TechniqueTracer`], issue 5);
+//! GPU-timed benchmarks ([`bench`]); and the interactive viewer ([`view`]).
 
+mod batch;
 pub mod bench;
 pub mod context;
 pub mod convention;
@@ -19,6 +21,8 @@ pub mod gpu_map;
 pub mod mesh;
 pub mod raster;
 pub mod shaders;
+pub mod technique_maps;
+pub mod techniques;
 pub mod test_support;
 pub mod timing;
 pub mod trace;
@@ -30,6 +34,7 @@ pub use gpu_map::{GpuMap, MapParams};
 pub use mesh::{MeshTriangle, ShellMesh};
 pub use raster::{Image, PlaneScene, Renderer, Shadows};
 pub use shaders::DistanceTexture;
+pub use techniques::{technique_costs, TechniqueCost, TechniqueTracer};
 pub use trace::{trace_rays, GpuHit, GpuTraceOptions, RayTracer};
 
 /// Result type of this crate.

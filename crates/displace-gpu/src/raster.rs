@@ -1019,7 +1019,8 @@ fn checker_mips(size: u32, cells: u32) -> Vec<Vec<u8>> {
     }
 }
 
-fn texture_2d(
+/// A 2D texture with every mip level given in full (4 bytes per texel).
+pub(crate) fn texture_2d(
     ctx: &GpuContext,
     label: &str,
     [w, h]: [u32; 2],

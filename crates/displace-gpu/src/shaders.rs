@@ -12,6 +12,8 @@ pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
 pub const PRESENT: &str = include_str!("../shaders/present.wgsl");
+pub const TECHNIQUES: &str = include_str!("../shaders/techniques.wgsl");
+pub const TECHNIQUE_COMPUTE: &str = include_str!("../shaders/technique_compute.wgsl");
 
 /// How the shaders read the distance map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -21,6 +23,12 @@ pub enum DistanceTexture {
     /// at full precision, on any GPU (R32Float need not be filterable).
     #[default]
     R32Load,
+    /// The CPU tracer's own 8-bit codes ([`displace_core::DistanceMap::sample`]),
+    /// stored as R32Float, interpolated by `textureLoad` in its order of
+    /// operations and decoded as it decodes them: bit for bit the distances
+    /// the CPU reads, so Donnelly's fixed loop stops where the CPU's does
+    /// (`displace compare` runs the CPU and WGSL techniques side by side).
+    R8Load,
     /// R16Float rounded down, through a linear sampler (Donnelly's way).
     R16Linear,
     /// R8Unorm rounded down over the map's range, through a linear sampler:
@@ -29,18 +37,20 @@ pub enum DistanceTexture {
 }
 
 impl DistanceTexture {
-    pub const ALL: [DistanceTexture; 3] = [Self::R32Load, Self::R16Linear, Self::R8Linear];
+    pub const ALL: [DistanceTexture; 4] =
+        [Self::R32Load, Self::R8Load, Self::R16Linear, Self::R8Linear];
 
     pub fn name(self) -> &'static str {
         match self {
             Self::R32Load => "r32-load",
+            Self::R8Load => "r8-load",
             Self::R16Linear => "r16-linear",
             Self::R8Linear => "r8-linear",
         }
     }
 
     pub fn filtered(self) -> bool {
-        self != Self::R32Load
+        matches!(self, Self::R16Linear | Self::R8Linear)
     }
 }
 
@@ -52,7 +62,7 @@ impl std::str::FromStr for DistanceTexture {
             .find(|d| d.name() == s)
             .ok_or_else(|| {
                 crate::Error::InvalidOption(format!(
-                    "unknown distance texture `{s}` (expected r32-load, r16-linear or r8-linear)"
+                    "unknown distance texture `{s}` (expected r32-load, r8-load, r16-linear or r8-linear)"
                 ))
             })
     }
@@ -72,6 +82,16 @@ pub fn map_trace_source(texture: DistanceTexture) -> String {
 /// The batch ray query kernel.
 pub fn compute_trace_source(texture: DistanceTexture) -> String {
     [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
+}
+
+/// The batch query of every issue-5 technique (`shaders/techniques.wgsl`).
+pub fn technique_compute_source(texture: DistanceTexture) -> String {
+    [
+        map_trace_source(texture).as_str(),
+        TECHNIQUES,
+        TECHNIQUE_COMPUTE,
+    ]
+    .join("\n")
 }
 
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
@@ -101,6 +121,10 @@ pub fn all_modules() -> Vec<(String, String)> {
         ));
         out.push((format!("raster/{}", t.name()), raster_source(t)));
         out.push((format!("mesh/{}", t.name()), mesh_source(t)));
+        out.push((
+            format!("technique-compute/{}", t.name()),
+            technique_compute_source(t),
+        ));
     }
     out.push(("fetch-loop/filtered".into(), fetch_loop_source()));
     out.push(("present".into(), PRESENT.to_string()));

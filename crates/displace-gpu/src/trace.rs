@@ -3,7 +3,11 @@
 //! returning the CPU's own [`MapHit`] so the two backends are
 //! interchangeable.
 
-use crate::convention::{FLAG_CELL_CAP, FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
+use crate::batch::{
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
+    time_dispatches, uniform_buffer,
+};
+use crate::convention::{FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
@@ -16,14 +20,47 @@ use wgpu::util::DeviceExt;
 /// What [`trace_rays`] returns per ray: the CPU's hit record.
 pub type GpuHit = MapHit;
 
-/// Mirror of WGSL `RayIn`.
+/// Mirror of WGSL `RayIn` (convention.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct RayIn {
+pub(crate) struct RayIn {
     origin: [f32; 3],
     _pad0: f32,
     dir: [f32; 3],
     _pad1: f32,
+}
+
+impl RayIn {
+    /// The shader's copies of `rays`.
+    pub(crate) fn all(rays: &[MapRay]) -> Vec<RayIn> {
+        rays.iter()
+            .map(|r| RayIn {
+                origin: r.origin.to_array(),
+                _pad0: 0.0,
+                dir: r.dir.to_array(),
+                _pad1: 0.0,
+            })
+            .collect()
+    }
+}
+
+/// Refuses rays the shaders cannot trace, naming the first bad one.
+pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
+    for (index, r) in rays.iter().enumerate() {
+        if !(r.origin.is_finite() && r.dir.is_finite()) {
+            return Err(Error::InvalidRay {
+                index,
+                reason: format!("origin {} and direction {} must be finite", r.origin, r.dir),
+            });
+        }
+        if r.dir.length_squared() == 0.0 {
+            return Err(Error::InvalidRay {
+                index,
+                reason: "direction is zero".into(),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Mirror of WGSL `HitOut`.
@@ -38,8 +75,6 @@ struct HitOut {
     iterations: u32,
     flags: u32,
 }
-
-const WORKGROUP: u32 = 64;
 
 /// Options of the GPU query beyond the CPU's [`TraceOptions`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -58,48 +93,19 @@ pub struct RayTracer {
 impl RayTracer {
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
-        let (pipeline, rays_layout) = ctx.checked("building the ray-query pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("trace_compute"),
-                    source: wgpu::ShaderSource::Wgsl(compute_trace_source(texture).into()),
-                });
-            let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
-            let rays_layout =
-                ctx.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("rays"),
-                        entries: &[storage(0, true), storage(1, false)],
-                    });
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("trace"),
-                    bind_group_layouts: &[Some(&gpu_map.layout), Some(&rays_layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("trace"),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some("trace_main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-            (pipeline, rays_layout)
-        })?;
+        let rays_layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("rays"),
+                entries: &[storage_entry(0, true), storage_entry(1, false)],
+            });
+        let pipeline = compute_pipeline(
+            ctx,
+            "ray-query",
+            compute_trace_source(texture),
+            "trace_main",
+            &[&gpu_map.layout, &rays_layout],
+        )?;
         Ok(Self {
             map: gpu_map,
             pipeline,
@@ -115,43 +121,14 @@ impl RayTracer {
         opts: &TraceOptions,
     ) -> Result<Vec<Option<GpuHit>>> {
         let params = self.map.params(opts)?;
-        for (index, r) in rays.iter().enumerate() {
-            if !(r.origin.is_finite() && r.dir.is_finite()) {
-                return Err(Error::InvalidRay {
-                    index,
-                    reason: format!("origin {} and direction {} must be finite", r.origin, r.dir),
-                });
-            }
-            if r.dir.length_squared() == 0.0 {
-                return Err(Error::InvalidRay {
-                    index,
-                    reason: "direction is zero".into(),
-                });
-            }
-        }
-        let per_hit = std::mem::size_of::<HitOut>() as u64;
-        let by_buffer = ctx.limits.max_storage_buffer_binding_size / per_hit;
-        let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP as u64;
-        let chunk = by_buffer.min(by_dispatch).clamp(WORKGROUP as u64, 1 << 20) as usize;
-        let params_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("trace params"),
-                contents: bytemuck::bytes_of::<MapParams>(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        check_rays(rays)?;
+        let chunk = chunk_size(ctx, std::mem::size_of::<HitOut>() as u64);
+        let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
         let map_group = self.map.bind_group(ctx, &params_buf);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
             for h in self.trace_chunk(ctx, &map_group, batch)? {
-                if h.flags & FLAG_CELL_CAP != 0 {
-                    return Err(Error::Gpu {
-                        during: "tracing rays".into(),
-                        message:
-                            "the exact walk ran past its cell budget (a bug: please report the ray)"
-                                .into(),
-                    });
-                }
+                check_cell_cap(h.flags, "tracing rays")?;
                 out.push(to_hit(&h)?);
             }
         }
@@ -168,51 +145,20 @@ impl RayTracer {
         frames: u32,
     ) -> Result<crate::timing::Timing> {
         let params = self.map.params(opts)?;
-        let params_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("trace params"),
-                contents: bytemuck::bytes_of::<MapParams>(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
         let map_group = self.map.bind_group(ctx, &params_buf);
         let (rays_group, _hits) = self.ray_buffers(ctx, rays);
-        let groups = (rays.len() as u32).div_ceil(WORKGROUP);
-        if groups > ctx.limits.max_compute_workgroups_per_dimension {
-            return Err(Error::Limit {
-                what: "ray batch".into(),
-                size: rays.len().to_string(),
-                limit: format!(
-                    "{} workgroups of {WORKGROUP}",
-                    ctx.limits.max_compute_workgroups_per_dimension
-                ),
-            });
-        }
-        crate::timing::time_frames(ctx, frames, |encoder, query| {
-            for f in 0..frames.max(1) {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("trace"),
-                    timestamp_writes: crate::timing::compute_writes(query, f, frames.max(1)),
-                });
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
-            }
-            Ok(())
-        })
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [&map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
     }
 
     fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let input: Vec<RayIn> = rays
-            .iter()
-            .map(|r| RayIn {
-                origin: r.origin.to_array(),
-                _pad0: 0.0,
-                dir: r.dir.to_array(),
-                _pad1: 0.0,
-            })
-            .collect();
+        let input = RayIn::all(rays);
         let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
         let ray_buf = ctx
             .device
@@ -250,32 +196,9 @@ impl RayTracer {
         map_group: &wgpu::BindGroup,
         rays: &[MapRay],
     ) -> Result<Vec<HitOut>> {
-        if rays.is_empty() {
-            return Ok(Vec::new());
-        }
-        let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
-        ctx.checked("tracing rays", || {
-            let (rays_group, hit_buf) = self.ray_buffers(ctx, rays);
-            let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hits readback"),
-                size,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, map_group, &[]);
-                pass.set_bind_group(1, &rays_group, &[]);
-                pass.dispatch_workgroups((rays.len() as u32).div_ceil(WORKGROUP), 1, 1);
-            }
-            encoder.copy_buffer_to_buffer(&hit_buf, 0, &readback, 0, size);
-            ctx.queue.submit([encoder.finish()]);
-            readback
+        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
+            self.ray_buffers(ctx, rays)
         })
-        .and_then(|readback| ctx.read_buffer(&readback))
-        .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
     }
 }
 

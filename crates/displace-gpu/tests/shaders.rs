@@ -144,3 +144,29 @@ fn map_params_layout_matches_wgsl() {
         assert_eq!(m.offset as usize, rust_offsets[name], "MapParams.{name}");
     }
 }
+
+/// `TECH_NAME` in techniques.wgsl for each technique: its name upper-cased.
+#[test]
+fn technique_constants_match_rust() {
+    use displace_core::techniques::Technique;
+    use displace_gpu::shaders::TECHNIQUES;
+    let wgsl: BTreeMap<String, u32> = TECHNIQUES
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("const TECH_"))
+        .map(|rest| {
+            let (name, rest) = rest.split_once(':').expect("typed constant");
+            let (_, value) = rest.split_once('=').expect("constant value");
+            let value = value.trim().trim_end_matches(';').trim_end_matches('u');
+            (name.trim().to_string(), value.parse().expect("u32 code"))
+        })
+        .collect();
+    assert_eq!(wgsl.len(), Technique::ALL.len());
+    for t in Technique::ALL {
+        let name = t.name().to_uppercase().replace('-', "_");
+        assert_eq!(
+            wgsl.get(&name),
+            Some(&rs::technique_code(t)),
+            "TECH_{name} in techniques.wgsl"
+        );
+    }
+}

@@ -240,3 +240,15 @@ fn bad_rays_and_options_are_refused() {
         .unwrap()
         .is_empty());
 }
+
+/// The CPU tracer's own 8-bit codes: even Donnelly's fixed loop, which stops
+/// wherever its steps run out, ends where the CPU's does.
+#[test]
+fn r8_load_fixed_steps_clamp() {
+    agreement(
+        DistanceTexture::R8Load,
+        Method::SphereFixed,
+        Address::Clamp,
+        9,
+    );
+}

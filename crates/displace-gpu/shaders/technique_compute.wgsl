@@ -1,0 +1,44 @@
+// Batch query of one technique (issue 5): one invocation per map-space ray,
+// technique and budget from a uniform, so one pipeline serves them all.
+// Rust mirrors: `TechniqueParams`, `TechniqueHitOut` (src/techniques.rs).
+
+struct TechniqueParams {
+    technique: u32,
+    budget: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+struct TechniqueHitOut {
+    position: vec3f,
+    t: f32,
+    uv: vec2f,
+    fetches: u32,
+    flags: u32,
+}
+
+// Bit 0 of `flags`: the technique reports a hit.
+const TECHNIQUE_FOUND: u32 = 1u;
+
+@group(1) @binding(0) var<storage, read> rays: array<RayIn>;
+@group(1) @binding(1) var<storage, read_write> technique_hits: array<TechniqueHitOut>;
+@group(1) @binding(2) var<uniform> technique: TechniqueParams;
+
+@compute @workgroup_size(64)
+fn technique_main(@builtin(global_invocation_id) gid: vec3u) {
+    let index = gid.x;
+    if (index >= arrayLength(&rays)) {
+        return;
+    }
+    let ray = rays[index];
+    let h = trace_technique(ray.origin, ray.dir, technique.technique, technique.budget);
+    let p = ray.origin + ray.dir * h.t;
+    var flags = 0u;
+    if (h.found) {
+        flags |= TECHNIQUE_FOUND;
+    }
+    if (cell_cap_reached) {
+        flags |= FLAG_CELL_CAP;
+    }
+    technique_hits[index] = TechniqueHitOut(p, h.t, p.xy / params.aspect, h.fetches, flags);
+}

@@ -1,0 +1,164 @@
+//! What every batch ray query shares ([`crate::RayTracer`],
+//! [`crate::TechniqueTracer`]): one compute pipeline over the map's group 0
+//! and a group 1 of rays and results, one invocation per ray in workgroups
+//! of [`WORKGROUP`], dispatched to read the results back or to be timed.
+
+use crate::timing::{compute_writes, time_frames, Timing};
+use crate::{Error, GpuContext, Result};
+use bytemuck::Pod;
+use wgpu::util::DeviceExt;
+
+pub(crate) const WORKGROUP: u32 = 64;
+
+/// A storage-buffer entry of a compute bind group layout.
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A uniform buffer holding `value`.
+pub(crate) fn uniform_buffer<T: Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+/// Compiles `source` and builds the pipeline of `entry` over `layouts`;
+/// shader and layout mistakes come back as [`Error::Gpu`].
+pub(crate) fn compute_pipeline(
+    ctx: &GpuContext,
+    label: &str,
+    source: String,
+    entry: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> Result<wgpu::ComputePipeline> {
+    ctx.checked(&format!("building the {label} pipeline"), || {
+        let module = ctx
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let layouts: Vec<_> = layouts.iter().map(|l| Some(*l)).collect();
+        let layout = ctx
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &layouts,
+                immediate_size: 0,
+            });
+        ctx.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    })
+}
+
+/// Rays per dispatch: what one storage binding of `per_hit`-byte results
+/// and one dispatch dimension allow, at most 2^20.
+pub(crate) fn chunk_size(ctx: &GpuContext, per_hit: u64) -> usize {
+    let by_buffer = ctx.limits.max_storage_buffer_binding_size / per_hit;
+    let by_dispatch = ctx.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP as u64;
+    by_buffer.min(by_dispatch).clamp(WORKGROUP as u64, 1 << 20) as usize
+}
+
+/// One dispatch over `rays` rays with the map's group 0 and the group 1 that
+/// `rays_group` makes (with the result buffer it binds), read back.
+pub(crate) fn dispatch_and_read<T: Pod>(
+    ctx: &GpuContext,
+    pipeline: &wgpu::ComputePipeline,
+    map_group: &wgpu::BindGroup,
+    rays: usize,
+    rays_group: impl FnOnce() -> (wgpu::BindGroup, wgpu::Buffer),
+) -> Result<Vec<T>> {
+    if rays == 0 {
+        return Ok(Vec::new());
+    }
+    let size = (rays * std::mem::size_of::<T>()) as u64;
+    ctx.checked("tracing rays", || {
+        let (group, results) = rays_group();
+        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("results readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, map_group, &[]);
+            pass.set_bind_group(1, &group, &[]);
+            pass.dispatch_workgroups((rays as u32).div_ceil(WORKGROUP), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&results, 0, &readback, 0, size);
+        ctx.queue.submit([encoder.finish()]);
+        readback
+    })
+    .and_then(|readback| ctx.read_buffer(&readback))
+    .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
+}
+
+/// Refuses a result whose exact walk hit its cell cap (`FLAG_CELL_CAP`): a
+/// bug guard, never expected.
+pub(crate) fn check_cell_cap(flags: u32, during: &str) -> Result<()> {
+    if flags & crate::convention::FLAG_CELL_CAP == 0 {
+        return Ok(());
+    }
+    Err(Error::Gpu {
+        during: during.to_string(),
+        message: "the exact walk ran past its cell budget (a bug: please report the ray)".into(),
+    })
+}
+
+/// GPU time of `frames` dispatches over `rays` rays (timestamps around
+/// them, [`crate::timing`]).
+pub(crate) fn time_dispatches(
+    ctx: &GpuContext,
+    pipeline: &wgpu::ComputePipeline,
+    groups: [&wgpu::BindGroup; 2],
+    rays: usize,
+    frames: u32,
+) -> Result<Timing> {
+    let workgroups = (rays as u32).div_ceil(WORKGROUP);
+    if workgroups > ctx.limits.max_compute_workgroups_per_dimension {
+        return Err(Error::Limit {
+            what: "ray batch".into(),
+            size: rays.to_string(),
+            limit: format!(
+                "{} workgroups of {WORKGROUP}",
+                ctx.limits.max_compute_workgroups_per_dimension
+            ),
+        });
+    }
+    let frames = frames.max(1);
+    time_frames(ctx, frames, |encoder, query| {
+        for f in 0..frames {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("timed rays"),
+                timestamp_writes: compute_writes(query, f, frames),
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, groups[0], &[]);
+            pass.set_bind_group(1, groups[1], &[]);
+            pass.dispatch_workgroups(workgroups, 1, 1);
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,348 @@
+//! Issue 5's techniques on the GPU: one compute pipeline
+//! (`shaders/techniques.wgsl`) that runs any [`Technique`] with any budget
+//! on a batch of map-space rays and returns the CPU's own [`Traced`], so
+//! `displace compare` can put the two side by side and time the GPU.
+//!
+//! The technique is a uniform rather than a pipeline per technique: every
+//! invocation of a dispatch takes the same branch, so the switch costs
+//! nothing, and one module keeps the shader simple. The distance map is
+//! uploaded as [`DistanceTexture::R8Load`], the CPU tracer's own 8-bit codes,
+//! so distance mapping reads bit for bit what the CPU reads.
+
+use crate::batch::{
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
+    time_dispatches, uniform_buffer,
+};
+use crate::convention::technique_code;
+use crate::gpu_map::{GpuMap, MapParams};
+use crate::shaders::{technique_compute_source, DistanceTexture};
+use crate::technique_maps::TechniqueTextures;
+use crate::timing::Timing;
+use crate::trace::{check_rays, RayIn};
+use crate::{Error, GpuContext, Result};
+use bytemuck::{Pod, Zeroable};
+use displace_core::techniques::{Hit, Maps, Needs, Technique, Traced};
+use displace_core::{MapRay, Method, TraceOptions};
+use glam::{Vec2, Vec3};
+use wgpu::util::DeviceExt;
+
+/// Mirror of WGSL `TechniqueParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct TechniqueParams {
+    technique: u32,
+    budget: u32,
+    _pad: [u32; 2],
+}
+
+/// Mirror of WGSL `TechniqueHitOut`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct TechniqueHitOut {
+    position: [f32; 3],
+    t: f32,
+    uv: [f32; 2],
+    fetches: u32,
+    flags: u32,
+}
+
+/// Bit 0 of `TechniqueHitOut::flags` (technique_compute.wgsl).
+const TECHNIQUE_FOUND: u32 = 1;
+
+/// The textures of one [`Maps`] and the pipeline that traces them.
+pub struct TechniqueTracer {
+    map: GpuMap,
+    has_distance: bool,
+    textures: TechniqueTextures,
+    pipeline: wgpu::ComputePipeline,
+    rays_layout: wgpu::BindGroupLayout,
+}
+
+impl TechniqueTracer {
+    /// Uploads `maps` (whatever precomputations it holds) and builds the
+    /// pipeline. A distance map must have been baked from `maps.height`
+    /// with `maps.aspect`, as the CPU techniques assume.
+    pub fn new(ctx: &GpuContext, maps: &Maps) -> Result<Self> {
+        let texture = DistanceTexture::R8Load;
+        let map = match &maps.displacement {
+            Some(d) => {
+                if d.height != maps.height || d.aspect() != maps.aspect {
+                    return Err(Error::InvalidOption(
+                        "the distance map was baked from another height map or extent".into(),
+                    ));
+                }
+                GpuMap::new(ctx, d, texture)?
+            }
+            None => GpuMap::for_height(ctx, &maps.height, maps.aspect)?,
+        };
+        let textures = TechniqueTextures::new(ctx, maps)?;
+        let rays_layout = rays_layout(&ctx.device);
+        let pipeline = compute_pipeline(
+            ctx,
+            "techniques",
+            technique_compute_source(texture),
+            "technique_main",
+            &[&map.layout, &rays_layout],
+        )?;
+        Ok(Self {
+            map,
+            has_distance: maps.displacement.is_some(),
+            textures,
+            pipeline,
+            rays_layout,
+        })
+    }
+
+    /// Traces `rays` (map space, unit directions) with `technique` and
+    /// `budget`, as [`Technique::trace`] does on the CPU.
+    pub fn trace(
+        &self,
+        ctx: &GpuContext,
+        rays: &[MapRay],
+        technique: Technique,
+        budget: u32,
+    ) -> Result<Vec<Traced>> {
+        check_rays(rays)?;
+        let uniforms = self.uniforms(ctx, technique, budget)?;
+        let chunk = chunk_size(ctx, std::mem::size_of::<TechniqueHitOut>() as u64);
+        let mut out = Vec::with_capacity(rays.len());
+        for batch in rays.chunks(chunk) {
+            for h in self.trace_chunk(ctx, &uniforms, batch)? {
+                check_cell_cap(h.flags, &format!("tracing rays with {}", technique.name()))?;
+                out.push(to_traced(&h));
+            }
+        }
+        Ok(out)
+    }
+
+    /// GPU time of `frames` dispatches of `technique` over `rays` (at most
+    /// one chunk), by the [`crate::timing`] helpers; the hits are discarded.
+    pub fn time(
+        &self,
+        ctx: &GpuContext,
+        rays: &[MapRay],
+        technique: Technique,
+        budget: u32,
+        frames: u32,
+    ) -> Result<Timing> {
+        check_rays(rays)?;
+        let chunk = chunk_size(ctx, std::mem::size_of::<TechniqueHitOut>() as u64);
+        if rays.len() > chunk {
+            return Err(Error::Limit {
+                what: "timed ray batch".into(),
+                size: rays.len().to_string(),
+                limit: format!("{chunk} rays"),
+            });
+        }
+        let uniforms = self.uniforms(ctx, technique, budget)?;
+        let (rays_group, _hits) = self.ray_buffers(ctx, &uniforms, rays);
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [&uniforms.map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
+    }
+
+    /// The map's bind group and the technique's uniform; refuses a
+    /// technique whose precomputation was not uploaded, as the CPU does.
+    fn uniforms(&self, ctx: &GpuContext, technique: Technique, budget: u32) -> Result<Uniforms> {
+        let needs = technique.needs();
+        let present = if needs == Needs::DistanceMap {
+            self.has_distance
+        } else {
+            self.textures.has(needs)
+        };
+        if !present {
+            return Err(Error::InvalidOption(format!(
+                "{} needs {needs:?}",
+                technique.name()
+            )));
+        }
+        let budget = budget.max(1);
+        let opts = TraceOptions {
+            method: if technique == Technique::Distance {
+                Method::Sphere
+            } else {
+                Method::SphereFixed
+            },
+            iterations: budget,
+            ..TraceOptions::default()
+        };
+        let params: MapParams = self.map.params(&opts)?;
+        let map_buf = uniform_buffer(ctx, "technique map params", &params);
+        let technique = TechniqueParams {
+            technique: technique_code(technique),
+            budget,
+            _pad: [0; 2],
+        };
+        let technique_buf = uniform_buffer(ctx, "technique params", &technique);
+        Ok(Uniforms {
+            map_group: self.map.bind_group(ctx, &map_buf),
+            technique: technique_buf,
+        })
+    }
+
+    fn ray_buffers(
+        &self,
+        ctx: &GpuContext,
+        uniforms: &Uniforms,
+        rays: &[MapRay],
+    ) -> (wgpu::BindGroup, wgpu::Buffer) {
+        let ray_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("technique rays"),
+                contents: bytemuck::cast_slice(&RayIn::all(rays)),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("technique hits"),
+            size: (rays.len() * std::mem::size_of::<TechniqueHitOut>()) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let view = wgpu::BindingResource::TextureView;
+        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("technique rays"),
+            layout: &self.rays_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: ray_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: hit_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: uniforms.technique.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: view(&self.textures.cones),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: view(&self.textures.relaxed),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: view(&self.textures.pyramid),
+                },
+            ],
+        });
+        (group, hit_buf)
+    }
+
+    fn trace_chunk(
+        &self,
+        ctx: &GpuContext,
+        uniforms: &Uniforms,
+        rays: &[MapRay],
+    ) -> Result<Vec<TechniqueHitOut>> {
+        dispatch_and_read(ctx, &self.pipeline, &uniforms.map_group, rays.len(), || {
+            self.ray_buffers(ctx, uniforms, rays)
+        })
+    }
+}
+
+struct Uniforms {
+    map_group: wgpu::BindGroup,
+    technique: wgpu::Buffer,
+}
+
+fn to_traced(h: &TechniqueHitOut) -> Traced {
+    Traced {
+        hit: (h.flags & TECHNIQUE_FOUND != 0).then(|| Hit {
+            t: h.t,
+            position: Vec3::from_array(h.position),
+            uv: Vec2::from_array(h.uv),
+        }),
+        fetches: h.fetches,
+    }
+}
+
+/// Group 1: rays, hits, the technique's uniform, cones, relaxed cones and
+/// the pyramid.
+fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty,
+        count: None,
+    };
+    let texture = wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+        view_dimension: wgpu::TextureViewDimension::D2,
+        multisampled: false,
+    };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("technique rays"),
+        entries: &[
+            storage_entry(0, true),
+            storage_entry(1, false),
+            entry(
+                2,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: wgpu::BufferSize::new(
+                        std::mem::size_of::<TechniqueParams>() as u64
+                    ),
+                },
+            ),
+            entry(3, texture),
+            entry(4, texture),
+            entry(5, texture),
+        ],
+    })
+}
+
+/// GPU cost of one technique at one budget over a batch of rays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TechniqueCost {
+    pub technique: Technique,
+    pub budget: u32,
+    pub rays: usize,
+    pub timing: Timing,
+}
+
+impl TechniqueCost {
+    /// Milliseconds per million rays.
+    pub fn ms_per_mray(&self) -> f64 {
+        self.timing.ms_per_frame * 1e6 / self.rays.max(1) as f64
+    }
+
+    /// Milliseconds per 1280x1024 frame of such rays (one per pixel).
+    pub fn ms_per_frame_1280x1024(&self) -> f64 {
+        self.ms_per_mray() * (1280.0 * 1024.0) / 1e6
+    }
+}
+
+/// Times every `(technique, budget)` pair on `rays`, `frames` dispatches
+/// each, after one untimed warm-up dispatch: what `displace compare` prints
+/// as GPU cost. Pairs whose precomputation `maps` lacks are refused.
+pub fn technique_costs(
+    ctx: &GpuContext,
+    maps: &Maps,
+    rays: &[MapRay],
+    runs: &[(Technique, u32)],
+    frames: u32,
+) -> Result<Vec<TechniqueCost>> {
+    let tracer = TechniqueTracer::new(ctx, maps)?;
+    runs.iter()
+        .map(|&(technique, budget)| {
+            tracer.time(ctx, rays, technique, budget, 1)?;
+            let timing = tracer.time(ctx, rays, technique, budget, frames)?;
+            Ok(TechniqueCost {
+                technique,
+                budget,
+                rays: rays.len(),
+                timing,
+            })
+        })
+        .collect()
+}
