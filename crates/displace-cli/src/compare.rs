@@ -64,6 +64,19 @@ pub struct CompareArgs {
     /// largest budget within it)
     #[arg(long, default_value_t = 32.0)]
     pub grid_fetches: f64,
+    /// Also time every technique and budget on the GPU (compute shader,
+    /// `displace_gpu::technique_costs`): the `gpu_ns_per_ray` column. Fails
+    /// when no GPU adapter is found
+    #[arg(long)]
+    pub gpu: bool,
+    /// Rays per GPU dispatch: the measured rays repeated to this many, so
+    /// the time is the GPU's and not the dispatch overhead's
+    /// [default: 262144; --quick: 4096]
+    #[arg(long, value_name = "N")]
+    pub gpu_rays: Option<usize>,
+    /// Timed GPU dispatches per technique and budget (after one warm-up)
+    #[arg(long, default_value_t = 5)]
+    pub gpu_frames: u32,
     /// Small sizes, for tests
     #[arg(long)]
     pub quick: bool,
@@ -82,9 +95,11 @@ pub struct Row {
     pub p99_error: f64,
     pub fetches: f64,
     pub ns_per_ray: f64,
+    /// With `--gpu`: GPU time per ray (compute path), nanoseconds.
+    pub gpu_ns_per_ray: Option<f64>,
 }
 
-pub const CSV_HEADER: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray";
+pub const CSV_HEADER: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray,gpu_ns_per_ray";
 
 /// The settings after defaults and `--quick`.
 struct Plan {
@@ -374,6 +389,42 @@ fn score(size: [usize; 2], exact: &[Option<Vec2>], got: &[Option<Vec2>]) -> (f64
     (wrong as f64 / exact.len() as f64, mean, p99)
 }
 
+/// Rows one elevation of one map adds to compare.csv.
+fn runs_per_elevation(plan: &Plan) -> usize {
+    plan.techniques
+        .iter()
+        .map(|t| {
+            if t.uses_budget() {
+                plan.budgets.len()
+            } else {
+                1
+            }
+        })
+        .sum()
+}
+
+/// Fills `gpu_ns_per_ray` of `rows` (one elevation of one map): the rays
+/// repeated to `n` per dispatch, every technique and budget timed on the
+/// GPU's compute path.
+fn time_on_gpu(
+    ctx: &displace_gpu::GpuContext,
+    maps: &Maps,
+    rays: &[MapRay],
+    n: usize,
+    frames: u32,
+    rows: &mut [Row],
+) -> Result<()> {
+    let batch: Vec<MapRay> = rays.iter().copied().cycle().take(n).collect();
+    let runs: Vec<(Technique, u32)> = rows.iter().map(|r| (r.technique, r.budget)).collect();
+    let costs = displace_gpu::technique_costs(ctx, maps, &batch, &runs, frames)
+        .context("timing the techniques on the GPU")?;
+    for (row, cost) in rows.iter_mut().zip(costs) {
+        // Milliseconds per million rays are nanoseconds per ray.
+        row.gpu_ns_per_ray = Some(cost.ms_per_mray());
+    }
+    Ok(())
+}
+
 /// Error bound of the equal-error table: issue 5's 99th percentile below
 /// half a texel, with at most 1% of rays getting hit/miss wrong.
 pub const EQUAL_ERROR_TEXELS: f64 = 0.5;
@@ -425,6 +476,26 @@ pub fn run(args: CompareArgs) -> Result<()> {
         .map(|s| load_height(s, &height_args, plan.size).map(|h| (map_name(s), h)))
         .collect::<Result<Vec<_>>>()?;
 
+    let gpu = if args.gpu {
+        if args.gpu_frames == 0 {
+            bail!("--gpu-frames must be positive");
+        }
+        let n = args
+            .gpu_rays
+            .unwrap_or(if args.quick { 4096 } else { 1 << 18 });
+        if n == 0 {
+            bail!("--gpu-rays must be positive");
+        }
+        let ctx = displace_gpu::GpuContext::new_headless().context(
+            "--gpu: no usable GPU adapter (install a Vulkan driver, e.g. mesa-vulkan-drivers)",
+        )?;
+        let info = ctx.adapter.get_info();
+        println!("GPU: {} ({:?})", info.name, info.backend);
+        Some((ctx, n))
+    } else {
+        None
+    };
+
     let started = Instant::now();
     let mut rows = Vec::new();
     let mut precompute = Vec::new();
@@ -459,8 +530,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
                         p99_error,
                         fetches,
                         ns_per_ray: ns,
+                        gpu_ns_per_ray: None,
                     });
                 }
+            }
+            if let Some((ctx, n)) = &gpu {
+                let first = rows.len() - runs_per_elevation(&plan);
+                time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut rows[first..])?;
             }
         }
         // The grid shows the first map the user gave, else the text map.
@@ -480,7 +556,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         for r in &rows {
             writeln!(
                 w,
-                "{},{},{},{},{},{:.6},{:.6},{:.6},{:.3},{:.1}",
+                "{},{},{},{},{},{:.6},{:.6},{:.6},{:.3},{:.1},{}",
                 r.map,
                 r.elevation,
                 r.technique.name(),
@@ -490,7 +566,10 @@ pub fn run(args: CompareArgs) -> Result<()> {
                 r.mean_error,
                 r.p99_error,
                 r.fetches,
-                r.ns_per_ray
+                r.ns_per_ray,
+                r.gpu_ns_per_ray
+                    .map(|g| format!("{g:.3}"))
+                    .unwrap_or_default()
             )?;
         }
         Ok(())

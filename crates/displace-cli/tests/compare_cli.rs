@@ -13,7 +13,7 @@ fn displace(args: &[&str], dir: &Path) -> Output {
         .expect("run displace")
 }
 
-const COLUMNS: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray";
+const COLUMNS: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray,gpu_ns_per_ray";
 
 #[test]
 fn quick_compare_writes_csv_plots_and_grid() {
@@ -41,7 +41,8 @@ fn quick_compare_writes_csv_plots_and_grid() {
         assert!(maps.contains(m), "{m} missing from {maps:?}");
     }
     for r in &rows {
-        assert_eq!(r.len(), 10);
+        assert_eq!(r.len(), 11);
+        assert_eq!(r[10], "", "no GPU timing without --gpu: {r:?}");
         let wrong: f64 = r[5].parse().unwrap();
         let p99: f64 = r[7].parse().unwrap();
         let fetches: f64 = r[8].parse().unwrap();
@@ -77,6 +78,61 @@ fn quick_compare_writes_csv_plots_and_grid() {
     }
     let grid = image::open(d.join("out/grid.png")).unwrap();
     assert_eq!(grid.width(), 12 * 48);
+}
+
+/// `--gpu` times every technique and budget on the GPU (lavapipe in CI,
+/// where a missing adapter fails this test): every row gets a positive
+/// GPU time per ray, the CPU columns are unchanged by it.
+#[test]
+fn gpu_timing_fills_its_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = [
+        "compare",
+        "--quick",
+        "--only-given",
+        "--height",
+        "gen:studded",
+        "--techniques",
+        "distance,pom,relief,max-mip",
+    ];
+    let mut with_gpu = common.to_vec();
+    with_gpu.extend([
+        "--out",
+        "gpu",
+        "--gpu",
+        "--gpu-rays",
+        "2048",
+        "--gpu-frames",
+        "1",
+    ]);
+    let o = displace(&with_gpu, d);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("GPU: "));
+    let mut without = common.to_vec();
+    without.extend(["--out", "cpu"]);
+    let o = displace(&without, d);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = |f: &str| std::fs::read_to_string(d.join(f)).unwrap();
+    let (gpu, cpu) = (read("gpu/compare.csv"), read("cpu/compare.csv"));
+    // 1 map x 2 elevations x 4 techniques x 2 budgets.
+    assert_eq!(gpu.lines().count(), 1 + 16);
+    for (g, c) in gpu.lines().skip(1).zip(cpu.lines().skip(1)) {
+        let g: Vec<&str> = g.split(',').collect();
+        let c: Vec<&str> = c.split(',').collect();
+        let ns: f64 = g[10].parse().unwrap_or_else(|_| panic!("{g:?}"));
+        assert!(ns > 0.0 && ns.is_finite(), "{g:?}");
+        assert_eq!(c[10], "");
+        // Same rays, same answers: only the timings differ.
+        assert_eq!(g[..9], c[..9]);
+    }
+    let zero: Vec<&str> = with_gpu
+        .iter()
+        .map(|&a| if a == "2048" { "0" } else { a })
+        .collect();
+    let o = displace(&zero, d);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--gpu-rays"));
 }
 
 fn refuses(args: &[&str], needle: &str) {
