@@ -183,7 +183,12 @@ pub fn run(args: BakeArgs) -> Result<()> {
         }
     }
     if let Some(c) = &args.cone {
-        if check_output(c).with_context(|| format!("--cone {}", c.display()))? != MapFile::Npy {
+        // Named before the generic output check, whose message is about
+        // distance-map file types.
+        let npy = c.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+        if !npy
+            || check_output(c).with_context(|| format!("--cone {}", c.display()))? != MapFile::Npy
+        {
             bail!("--cone {}: the cone map is written as .npy", c.display());
         }
     }

@@ -679,7 +679,7 @@ fn bakes_cone_maps() {
     refuses(
         d,
         &["bake", "--size", "8x8x4", "-o", "x.npy", "--cone", "c.png"],
-        &["--cone", ".npy"],
+        &["--cone c.png", "the cone map is written as .npy"],
     );
     refuses(
         d,

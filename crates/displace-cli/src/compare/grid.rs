@@ -17,7 +17,8 @@ use glam::{Vec2, Vec3};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// View direction: 25 degrees above the face, from the lower left.
+/// View direction: 25 degrees above the face, from its upper left in the image
+/// (rays travel towards +u and +v: right and down).
 const ELEVATION_DEG: f32 = 25.0;
 const AZIMUTH_DEG: f32 = 35.0;
 /// Height of the label band above each row, pixels.
@@ -31,8 +32,9 @@ fn view_rays(aspect: [f32; 2], s: usize) -> Vec<MapRay> {
         .map(|k| {
             let (i, j) = (k % s, k / s);
             let x = (i as f32 + 0.5) / s as f32 * aspect[0];
-            // Image rows go down; v goes up.
-            let y = (1.0 - (j as f32 + 0.5) / s as f32) * aspect[1];
+            // Image rows go down as the height map's rows do (row 0 at
+            // v = 0), so a map of text reads as it does in its image.
+            let y = (j as f32 + 0.5) / s as f32 * aspect[1];
             MapRay::new(Vec3::new(x, y, 1.0), dir)
         })
         .collect()
