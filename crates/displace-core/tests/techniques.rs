@@ -52,6 +52,40 @@ fn ray_from_top(rng: &mut Rng, aspect: [f32; 2], elevation: f32) -> MapRay {
 }
 
 /// Exact first hit (`Method::Exact`), its texture coordinate.
+/// A random height map (`kind` of [`random_height`]) with every technique's
+/// maps, and 32 rays from the top at random elevations with the exact
+/// reference's `t` for each: the shared set-up of the property tests.
+fn random_case(
+    kind: u8,
+    [w, h]: [usize; 2],
+    [sx, sz]: [f32; 2],
+    seed: u64,
+    ray_salt: u64,
+) -> (Maps, Vec<(MapRay, Option<f32>)>) {
+    let height = random_height(kind, w, h, seed, Address::Clamp);
+    let extent = Extent::new(sx, sx * 0.8, sz).unwrap();
+    let maps = all_maps(height, extent, [8, 8, 4]);
+    let mut rng = Rng(seed ^ ray_salt);
+    let exact_opts = TraceOptions {
+        method: Method::Exact,
+        ..TraceOptions::default()
+    };
+    let cases = (0..32)
+        .map(|_| {
+            let elevation = 3.0 + rng.next_f64() as f32 * 87.0;
+            let ray = ray_from_top(&mut rng, maps.aspect, elevation);
+            let want = maps
+                .displacement
+                .as_ref()
+                .unwrap()
+                .trace(&ray, &exact_opts)
+                .map(|h| h.t);
+            (ray, want)
+        })
+        .collect();
+    (maps, cases)
+}
+
 fn exact_hit(maps: &Maps, ray: &MapRay) -> Option<glam::Vec2> {
     let opts = TraceOptions {
         method: Method::Exact,
@@ -194,15 +228,8 @@ proptest! {
         sx in 0.5f32..3.0, sz in 0.05f32..0.5,
         seed in any::<u64>(),
     ) {
-        let height = random_height(kind, w, h, seed, Address::Clamp);
-        let extent = Extent::new(sx, sx * 0.8, sz).unwrap();
-        let maps = all_maps(height, extent, [8, 8, 4]);
-        let mut rng = Rng(seed ^ 0x5151);
-        let exact_opts = TraceOptions { method: Method::Exact, ..TraceOptions::default() };
-        for _ in 0..32 {
-            let elevation = 3.0 + rng.next_f64() as f32 * 87.0;
-            let ray = ray_from_top(&mut rng, maps.aspect, elevation);
-            let want = maps.displacement.as_ref().unwrap().trace(&ray, &exact_opts).map(|h| h.t);
+        let (maps, cases) = random_case(kind, [w, h], [sx, sz], seed, 0x5151);
+        for (ray, want) in cases {
             for budget in [1, 2, 3, 5, 8, 13, 21] {
                 let got = Technique::Cone.trace(&maps, &ray, budget).unwrap();
                 if let (Some(got), Some(want)) = (got.hit, want) {
@@ -246,15 +273,8 @@ proptest! {
         sx in 0.5f32..3.0, sz in 0.05f32..0.5,
         seed in any::<u64>(),
     ) {
-        let height = random_height(kind, w, h, seed, Address::Clamp);
-        let extent = Extent::new(sx, sx * 0.8, sz).unwrap();
-        let maps = all_maps(height, extent, [8, 8, 4]);
-        let mut rng = Rng(seed ^ 0xabcd);
-        let exact_opts = TraceOptions { method: Method::Exact, ..TraceOptions::default() };
-        for _ in 0..32 {
-            let elevation = 3.0 + rng.next_f64() as f32 * 87.0;
-            let ray = ray_from_top(&mut rng, maps.aspect, elevation);
-            let want = maps.displacement.as_ref().unwrap().trace(&ray, &exact_opts).map(|h| h.t);
+        let (maps, cases) = random_case(kind, [w, h], [sx, sz], seed, 0xabcd);
+        for (ray, want) in cases {
             for tech in [Technique::MaxMip, Technique::Distance] {
                 let got = tech.trace(&maps, &ray, 10_000).unwrap().hit.map(|h| h.t);
                 match (want, got) {
