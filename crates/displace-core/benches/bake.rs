@@ -1,8 +1,11 @@
 //! Bake throughput (voxels per second) of the conservative distance map,
 //! normal map included, at Donnelly's 256x256x16 and at 512x512x32, for the
-//! sharp-edged `studded` map and smooth fractal `noise`.
+//! sharp-edged `studded` map and smooth fractal `noise`; and the 1D lower
+//! envelope at its heart, eight lines at a time (the AVX2 kernel the bake
+//! uses) against the scalar transform on the same lines.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use displace_core::edt::{transform_lanes, transform_line, LaneScratch, LineScratch, LANES};
 use displace_core::{bake, generators, Address, BakeOptions, Extent};
 use std::hint::black_box;
 
@@ -29,5 +32,54 @@ fn bake_volumes(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bake_volumes);
+/// The 1D transforms of one 512x512 slice's rows as a bake does them: the
+/// squared height distance `(z - h)^2` at mid-depth along every row of a
+/// `noise` (or `studded`) map, 512 different lines so that the branch
+/// predictor cannot learn one line's pops; the kernel takes them as 64
+/// interleaved groups of eight.
+fn envelope_lines(c: &mut Criterion) {
+    let mut group = c.benchmark_group("envelope");
+    let n = 512;
+    for name in ["studded", "noise"] {
+        let height =
+            generators::generate(&format!("gen:{name}"), n, n, Address::Clamp).expect("generator");
+        let lines: Vec<f32> = height
+            .data()
+            .iter()
+            .map(|h| (0.5 - h) * (0.5 - h))
+            .collect();
+        let mut lanes = vec![0.0f32; n * n];
+        for (r, line) in lines.chunks_exact(n).enumerate() {
+            let (g, b) = (r / LANES, r % LANES);
+            for (x, &v) in line.iter().enumerate() {
+                lanes[g * n * LANES + x * LANES + b] = v;
+            }
+        }
+        group.throughput(Throughput::Elements((n * n) as u64));
+        let spacing = 10.0 / n as f32;
+        group.bench_function(BenchmarkId::new("scalar", name), |b| {
+            let mut s = LineScratch::default();
+            let mut work = lines.clone();
+            b.iter(|| {
+                work.copy_from_slice(&lines);
+                for line in work.chunks_exact_mut(n) {
+                    transform_line(black_box(line), spacing, false, &mut s);
+                }
+            })
+        });
+        group.bench_function(BenchmarkId::new("lanes", name), |b| {
+            let mut s = LaneScratch::default();
+            let mut work = lanes.clone();
+            b.iter(|| {
+                work.copy_from_slice(&lanes);
+                for group in work.chunks_exact_mut(n * LANES) {
+                    transform_lanes(black_box(group), LANES, n, spacing, false, &mut s);
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bake_volumes, envelope_lines);
 criterion_main!(benches);

@@ -3,7 +3,7 @@
 
 use crate::convention::{texel_centre, texel_lerp, Extent};
 use crate::distance_map::DistanceMap;
-use crate::edt::{transform_2d_with, LineScratch};
+use crate::edt::{transform_2d_with, SliceScratch};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
 use crate::{Address, Error, HeightMap, NormalMap, Result};
 use glam::{Vec2, Vec3};
@@ -135,7 +135,7 @@ pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let done = AtomicUsize::new(0);
     let mut data = vec![0.0f32; w * h * d];
     data.par_chunks_mut(w * h).enumerate().try_for_each_init(
-        LineScratch::default,
+        SliceScratch::default,
         |scratch, (k, slice)| {
             if cancelled() {
                 return Err(Error::Cancelled);

@@ -1,0 +1,304 @@
+//! Eight lines of the lower envelope at once, one per lane of an AVX2
+//! register.
+//!
+//! The scalar envelope ([`super::transform_line`]) spends most of its time in
+//! mispredicted branches: how many parabolas a new one pops, and where the
+//! read-back moves to the next parabola, depend on the data. Eight
+//! independent lines step together here, so a branch is taken once for all
+//! eight and the loop runs as long as the lane that pops the most.
+//!
+//! A lane's stack is a linked list in arrays indexed by site (element
+//! `site * 8 + lane`): pushing parabola `q` stores its value, its left end and
+//! the index of the parabola below it at `q`, one contiguous 8-lane store for
+//! all lanes, and popping follows that link with a gather. AVX2 has gathers
+//! but no scatters, which a stack indexed by depth would need. The read-back
+//! walks the list from the right end, so it runs from the last sample to the
+//! first.
+//!
+//! The arithmetic is [`super::envelope`]'s, operation for operation (the same
+//! intersection numerator, the same cross-multiplied pop test, the same
+//! division for a pushed left end, the same `d * d + f` result), so the
+//! envelope and the results are the scalar ones; the only way the two can
+//! differ is where rounding makes two adjacent left ends out of order (the
+//! scalar read-back and this one then pick different parabolas at a tie that
+//! rounding broke), which changes a value by its rounding error.
+
+/// Lines per group: one `f32` per lane of a 256-bit register.
+pub const LANES: usize = 8;
+
+/// Per-thread scratch of the lane kernel, reused across groups.
+#[derive(Default)]
+pub struct LaneScratch {
+    /// The input value at each site (element `site * 8 + lane`).
+    f: Vec<f32>,
+    /// Left end of the site's interval of the envelope, when it was pushed.
+    z: Vec<f32>,
+    /// Element index of the parabola below the site on its lane's stack.
+    prev: Vec<i32>,
+    /// One lane as a line, for the scalar path.
+    line: Vec<f32>,
+    scalar: super::LineScratch,
+}
+
+/// Whether [`transform_lanes`] runs the vector kernel on this CPU (otherwise
+/// it runs the scalar envelope lane by lane).
+pub fn vector_kernel() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// [`super::transform_line`] on eight interleaved lines: sample `t` of lane
+/// `b` is `data[t * stride + b]`, for `t < n`. Every value must be finite
+/// (a line without sites, which the scalar transform allows, has no use in
+/// a bake); groups with an infinite or NaN value go through the scalar
+/// envelope instead.
+pub fn transform_lanes(
+    data: &mut [f32],
+    stride: usize,
+    n: usize,
+    spacing: f32,
+    periodic: bool,
+    s: &mut LaneScratch,
+) {
+    assert!(stride >= LANES && n > 0 && data.len() >= (n - 1) * stride + LANES);
+    if vector(data, stride, n, spacing, periodic, s) {
+        return;
+    }
+    let line = &mut s.line;
+    for b in 0..LANES {
+        line.clear();
+        line.extend((0..n).map(|t| data[t * stride + b]));
+        super::transform_line(line, spacing, periodic, &mut s.scalar);
+        for (t, &v) in line.iter().enumerate() {
+            data[t * stride + b] = v;
+        }
+    }
+}
+
+/// Runs the vector kernel where it applies; false if it did not.
+#[cfg(target_arch = "x86_64")]
+fn vector(
+    data: &mut [f32],
+    stride: usize,
+    n: usize,
+    spacing: f32,
+    periodic: bool,
+    s: &mut LaneScratch,
+) -> bool {
+    let finite = || (0..n).all(|t| data[t * stride..][..LANES].iter().all(|x| x.is_finite()));
+    if !(vector_kernel() && n <= MAX_LEN && finite()) {
+        return false;
+    }
+    // SAFETY: AVX2 is present (checked above), the values are finite and the
+    // bounds the kernel relies on were asserted by the caller.
+    unsafe { avx2::envelope(data, stride, n, spacing, periodic, s) };
+    true
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn vector(_: &mut [f32], _: usize, _: usize, _: f32, _: bool, _: &mut LaneScratch) -> bool {
+    false
+}
+
+/// Longest line the kernel takes: element indices of the extended periodic
+/// line (`2n * 8`) must fit an `i32`, and sites must be exact in `f32`.
+const MAX_LEN: usize = 1 << 22;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{LaneScratch, LANES};
+    use std::arch::x86_64::*;
+
+    /// The envelope of eight interleaved lines; see the module docs.
+    ///
+    /// # Safety
+    /// The CPU has AVX2; every value is finite; `n <= MAX_LEN`;
+    /// `data.len() >= (n - 1) * stride + 8`.
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn envelope(
+        data: &mut [f32],
+        stride: usize,
+        n: usize,
+        spacing: f32,
+        periodic: bool,
+        s: &mut LaneScratch,
+    ) {
+        // A periodic line is extended by half a period on each side, as the
+        // scalar transform does, without copying: `src` follows the wrap.
+        let m = if periodic { n / 2 } else { 0 };
+        let len = n + 2 * m;
+        s.f.resize((len + 1) * LANES, 0.0);
+        s.z.resize((len + 1) * LANES, 0.0);
+        s.prev.resize((len + 1) * LANES, 0);
+        let (fs, zs, ps) = (s.f.as_mut_ptr(), s.z.as_mut_ptr(), s.prev.as_mut_ptr());
+        let base = data.as_mut_ptr();
+        let inv = _mm256_set1_ps(1.0 / (spacing * spacing));
+        let two = _mm256_set1_ps(2.0);
+        let half = _mm256_set1_ps(0.5);
+        let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+
+        let mut src = if m > 0 { n - m } else { 0 };
+        let load = |src: usize| _mm256_loadu_ps(base.add(src * stride));
+
+        // Element `(site + 1) * 8 + lane` holds a site; group 0 is a
+        // sentinel below every stack (left end -inf, linked to itself), so
+        // that every gather reads inside the arrays.
+        let ninf = _mm256_set1_ps(f32::NEG_INFINITY);
+        _mm256_storeu_ps(fs, _mm256_setzero_ps());
+        _mm256_storeu_ps(zs, ninf);
+        _mm256_storeu_si256(ps as *mut __m256i, lane);
+        let site = |e: __m256i| {
+            _mm256_cvtepi32_ps(_mm256_sub_epi32(
+                _mm256_srli_epi32::<3>(e),
+                _mm256_set1_epi32(1),
+            ))
+        };
+        let element =
+            |q: usize| _mm256_add_epi32(_mm256_set1_epi32(((q + 1) * LANES) as i32), lane);
+
+        // The top parabola of each lane's stack (`t_*`) and the one below it
+        // (`b_*`, with `b_prev` the element below that) stay in registers:
+        // a pop or a read-back step decides on registers, and the gathers
+        // that fetch the new parabola below run in the shadow of the next
+        // decision instead of in front of it. A push needs no gather at all.
+        let f0 = load(src);
+        _mm256_storeu_ps(fs.add(LANES), f0);
+        _mm256_storeu_ps(zs.add(LANES), ninf);
+        _mm256_storeu_si256(ps.add(LANES) as *mut __m256i, lane);
+        let (mut t_e, mut t_p, mut t_f, mut t_z) = (element(0), _mm256_setzero_ps(), f0, ninf);
+        let (mut b_e, mut b_p, mut b_f, mut b_z) = (lane, site(lane), _mm256_setzero_ps(), ninf);
+        let mut b_prev = lane;
+
+        // Moves the lanes of `mask` down their stack by one parabola.
+        macro_rules! follow {
+            ($mask:expr) => {{
+                let mask = $mask;
+                let maski = _mm256_castps_si256(mask);
+                t_e = _mm256_blendv_epi8(t_e, b_e, maski);
+                t_p = _mm256_blendv_ps(t_p, b_p, mask);
+                t_f = _mm256_blendv_ps(t_f, b_f, mask);
+                t_z = _mm256_blendv_ps(t_z, b_z, mask);
+                b_e = _mm256_blendv_epi8(b_e, b_prev, maski);
+                b_p = site(b_e);
+                b_f = _mm256_mask_i32gather_ps::<4>(b_f, fs, b_e, mask);
+                b_z = _mm256_mask_i32gather_ps::<4>(b_z, zs, b_e, mask);
+                b_prev = _mm256_mask_i32gather_epi32::<4>(b_prev, ps, b_e, maski);
+            }};
+        }
+
+        for q in 1..len {
+            src += 1;
+            if src == n {
+                src = 0;
+            }
+            let qf = _mm256_set1_ps(q as f32);
+            let fq = load(src);
+            let gq = _mm256_mul_ps(fq, inv);
+            let at = (q + 1) * LANES;
+            _mm256_storeu_ps(fs.add(at), fq);
+            let (num, d2) = loop {
+                // super::envelope: d2 = 2 (q - p), num = (g_q - g_p) + d2/2 (q + p).
+                let d2 = _mm256_mul_ps(two, _mm256_sub_ps(qf, t_p));
+                let t_g = _mm256_mul_ps(t_f, inv);
+                let num = _mm256_add_ps(
+                    _mm256_sub_ps(gq, t_g),
+                    _mm256_mul_ps(_mm256_mul_ps(half, d2), _mm256_add_ps(qf, t_p)),
+                );
+                let pop = _mm256_cmp_ps::<_CMP_LE_OQ>(num, _mm256_mul_ps(t_z, d2));
+                if _mm256_movemask_ps(pop) == 0 {
+                    break (num, d2);
+                }
+                follow!(pop);
+            };
+            let z = _mm256_div_ps(num, d2);
+            _mm256_storeu_ps(zs.add(at), z);
+            _mm256_storeu_si256(ps.add(at) as *mut __m256i, t_e);
+            b_prev = b_e;
+            (b_e, b_p, b_f, b_z) = (t_e, t_p, t_f, t_z);
+            (t_e, t_p, t_f, t_z) = (element(q), qf, fq, z);
+        }
+
+        // Read-back from the right: a sample at x takes the parabola whose
+        // interval [z, next z) holds it; move left while z >= x (the scalar
+        // read-back moves right while the next z < x: the same choice).
+        let sp = _mm256_set1_ps(spacing);
+        for x in (m..m + n).rev() {
+            let xf = _mm256_set1_ps(x as f32);
+            loop {
+                let back = _mm256_cmp_ps::<_CMP_GE_OQ>(t_z, xf);
+                if _mm256_movemask_ps(back) == 0 {
+                    break;
+                }
+                follow!(back);
+            }
+            let d = _mm256_mul_ps(sp, _mm256_sub_ps(xf, t_p));
+            let out = _mm256_add_ps(_mm256_mul_ps(d, d), t_f);
+            _mm256_storeu_ps(base.add((x - m) * stride), out);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::edt::{transform_line, LineScratch};
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Bit-identical to the scalar envelope, up to the rounding of a tie
+        /// (see the module docs), on random lines with repeated values
+        /// (ties) and the shapes a bake feeds it.
+        #[test]
+        fn lanes_match_the_scalar_transform(
+            n in 1usize..70,
+            spacing in 0.05f32..3.0,
+            periodic: bool,
+            pad in 0usize..3,
+            seed in any::<u64>(),
+            levels in 1u32..12,
+        ) {
+            let mut state = seed | 1;
+            let mut next = || { state ^= state << 13; state ^= state >> 7; state ^= state << 17; state };
+            let stride = LANES + pad;
+            let data: Vec<f32> = (0..n * stride)
+                .map(|_| (next() % u64::from(levels)) as f32 * 0.37)
+                .collect();
+            let mut got = data.clone();
+            transform_lanes(&mut got, stride, n, spacing, periodic, &mut LaneScratch::default());
+            for b in 0..LANES {
+                let mut want: Vec<f32> = (0..n).map(|t| data[t * stride + b]).collect();
+                transform_line(&mut want, spacing, periodic, &mut LineScratch::default());
+                for t in 0..n {
+                    let (g, w) = (got[t * stride + b], want[t]);
+                    prop_assert!((g - w).abs() <= 1e-5 * (1.0 + w), "lane {b} sample {t}: {g} vs {w}");
+                }
+            }
+            // Padding between groups is not touched.
+            for t in 0..n {
+                for p in LANES..stride {
+                    prop_assert_eq!(got[t * stride + p], data[t * stride + p]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn infinite_values_take_the_scalar_path() {
+        let n = 9;
+        let mut data = vec![f32::INFINITY; n * LANES];
+        data[4 * LANES + 3] = 0.0;
+        transform_lanes(&mut data, LANES, n, 1.0, false, &mut LaneScratch::default());
+        for t in 0..n {
+            assert_eq!(data[t * LANES + 3], ((t as f32) - 4.0).powi(2));
+            assert!(data[t * LANES].is_infinite());
+        }
+    }
+}
