@@ -137,6 +137,9 @@ impl R8Range {
     }
 }
 
+/// 2^23: the smallest `f32` whose ulp is 1.
+const TWO_23: f32 = 8_388_608.0;
+
 /// See [`R8Range::encoder`]; gives the same codes as [`R8Range::encode`].
 pub struct R8Encoder {
     min: f32,
@@ -160,15 +163,14 @@ impl R8Encoder {
         const RUN: usize = 32;
         assert_eq!(values.len(), codes.len());
         for (v, c) in values.chunks(RUN).zip(codes.chunks_mut(RUN)) {
-            let mut sure = true;
+            // Two plain loops (a map, an or-reduction) so that both vectorise.
             for (o, &x) in c.iter_mut().zip(v) {
-                let (code, ok) = self.candidate(x);
-                *o = code;
-                sure &= ok;
+                *o = ((self.scaled(x).0 + TWO_23).to_bits() & 0xff) as u8;
             }
-            if !sure {
+            let unsure = v.iter().fold(0u32, |a, &x| a | u32::from(!self.sure(x)));
+            if unsure != 0 {
                 for (o, &x) in c.iter_mut().zip(v) {
-                    if !self.candidate(x).1 {
+                    if !self.sure(x) {
                         *o = self.encode(x);
                     }
                 }
@@ -176,19 +178,33 @@ impl R8Encoder {
         }
     }
 
-    /// `floor` of the scaled value, and whether that is surely the answer
-    /// (the largest code whose decoded value is not above `v`): it is when
-    /// the scaled value is more than [`Self::MARGIN`] from an integer. The
-    /// scaled value (two roundings of at most 2^-24 relative, on values up to
-    /// 255) is within 5e-5 codes of exact, and a decoded value (two
-    /// roundings on values of magnitude below 8, span 4) within 6e-5 codes,
-    /// so away from the margin the table's comparisons agree with `floor`.
-    /// Clamped guesses (below 0, at or above 255) are left to `encode`.
-    fn candidate(&self, v: f32) -> (u8, bool) {
+    /// The guess `floor` of the scaled value, clamped to a code (as an
+    /// `f32`), and the scaled value. Only float arithmetic, so that it
+    /// vectorises: comparisons rather than `clamp` (whose NaN rule keeps a
+    /// loop scalar), and `floor` from rounding to nearest by adding and
+    /// subtracting 2^23 (exact for values below 2^22) instead of a
+    /// saturating cast. A NaN becomes code 0 and is never [`Self::sure`];
+    /// adding 2^23 to a code puts it in the low byte of the float's bits.
+    fn scaled(&self, v: f32) -> (f32, f32) {
         let x = (v - self.min) * self.scale;
-        let c = (x.clamp(0.0, 255.0) as i32) as f32;
+        let c = if x > 0.0 { x } else { 0.0 };
+        let c = if c < 255.0 { c } else { 255.0 };
+        let r = (c + TWO_23) - TWO_23;
+        (if r > c { r - 1.0 } else { r }, x)
+    }
+
+    /// Whether the guess of [`Self::scaled`] is surely the answer (the
+    /// largest code whose decoded value is not above `v`): it is when the
+    /// scaled value is more than [`Self::MARGIN`] from an integer. The scaled
+    /// value (two roundings of at most 2^-24 relative, on values up to 255)
+    /// is within 5e-5 codes of exact, and a decoded value (two roundings on
+    /// values of magnitude below 8, span 4) within 6e-5 codes, so away from
+    /// the margin the table's comparisons agree with `floor`. Clamped
+    /// guesses (below 0, at or above 255) are left to [`Self::encode`].
+    fn sure(&self, v: f32) -> bool {
+        let (c, x) = self.scaled(v);
         let frac = x - c;
-        (c as u8, frac > Self::MARGIN && frac < 1.0 - Self::MARGIN)
+        frac > Self::MARGIN && frac < 1.0 - Self::MARGIN
     }
 
     /// Codes from the nearest boundary, about ten times the rounding above.

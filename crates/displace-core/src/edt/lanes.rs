@@ -106,6 +106,61 @@ fn vector(_: &mut [f32], _: usize, _: usize, _: f32, _: bool, _: &mut LaneScratc
     false
 }
 
+/// Interleaves `rows` rows of `w` samples (`group[b * w + x]`, `rows <= 8`)
+/// into `block[x * 8 + b]`, as [`transform_lanes`] takes them; lanes past
+/// `rows` repeat the first row.
+pub fn interleave(group: &[f32], rows: usize, w: usize, block: &mut [f32]) {
+    assert!((1..=LANES).contains(&rows) && group.len() >= rows * w && block.len() >= w * LANES);
+    let done = if rows == LANES {
+        // Tile t: rows at group[b * w + 8 t], written to block[64 t + 8 k].
+        transposed(group, [w, LANES], block, [LANES, LANES * LANES], w)
+    } else {
+        0
+    };
+    for b in 0..LANES {
+        let row = &group[if b < rows { b } else { 0 } * w..][..w];
+        for x in done..w {
+            block[x * LANES + b] = row[x];
+        }
+    }
+}
+
+/// The inverse of [`interleave`]: `group[b * w + x] = block[x * 8 + b]` for
+/// the first `rows` lanes.
+pub fn deinterleave(block: &[f32], rows: usize, w: usize, group: &mut [f32]) {
+    assert!((1..=LANES).contains(&rows) && group.len() >= rows * w && block.len() >= w * LANES);
+    let done = if rows == LANES {
+        // Tile t: eight samples at block[64 t + 8 b], to group[k * w + 8 t].
+        transposed(block, [LANES, LANES * LANES], group, [w, LANES], w)
+    } else {
+        0
+    };
+    for (b, row) in group.chunks_exact_mut(w).take(rows).enumerate() {
+        for x in done..w {
+            row[x] = block[x * LANES + b];
+        }
+    }
+}
+
+/// Transposes the `n / 8` whole 8x8 tiles of a strided layout, where the
+/// vector unit is there, and returns how many columns it did (`0` or
+/// `n / 8 * 8`). `src` and `dst` are `[row stride, tile step]`: tile `t`
+/// reads row `b` at `src[b * src.0 + t * src.1..][..8]` and writes its
+/// column `k` to `dst[k * dst.0 + t * dst.1..][..8]`.
+fn transposed(src: &[f32], from: [usize; 2], dst: &mut [f32], to: [usize; 2], n: usize) -> usize {
+    let tiles = n / LANES;
+    let reach = |[stride, step]: [usize; 2]| 7 * stride + tiles.saturating_sub(1) * step + LANES;
+    #[cfg(target_arch = "x86_64")]
+    if vector_kernel() && tiles > 0 && src.len() >= reach(from) && dst.len() >= reach(to) {
+        // SAFETY: AVX2 is present and every tile read and written lies
+        // within the slices (checked above).
+        unsafe { avx2::transpose_tiles(src, from, dst, to, tiles) };
+        return tiles * LANES;
+    }
+    let _ = (src, dst, reach);
+    0
+}
+
 /// Longest line the kernel takes: element indices of the extended periodic
 /// line (`2n * 8`) must fit an `i32`, and sites must be exact in `f32`.
 const MAX_LEN: usize = 1 << 22;
@@ -114,6 +169,48 @@ const MAX_LEN: usize = 1 << 22;
 mod avx2 {
     use super::{LaneScratch, LANES};
     use std::arch::x86_64::*;
+
+    /// 8x8 transposes of `tiles` tiles; see [`super::transposed`].
+    ///
+    /// # Safety
+    /// The CPU has AVX2; both slices reach every tile's rows.
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn transpose_tiles(
+        src: &[f32],
+        [src_stride, src_step]: [usize; 2],
+        dst: &mut [f32],
+        [dst_stride, dst_step]: [usize; 2],
+        tiles: usize,
+    ) {
+        let (s, d) = (src.as_ptr(), dst.as_mut_ptr());
+        for t in 0..tiles {
+            let r = |b: usize| _mm256_loadu_ps(s.add(b * src_stride + t * src_step));
+            let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
+            let (r4, r5, r6, r7) = (r(4), r(5), r(6), r(7));
+            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+            let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+            let (t4, t5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
+            let (t6, t7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
+            // u_k holds column k of rows 0-3 (low half) and column k + 4.
+            let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+            let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+            let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+            let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+            let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+            let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+            let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+            let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+            let w = |k: usize, v: __m256| _mm256_storeu_ps(d.add(k * dst_stride + t * dst_step), v);
+            w(0, _mm256_permute2f128_ps::<0x20>(u0, u4));
+            w(1, _mm256_permute2f128_ps::<0x20>(u1, u5));
+            w(2, _mm256_permute2f128_ps::<0x20>(u2, u6));
+            w(3, _mm256_permute2f128_ps::<0x20>(u3, u7));
+            w(4, _mm256_permute2f128_ps::<0x31>(u0, u4));
+            w(5, _mm256_permute2f128_ps::<0x31>(u1, u5));
+            w(6, _mm256_permute2f128_ps::<0x31>(u2, u6));
+            w(7, _mm256_permute2f128_ps::<0x31>(u3, u7));
+        }
+    }
 
     /// The envelope of eight interleaved lines; see the module docs.
     ///
@@ -286,6 +383,30 @@ mod tests {
                 for p in LANES..stride {
                     prop_assert_eq!(got[t * stride + p], data[t * stride + p]);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn interleaving_round_trips() {
+        for w in [1, 7, 8, 9, 16, 37] {
+            for rows in 1..=LANES {
+                let group: Vec<f32> = (0..rows * w).map(|i| i as f32).collect();
+                let mut block = vec![-1.0; w * LANES];
+                interleave(&group, rows, w, &mut block);
+                for x in 0..w {
+                    for b in 0..LANES {
+                        let from = if b < rows { b } else { 0 };
+                        assert_eq!(
+                            block[x * LANES + b],
+                            group[from * w + x],
+                            "{w} {rows} {x} {b}"
+                        );
+                    }
+                }
+                let mut back = vec![-1.0; rows * w];
+                deinterleave(&block, rows, w, &mut back);
+                assert_eq!(back, group, "{w} {rows}");
             }
         }
     }

@@ -28,7 +28,7 @@
 
 mod lanes;
 
-pub use lanes::{transform_lanes, vector_kernel, LaneScratch, LANES};
+pub use lanes::{deinterleave, interleave, transform_lanes, vector_kernel, LaneScratch, LANES};
 use std::mem::take;
 
 /// Scratch space for the 1D transforms, reused across lines so that no line
@@ -192,12 +192,7 @@ pub fn transform_2d_with(
         for (b, row) in group.chunks_exact_mut(w).enumerate() {
             fill(j0 + b, row);
         }
-        for b in 0..LANES {
-            let row = &group[b.min(rows - 1) * w..][..w];
-            for (x, &v) in row.iter().enumerate() {
-                block[x * LANES + b] = v;
-            }
-        }
+        interleave(group, rows, w, &mut block);
         transform_lanes(
             &mut block[..w * LANES],
             LANES,
@@ -206,11 +201,7 @@ pub fn transform_2d_with(
             periodic[0],
             &mut s.lanes,
         );
-        for (b, row) in group.chunks_exact_mut(w).enumerate() {
-            for (x, v) in row.iter_mut().enumerate() {
-                *v = block[x * LANES + b];
-            }
-        }
+        deinterleave(&block, rows, w, group);
     }
     for i0 in (0..w).step_by(BLOCK) {
         let nb = BLOCK.min(w - i0);
