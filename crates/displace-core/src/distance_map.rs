@@ -10,7 +10,7 @@
 //! The bake ([`crate::displacement::bake`]) proves it in two steps:
 //! 1. **Lower bound at voxel centres.** Column `(i, j)` of the map covers a
 //!    footprint of `hx x hy`; over it the surface spans exactly
-//!    `[hmin, hmax]` ([`HeightMap::range`]). The transform gives the exact
+//!    `[hmin, hmax]` ([`crate::HeightMap::range`]). The transform gives the exact
 //!    distance `D` from a voxel centre `c` to the set of vertical segments
 //!    `{column centre} x [hmin, hmax]`. Every surface point lies within
 //!    `r = |(hx, hy)| / 2` of one of those segments and every segment point
@@ -154,11 +154,11 @@ impl R8Encoder {
         })
     }
 
-    /// [`Self::encode`] of every value, into `codes`. Runs of 32 values go
-    /// through [`Self::candidate`], straight-line arithmetic the compiler
-    /// vectorises (a bake's 16 million codes took 10% of the bake one
-    /// table-driven code at a time); in a run where some guess is too near
-    /// a code boundary to be sure of, those values are encoded exactly.
+    /// [`Self::encode`] of every value, into `codes`. Runs of 32 values are
+    /// guessed with straight-line float arithmetic the compiler vectorises
+    /// (the table-driven encoder, one code at a time, took 10% of a bake);
+    /// in a run where some guess lies too near a code boundary to be sure
+    /// of, those values are encoded exactly.
     pub fn encode_into(&self, values: &[f32], codes: &mut [u8]) {
         const RUN: usize = 32;
         assert_eq!(values.len(), codes.len());
