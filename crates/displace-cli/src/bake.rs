@@ -1,6 +1,7 @@
 //! `displace bake`: height map in, conservative distance map (KTX2, DDS or
 //! npy) and optionally a normal map out. Also the argument parsing shared
-//! with `displace trace` (height sources, sizes, extents).
+//! with `trace`, `compare` and `export-mesh` (height sources, sizes,
+//! extents, output checks).
 
 use crate::progress::{cancel_flag, DelayedBar};
 use anyhow::{bail, Context, Result};
@@ -17,7 +18,8 @@ use std::time::Instant;
 /// The built-in height map baked when none is given.
 pub const DEFAULT_HEIGHT: &str = "gen:studded";
 
-/// How a height source is read (shared by `bake` and `trace`).
+/// How a height source is read (shared by `bake`, `trace`, `compare` and
+/// `export-mesh`).
 #[derive(Args, Debug, Clone)]
 pub struct HeightArgs {
     /// Texels of a generated height map (`gen:...`), WxH [default: the
@@ -136,6 +138,13 @@ pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) ->
 /// any time is spent baking.
 pub fn check_output(path: &Path) -> Result<MapFile> {
     let kind = MapFile::from_path(path).with_context(|| format!("output {}", path.display()))?;
+    check_output_dir(path)?;
+    Ok(kind)
+}
+
+/// Refuses an output path whose directory does not exist, so that no work
+/// is done for a file that cannot be written.
+pub fn check_output_dir(path: &Path) -> Result<()> {
     if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         if !dir.is_dir() {
             bail!(
@@ -145,7 +154,7 @@ pub fn check_output(path: &Path) -> Result<MapFile> {
             );
         }
     }
-    Ok(kind)
+    Ok(())
 }
 
 /// `trace` writes `.npy` only; checked before any work is done.

@@ -17,31 +17,36 @@
 //! `origin = [0,0,0]`, `edge_u = [SX,0,0]`, `edge_v = [0,SY,0]` and
 //! `depth = SZ` in a scene file is the same surface.
 
+use crate::bake::{check_output_dir, load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use displace_core::convention::parse_size;
 use displace_core::io::atomic::write_atomic;
-use displace_core::io::height::{self, HeightOptions};
-use displace_core::{Address, Extent, HeightMap, NormalMap};
+use displace_core::{Extent, HeightMap, NormalMap};
 use std::io::Write;
 use std::path::PathBuf;
 
 /// Most vertices written (an OBJ of that many is several GB already).
 const MAX_VERTICES: u64 = 1 << 26;
 
+/// Texels of a generated height map when `--height-size` is not given:
+/// there is no distance map here to take the size from.
+const DEFAULT_HEIGHT_SIZE: [usize; 2] = [256, 256];
+
+// The shared height options' help speaks of the distance map that `bake`
+// and `trace` build; this command builds none, so it says what it does.
 #[derive(Args, Debug)]
+#[command(
+    mut_arg("height_size", |a| a.help("Texels of a generated height map (`gen:...`), WxH [default: 256x256]")),
+    mut_arg("address", |a| a.help("Texture addressing of the height map (clamp or repeat)")),
+)]
 pub struct ExportMeshArgs {
     /// Height map: gen:NAME[?...], a PNG or an EXR file
     #[arg(value_name = "HEIGHT")]
     pub height: String,
-    /// Texels of a generated height map (`gen:...`), WxH
-    #[arg(long, value_name = "WxH", default_value = "256x256")]
-    pub height_size: String,
-    /// Texture addressing of the height map (clamp or repeat)
-    #[arg(long, default_value = "clamp", value_parser = parse_address)]
-    pub address: Address,
+    #[command(flatten)]
+    pub height_args: HeightArgs,
     /// Physical width, height and displacement depth of the face
-    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent)]
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
     pub extent: Extent,
     /// Vertices per height texel along each axis (1: the height map's own
     /// resolution; 4: sixteen times the triangles, sampled bilinearly)
@@ -50,26 +55,6 @@ pub struct ExportMeshArgs {
     /// Output mesh: .obj (text) or .ply (binary little-endian)
     #[arg(short, long, value_name = "MESH")]
     pub output: PathBuf,
-}
-
-fn parse_address(s: &str) -> Result<Address, String> {
-    s.parse().map_err(|e: displace_core::Error| e.to_string())
-}
-
-/// `SX,SY,SZ`: three positive finite numbers, as `Extent::new` checks them.
-fn parse_extent(s: &str) -> Result<Extent, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| {
-            p.trim()
-                .parse()
-                .map_err(|_| format!("`{s}`: `{p}` is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [x, y, z] => Extent::new(x, y, z).map_err(|e| e.to_string()),
-        _ => Err(format!("`{s}`: expected three numbers SX,SY,SZ")),
-    }
 }
 
 #[derive(Clone, Copy, PartialEq, Debug)]
@@ -148,28 +133,11 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
             args.output.display()
         ),
     };
-    if let Some(dir) = args.output.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            bail!(
-                "output {}: directory {} does not exist",
-                args.output.display(),
-                dir.display()
-            );
-        }
-    }
+    check_output_dir(&args.output)?;
     if args.scale == 0 {
         bail!("--scale must be at least 1");
     }
-    let size = parse_size::<2>(&args.height_size)
-        .and_then(|[w, h]| HeightMap::check_size(w, h).map(|()| [w, h]))
-        .with_context(|| format!("--height-size {}", args.height_size))?;
-    let opts = HeightOptions {
-        channel: None,
-        size,
-        address: args.address,
-    };
-    let height = height::load(&args.height, &opts)
-        .with_context(|| format!("loading height map `{}`", args.height))?;
+    let height = load_height(&args.height, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let scale = args.scale as u64;
     let count = (height.width() as u64 * scale + 2) * (height.height() as u64 * scale + 2);
     if count > MAX_VERTICES {

@@ -697,3 +697,74 @@ fn bakes_cone_maps() {
         &["cone kind", "wide"],
     );
 }
+
+/// `export-mesh` reads its height source through the options it shares
+/// with `bake`: `--height-size` sets the grid (texel centres plus a border
+/// row and column each side), 256x256 when absent, and bad values are
+/// refused with the same messages as `bake`'s.
+#[test]
+fn export_mesh_takes_the_shared_height_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = displace(
+        &[
+            "export-mesh",
+            "gen:studded",
+            "--height-size",
+            "4x3",
+            "--address",
+            "repeat",
+            "--extent",
+            "2,1,0.5",
+            "-o",
+            "m.obj",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let obj = std::fs::read_to_string(d.join("m.obj")).unwrap();
+    let count = |tag: &str| obj.lines().filter(|l| l.starts_with(tag)).count();
+    assert_eq!((count("v "), count("f ")), ((4 + 2) * (3 + 2), 2 * 5 * 4));
+    for l in obj.lines().filter(|l| l.starts_with("v ")) {
+        let p: Vec<f32> = l[2..].split(' ').map(|x| x.parse().unwrap()).collect();
+        assert!(
+            (0.0..=2.0).contains(&p[0])
+                && (0.0..=1.0).contains(&p[1])
+                && (0.0..=0.5).contains(&p[2]),
+            "{l}"
+        );
+    }
+
+    let o = displace(
+        &[
+            "export-mesh",
+            "gen:flat",
+            "--extent",
+            "1,1,0.1",
+            "-o",
+            "d.ply",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("(256x256 texels)"));
+
+    let mesh = |extra: &[&'static str]| {
+        let mut a = vec!["export-mesh", "gen:studded", "--extent", "1,1,0.1"];
+        a.extend_from_slice(extra);
+        a
+    };
+    refuses(
+        d,
+        &mesh(&["--height-size", "0x3", "-o", "x.obj"]),
+        &["--height-size 0x3", "positive"],
+    );
+    refuses(d, &mesh(&["--channel", "q", "-o", "x.obj"]), &["--channel"]);
+    refuses(d, &mesh(&["--address", "wrap", "-o", "x.obj"]), &["wrap"]);
+    refuses(
+        d,
+        &mesh(&["-o", "nodir/x.obj"]),
+        &["directory nodir does not exist"],
+    );
+    refuses(d, &mesh(&["-o", "x.stl"]), &[".obj or a .ply"]);
+}

@@ -3,6 +3,9 @@
 //! renderer agrees within a stated tolerance; the UV AOV matches on at
 //! least 99.5% of pixels"), and bad scene input through gpu-render.
 
+mod bad_scenes;
+
+use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
 use displace_core::io::npy::read_file;
 use displace_gpu::test_support::test_context;
 use std::path::Path;
@@ -328,50 +331,22 @@ displacement = { height = "gen:studded?period=8", height_size = [64, 64], depth 
 #[test]
 fn bad_scenes_fail_like_the_cpu_renderer_and_write_nothing() {
     let good = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]");
-    let cases = [
-        (
-            "malformed",
-            good.replace("vfov = 50.0", "vfov = = 50.0"),
-            "bad.toml:12:8:",
-        ),
-        (
-            "unknown key",
-            good.replace("vfov = 50.0", "vfov = 50.0\nzoom = 2.0"),
-            "zoom",
-        ),
-        (
-            "missing height",
-            good.replace("gen:gaussian", "no_such_height.png"),
-            "no_such_height.png",
-        ),
-    ];
-    for (what, text, needle) in cases {
+    for case in bad_scenes(&good, "gen:gaussian") {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        std::fs::write(d.join("bad.toml"), &text).unwrap();
+        case.write(d);
         let gpu = displace()
-            .args(["gpu-render", "bad.toml", "-o", "out.png", "--uv-aov"])
+            .args(["gpu-render", FILE, "-o", "out.png", "--uv-aov"])
             .current_dir(d)
             .output()
             .unwrap();
         let cpu = displace()
-            .args(["render", "bad.toml", "-o", "out.png"])
+            .args(["render", FILE, "-o", "out.png"])
             .current_dir(d)
             .output()
             .unwrap();
-        let gpu_err = String::from_utf8_lossy(&gpu.stderr);
-        let cpu_err = String::from_utf8_lossy(&cpu.stderr);
-        assert!(!gpu.status.success(), "{what}: gpu-render succeeded");
-        assert!(!cpu.status.success(), "{what}: render succeeded");
-        assert!(gpu_err.contains(needle), "{what}: {gpu_err}");
-        assert!(!gpu_err.contains("panicked"), "{what}: {gpu_err}");
         // Word for word the CPU renderer's message.
-        assert_eq!(gpu_err, cpu_err, "{what}");
-        let left: Vec<_> = std::fs::read_dir(d)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        assert_eq!(left, ["bad.toml"], "{what}");
+        assert_fails_alike(&case, &gpu, &cpu, d);
     }
 }
 

@@ -8,6 +8,9 @@
 //! unless `DISPLACE_ALLOW_NO_GPU=1` (the GPU tests' switch) says to skip
 //! them knowingly.
 
+mod bad_scenes;
+
+use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
 use displace_gpu::test_support::test_context;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -438,49 +441,20 @@ fn live_depth_matches_a_bake_at_that_depth() {
 /// opened (no display is needed), and write no screenshot.
 #[test]
 fn bad_scenes_fail_like_gpu_render() {
-    let cases = [
-        (
-            "malformed",
-            SCENE.replace("vfov = 50.0", "vfov = = 50.0"),
-            "bad.toml:12:8:",
-        ),
-        (
-            "unknown key",
-            SCENE.replace("vfov = 50.0", "vfov = 50.0\nzoom = 2.0"),
-            "zoom",
-        ),
-        (
-            "missing height",
-            SCENE.replace("gen:studded", "nope.png"),
-            "nope.png",
-        ),
-    ];
-    for (what, text, needle) in cases {
+    for case in bad_scenes(SCENE, "gen:studded") {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        std::fs::write(d.join("bad.toml"), &text).unwrap();
+        case.write(d);
         let view = displace(d)
             .env_remove("DISPLAY")
-            .args([
-                "view",
-                "bad.toml",
-                "--frames",
-                "1",
-                "--screenshot",
-                "out.png",
-            ])
+            .args(["view", FILE, "--frames", "1", "--screenshot", "out.png"])
             .output()
             .unwrap();
         let gpu = displace(d)
-            .args(["gpu-render", "bad.toml", "-o", "out.png"])
+            .args(["gpu-render", FILE, "-o", "out.png"])
             .output()
             .unwrap();
-        let view_err = String::from_utf8_lossy(&view.stderr);
-        assert!(!view.status.success(), "{what}: view succeeded");
-        assert!(view_err.contains(needle), "{what}: {view_err}");
-        assert!(!view_err.contains("panicked"), "{what}: {view_err}");
-        assert_eq!(view_err, String::from_utf8_lossy(&gpu.stderr), "{what}");
-        assert!(!d.join("out.png").exists(), "{what}");
+        assert_fails_alike(&case, &view, &gpu, d);
     }
     // Bad options fail the same way, naming what is wrong.
     let d = tempfile::tempdir().unwrap();

@@ -4,6 +4,7 @@
 
 mod common;
 
+use common::scene_toml::SceneToml;
 use common::*;
 use displace_core::Method;
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
@@ -17,32 +18,14 @@ use std::path::Path;
 #[test]
 fn lambertian_plane_under_a_point_light_matches_the_closed_form() {
     for (lx, h, a) in [(0.0f32, 2.0f32, 0.5f32), (1.5, 3.0, 0.8)] {
-        let s = scene(&format!(
-            r#"
-[image]
-width = 9
-height = 9
-spp = 4
-[camera]
-position = [0, 5, 0]
-look_at = [0, 0, 0]
-up = [0, 0, 1]
-vfov = 0.5
-[materials.m]
-type = "lambert"
-color = [{a}, {a}, {a}]
-[[lights]]
-type = "point"
-position = [{lx}, {h}, 0]
-intensity = [10, 20, 30]
-[[shapes]]
-type = "quad"
-origin = [-50, 0, -50]
-edge_u = [0, 0, 100]
-edge_v = [100, 0, 0]
-material = "m"
-"#
-        ));
+        let s = scene(
+            SceneToml::new(9, 9, 4)
+                .camera_above(5.0, 0.5)
+                .lambert(&format!("[{a}, {a}, {a}]"))
+                .point_light(&format!("[{lx}, {h}, 0]"), "[10, 20, 30]")
+                .plane()
+                .text(),
+        );
         let img = image(&s);
         let centre = img.pixels[4 * 9 + 4];
         let r2 = lx * lx + h * h;
@@ -59,72 +42,48 @@ material = "m"
 #[test]
 fn small_area_light_approaches_its_point_limit() {
     let s = scene(
-        r#"
-[image]
-width = 9
-height = 9
-spp = 4
-shadow_samples = 16
-[camera]
-position = [0, 5, 0.0]
-look_at = [0, 0, 0]
-up = [0, 0, 1]
-vfov = 0.5
-[materials.m]
-type = "lambert"
-color = [1, 1, 1]
-[[lights]]
-type = "area"
-origin = [-0.05, 10, -0.05]
-edge_u = [0.1, 0, 0]
-edge_v = [0, 0, 0.1]
-radiance = [1000, 1000, 1000]
-visible = false
-[[shapes]]
-type = "quad"
-origin = [-50, 0, -50]
-edge_u = [0, 0, 100]
-edge_v = [100, 0, 0]
-material = "m"
-"#,
+        SceneToml::new(9, 9, 4)
+            .with("shadow_samples = 16")
+            .camera_above(5.0, 0.5)
+            .lambert("[1, 1, 1]")
+            .light(
+                "type = \"area\"\norigin = [-0.05, 10, -0.05]\nedge_u = [0.1, 0, 0]\n\
+                 edge_v = [0, 0, 0.1]\nradiance = [1000, 1000, 1000]\nvisible = false",
+            )
+            .plane()
+            .text(),
     );
     let c = image(&s).pixels[40].x;
     let want = 1.0 / PI * 1000.0 * 0.01 / 100.0;
     assert!((c - want).abs() < 1e-3 * want, "{c} vs {want}");
 }
 
-fn studded_scene(method: &str, map: &str, size: u32) -> String {
-    format!(
-        r#"
-[image]
-width = {size}
-height = {size}
-spp = 1
-[camera]
-position = [0.3, 1.6, -2.2]
-look_at = [0, 0, 0]
-vfov = 45
-[materials.m]
-type = "lambert"
-color = [0.7, 0.7, 0.7]
-[[lights]]
-type = "point"
-position = [1, 3, -1]
-intensity = [5, 5, 5]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [0, 0, 2]
-edge_v = [2, 0, 0]
-material = "m"
-[shapes.displacement]
-height = "{map}"
-height_size = [64, 64]
-depth = 0.25
-map_size = [32, 32, 8]
-method = "{method}"
-"#
-    )
+/// Seed 002's hardest map: sharp-edged studs.
+const STUDS: &str = "gen:studded?period=8";
+
+/// The body of a `[shapes.displacement]` table: `height` a quarter of the
+/// quad's width deep.
+fn displacement(height: &str) -> String {
+    format!("height = \"{height}\"\nheight_size = [64, 64]\ndepth = 0.25\nmap_size = [32, 32, 8]")
+}
+
+/// A `size` x `size` view of the 2 x 2 quad's place from above and aside,
+/// lit from above, before any shape.
+fn oblique_view(size: u32) -> SceneToml {
+    SceneToml::new(size, size, 1)
+        .camera("[0.3, 1.6, -2.2]", 45.0)
+        .lambert("[0.7, 0.7, 0.7]")
+        .point_light("[1, 3, -1]", "[5, 5, 5]")
+}
+
+/// The quad displaced by `map`, sphere traced, seen obliquely.
+fn studded_scene(map: &str, size: u32) -> String {
+    oblique_view(size)
+        .quad(0.0)
+        .displaced(&displacement(map))
+        .with("method = \"sphere\"")
+        .text()
+        .to_string()
 }
 
 fn depth_aov(text: &str, method: Option<Method>) -> Vec<f32> {
@@ -152,7 +111,7 @@ fn depth_aov(text: &str, method: Option<Method>) -> Vec<f32> {
 #[test]
 fn sphere_tracing_matches_the_exact_reference() {
     for map in ["gen:studded?period=8", "gen:gaussian", "gen:text?text=ab"] {
-        let text = studded_scene("sphere", map, 96);
+        let text = studded_scene(map, 96);
         let sphere = depth_aov(&text, None);
         let exact = depth_aov(&text, Some(Method::Exact));
         let n = sphere.len();
@@ -183,42 +142,26 @@ fn sphere_tracing_matches_the_exact_reference() {
     }
 }
 
-fn flat_scene(displacement: &str, y: f32) -> String {
-    format!(
-        r#"
-[image]
-width = 32
-height = 32
-spp = 2
-[camera]
-position = [0, 4, 0]
-look_at = [0, 0, 0]
-up = [0, 0, 1]
-vfov = 20
-[materials.m]
-type = "phong"
-color = [0.6, 0.5, 0.4]
-specular = [0.2, 0.2, 0.2]
-shininess = 20
-[[lights]]
-type = "point"
-position = [0.5, 3, 0.2]
-intensity = [5, 5, 5]
-[[lights]]
-type = "area"
-origin = [-0.5, 2.5, -0.5]
-edge_u = [1, 0, 0]
-edge_v = [0, 0, 1]
-radiance = [2, 2, 2]
-visible = false
-[[shapes]]
-type = "quad"
-origin = [-1, {y}, -1]
-edge_u = [0, 0, 2]
-edge_v = [2, 0, 0]
-material = "m"
-{displacement}
-"#
+/// The quad at height `y` seen from above, under a point and an area
+/// light, displaced by the `[shapes.displacement]` body `displacement`.
+fn flat_scene(displacement: Option<&str>, y: f32) -> Scene {
+    let s = SceneToml::new(32, 32, 2)
+        .camera_above(4.0, 20.0)
+        .material(
+            "type = \"phong\"\ncolor = [0.6, 0.5, 0.4]\nspecular = [0.2, 0.2, 0.2]\nshininess = 20",
+        )
+        .point_light("[0.5, 3, 0.2]", "[5, 5, 5]")
+        .light(
+            "type = \"area\"\norigin = [-0.5, 2.5, -0.5]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\n\
+             radiance = [2, 2, 2]\nvisible = false",
+        )
+        .quad(y);
+    scene(
+        match displacement {
+            Some(d) => s.displaced(d),
+            None => s,
+        }
+        .text(),
     )
 }
 
@@ -226,9 +169,9 @@ material = "m"
 /// above, where the shell's sides are hidden).
 #[test]
 fn flat_displacement_equals_the_raised_face() {
-    let disp = "[shapes.displacement]\nheight = \"gen:flat\"\nheight_size = [8, 8]\ndepth = 0.3\nmap_size = [8, 8, 4]\n";
-    let a = image(&scene(&flat_scene(disp, 0.0)));
-    let b = image(&scene(&flat_scene("", 0.3)));
+    let disp = "height = \"gen:flat\"\nheight_size = [8, 8]\ndepth = 0.3\nmap_size = [8, 8, 4]";
+    let a = image(&flat_scene(Some(disp), 0.0));
+    let b = image(&flat_scene(None, 0.3));
     let worst = a
         .pixels
         .iter()
@@ -241,10 +184,10 @@ fn flat_displacement_equals_the_raised_face() {
 /// Depth 0 means no displacement: bit-identical to the plain face.
 #[test]
 fn zero_depth_equals_the_plain_face() {
-    let disp = "[shapes.displacement]\nheight = \"gen:studded\"\ndepth = 0\n";
+    let disp = "height = \"gen:studded\"\ndepth = 0";
     assert_eq!(
-        image(&scene(&flat_scene(disp, 0.0))),
-        image(&scene(&flat_scene("", 0.0)))
+        image(&flat_scene(Some(disp), 0.0)),
+        image(&flat_scene(None, 0.0))
     );
 }
 
@@ -344,36 +287,17 @@ fn cancelled_renders_return_cancelled() {
 #[test]
 fn displaced_surfaces_shadow_themselves() {
     // Light low from +x: the stud at the centre shadows the floor to its -x side.
-    let text = r#"
-[image]
-width = 64
-height = 64
-spp = 1
-[camera]
-position = [0, 3, 0]
-look_at = [0, 0, 0]
-up = [0, 0, 1]
-vfov = 40
-[materials.m]
-type = "lambert"
-color = [0.7, 0.7, 0.7]
-[[lights]]
-type = "point"
-position = [3, 0.6, 0]
-intensity = [9, 9, 9]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [0, 0, 2]
-edge_v = [2, 0, 0]
-material = "m"
-[shapes.displacement]
-height = "gen:gaussian?scale=6"
-height_size = [64, 64]
-depth = 0.5
-map_size = [32, 32, 8]
-"#;
-    let s = scene(text);
+    let s = scene(
+        SceneToml::new(64, 64, 1)
+            .camera_above(3.0, 40.0)
+            .lambert("[0.7, 0.7, 0.7]")
+            .point_light("[3, 0.6, 0]", "[9, 9, 9]")
+            .quad(0.0)
+            .displaced(
+                "height = \"gen:gaussian?scale=6\"\nheight_size = [64, 64]\ndepth = 0.5\nmap_size = [32, 32, 8]",
+            )
+            .text(),
+    );
     let r = render_with(
         &s,
         &RenderOptions {
@@ -399,10 +323,12 @@ map_size = [32, 32, 8]
 
 #[test]
 fn bad_scenes_are_refused_with_clear_messages() {
-    let good = studded_scene("sphere", "gen:gaussian", 8);
+    let good = studded_scene("gen:gaussian", 8);
     // Malformed TOML: file, line and column.
-    let e = scene_err(&good.replacen("width = 8", "width = = 8", 1));
-    assert!(e.starts_with("test.toml:3:"), "{e}");
+    let bad = good.replacen("width = 8", "width = = 8", 1);
+    let line = 1 + bad.lines().position(|l| l == "width = = 8").unwrap();
+    let e = scene_err(&bad);
+    assert!(e.starts_with(&format!("test.toml:{line}:")), "{e}");
     // Unknown keys anywhere are errors, with their position.
     let e = scene_err(&good.replacen("vfov = 45", "vfov = 45\nfov = 3", 1));
     assert!(e.contains("fov") && e.contains("test.toml:"), "{e}");
@@ -465,12 +391,10 @@ fn every_scene_of_the_repository_loads() {
     assert!(n >= 12, "{n} scenes");
 }
 
-fn two_triangles(disp: &str) -> String {
-    let head = studded_scene("sphere", "gen:studded?period=8", 64);
-    let cut = head.find("[[shapes]]").unwrap();
-    let mut s = head[..cut].to_string();
-    // The quad (-1,0,-1) + u (0,0,2) + v (2,0,0) as two triangles with the
-    // quad's texture coordinates.
+/// The studded quad of `studded_scene` as two displaced triangles with
+/// the quad's texture coordinates.
+fn two_triangles() -> String {
+    let mut s = oblique_view(64);
     for (verts, uvs) in [
         (
             "[[-1, 0, -1], [-1, 0, 1], [1, 0, 1]]",
@@ -481,9 +405,13 @@ fn two_triangles(disp: &str) -> String {
             "[[0, 0], [1, 1], [0, 1]]",
         ),
     ] {
-        s += &format!("[[shapes]]\ntype = \"triangle\"\nvertices = {verts}\nuvs = {uvs}\nmaterial = \"m\"\n{disp}\n");
+        s = s
+            .shape(&format!(
+                "type = \"triangle\"\nvertices = {verts}\nuvs = {uvs}"
+            ))
+            .displaced(&displacement(STUDS));
     }
-    s
+    s.text().to_string()
 }
 
 /// A displaced triangle is the prism over it (seed 002 has only quads):
@@ -491,9 +419,8 @@ fn two_triangles(disp: &str) -> String {
 /// with the same silhouette.
 #[test]
 fn two_displaced_triangles_equal_the_displaced_quad() {
-    let disp = "[shapes.displacement]\nheight = \"gen:studded?period=8\"\nheight_size = [64, 64]\ndepth = 0.25\nmap_size = [32, 32, 8]\n";
-    let quad = depth_aov(&studded_scene("sphere", "gen:studded?period=8", 64), None);
-    let tris = depth_aov(&two_triangles(disp), None);
+    let quad = depth_aov(&studded_scene(STUDS, 64), None);
+    let tris = depth_aov(&two_triangles(), None);
     let mut differ = 0;
     for (a, b) in quad.iter().zip(&tris) {
         if a.is_finite() != b.is_finite() || (a.is_finite() && (a - b).abs() > 1e-3) {
@@ -519,13 +446,12 @@ fn obj_meshes_load_and_displace() {
         "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
     )
     .unwrap();
-    let base = studded_scene("sphere", "gen:studded?period=8", 64);
-    let cut = base.find("[[shapes]]").unwrap();
-    let disp = "[shapes.displacement]\nheight = \"gen:studded?period=8\"\nheight_size = [64, 64]\ndepth = 0.25\nmap_size = [32, 32, 8]\n";
-    let text = format!(
-        "{}[[shapes]]\ntype = \"mesh\"\npath = \"q.obj\"\nmaterial = \"m\"\n{disp}",
-        &base[..cut]
-    );
+    let base = studded_scene(STUDS, 64);
+    let text = oblique_view(64)
+        .shape("type = \"mesh\"\npath = \"q.obj\"")
+        .displaced(&displacement(STUDS))
+        .text()
+        .to_string();
     std::fs::write(dir.path().join("s.toml"), &text).unwrap();
     let s = Scene::load(&dir.path().join("s.toml"), &opts()).unwrap();
     assert_eq!(s.primitive_count(), 2);

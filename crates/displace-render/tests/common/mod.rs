@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod scene_toml;
+
 use displace_render::{render, Image, RenderOptions, Rendered, Scene, SceneOptions};
 use std::path::{Path, PathBuf};
 
