@@ -8,6 +8,7 @@
 
 pub(crate) mod scene;
 
+use crate::bake::parse_extent;
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
 use displace_core::io::height::{load, HeightOptions};
@@ -29,7 +30,7 @@ pub struct FaceArgs {
     #[arg(long, default_value = "256x256x16", value_name = "WxHxD")]
     pub map_size: String,
     /// Face width, height and displacement depth.
-    #[arg(long, default_value = "1,1,0.1", value_name = "SX,SY,SZ", value_parser = parse_extent)]
+    #[arg(long, default_value = "1,1,0.1", value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
     pub extent: Extent,
     /// clamp or repeat.
     #[arg(long, default_value = "clamp")]
@@ -97,11 +98,6 @@ pub struct BenchGpuArgs {
     /// Frames per measurement.
     #[arg(long, default_value_t = 10)]
     pub frames: u32,
-}
-
-fn parse_extent(s: &str) -> Result<Extent, String> {
-    let v = parse_floats::<3>(s)?;
-    Extent::new(v[0], v[1], v[2]).map_err(|e| e.to_string())
 }
 
 fn parse_vec3(s: &str) -> Result<Vec3, String> {
