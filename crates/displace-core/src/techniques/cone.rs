@@ -157,11 +157,11 @@ fn conservative(height: &HeightMap, texel: Vec2) -> Vec<f32> {
     let ranges = footprint_ranges(height);
     let slopes = cell_slopes(height, texel);
     let range = |i: i64, j: i64| ranges[(j * w + i) as usize];
-    let ring_gap = texel.min_element();
+    let peaks = BlockMax::new(ranges.iter().map(|r| r.1).collect(), w, h);
     (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
-            let (range, slopes) = (&range, &slopes);
+            let (range, slopes, peaks) = (&range, &slopes, &peaks);
             (0..w).map(move |i| {
                 let lo = range(i, j).0;
                 // Texels next to T: the steepest slope over the 3x3 block,
@@ -184,40 +184,37 @@ fn conservative(height: &HeightMap, texel: Vec2) -> Vec<f32> {
                         best = best.min(1.0 / slope);
                     }
                 }
-                // Farther texels, ring by ring until no texel of a ring can
-                // beat the best ratio (no surface rises above 1).
-                let rise = 1.0 - lo;
-                let mut r = 2i64;
-                while rise > 0.0 && r < w.max(h) && (r - 1) as f32 * ring_gap < best * rise {
-                    for (ii, jj) in ring(i, j, r, w, h) {
-                        let hi = range(ii, jj).1;
-                        if hi > lo {
-                            let dx = ((ii - i).abs() - 1) as f32 * texel.x;
-                            let dy = ((jj - j).abs() - 1) as f32 * texel.y;
-                            let dx = dx.max(0.0);
-                            let dy = dy.max(0.0);
-                            best = best.min((dx * dx + dy * dy).sqrt() / (hi - lo));
-                        }
-                    }
-                    r += 1;
+                // Farther texels (Chebyshev distance 2 and up): through the
+                // gap between the footprints, searched block by block.
+                if lo < 1.0 {
+                    let ratio = |gx: i64, gy: i64, hi: f32| {
+                        let dx = ((gx - 1) as f32 * texel.x).max(0.0);
+                        let dy = ((gy - 1) as f32 * texel.y).max(0.0);
+                        (dx * dx + dy * dy).sqrt() / (hi - lo)
+                    };
+                    peaks.search(
+                        (i, j),
+                        &mut best,
+                        |[gx, gy], hi| {
+                            if hi > lo {
+                                ratio(gx, gy, hi)
+                            } else {
+                                f32::INFINITY
+                            }
+                        },
+                        |(ii, jj), best| {
+                            let (gx, gy) = ((ii - i).abs(), (jj - j).abs());
+                            let hi = range(ii, jj).1;
+                            if gx.max(gy) >= 2 && hi > lo {
+                                *best = best.min(ratio(gx, gy, hi));
+                            }
+                        },
+                    );
                 }
                 best
             })
         })
         .collect()
-}
-
-/// Texels at Chebyshev distance `r` from `(i, j)` inside a `w x h` map.
-fn ring(i: i64, j: i64, r: i64, w: i64, h: i64) -> impl Iterator<Item = (i64, i64)> {
-    (j - r..=j + r)
-        .flat_map(move |jj| {
-            let edge = (jj - j).abs() == r;
-            let step = if edge { 1 } else { 2 * r };
-            (i - r..=i + r)
-                .step_by(step as usize)
-                .map(move |ii| (ii, jj))
-        })
-        .filter(move |&(ii, jj)| ii >= 0 && jj >= 0 && ii < w && jj < h)
 }
 
 fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
@@ -230,59 +227,170 @@ fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
     };
     let surface = |p: Vec2| height.sample(p.x / aspect[0], p.y / aspect[1]);
     let march = 0.25 * texel.min_element();
-    let ring_gap = texel.min_element();
+    let peaks = BlockMax::new(height.data().to_vec(), w, h);
     (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
+            let peaks = &peaks;
             (0..w).map(move |i| {
                 let apex_xy = centre(i, j);
                 let apex = height.texel(i, j);
-                let rise = 1.0 - apex;
                 let mut best = MAX_RATIO;
-                let mut r = 1i64;
-                while rise > 0.0 && r < w.max(h) && r as f32 * ring_gap < best * rise {
-                    for (ii, jj) in ring(i, j, r, w, h) {
-                        let hq = height.texel(ii, jj);
-                        if hq <= apex {
-                            continue;
-                        }
-                        let q = centre(ii, jj);
-                        // The exit point lies past q and below hq: no ratio
-                        // under this one.
-                        if (q - apex_xy).length() >= best * (hq - apex) {
-                            continue;
-                        }
-                        // From (apex_xy, 1) through (q, hq), on down: per unit
-                        // of horizontal travel the ray falls `fall`.
-                        let along = (q - apex_xy).normalize();
-                        let fall = (1.0 - hq) / (q - apex_xy).length();
-                        let mut s = march;
-                        loop {
-                            let xy = q + along * s;
-                            let z = hq - fall * s;
-                            if z <= 0.0
-                                || xy.x < 0.0
-                                || xy.y < 0.0
-                                || xy.x > aspect[0]
-                                || xy.y > aspect[1]
-                            {
-                                break;
-                            }
-                            if z > surface(xy) {
-                                if z > apex {
-                                    best = best.min((xy - apex_xy).length() / (z - apex));
-                                }
-                                break;
-                            }
-                            s += march;
-                        }
-                    }
-                    r += 1;
+                if apex >= 1.0 {
+                    return best;
                 }
+                // The exit point of a ray through (q, hq) lies past q and
+                // below hq, so a block's ratios are at least the distance to
+                // its nearest texel centre over its highest texel's rise
+                // (shrunk by a few ulps: the leaves measure between rounded
+                // centres).
+                let bound = |[gx, gy]: [i64; 2], hq: f32| {
+                    if hq <= apex {
+                        return f32::INFINITY;
+                    }
+                    let d = Vec2::new(gx as f32 * texel.x, gy as f32 * texel.y).length();
+                    d / (hq - apex) * (1.0 - 1e-5)
+                };
+                peaks.search((i, j), &mut best, bound, |(ii, jj), best| {
+                    let hq = height.texel(ii, jj);
+                    if hq <= apex {
+                        return;
+                    }
+                    let q = centre(ii, jj);
+                    // The exit point lies past q and below hq: no ratio
+                    // under this one.
+                    if (q - apex_xy).length() >= *best * (hq - apex) {
+                        return;
+                    }
+                    // From (apex_xy, 1) through (q, hq), on down: per unit of
+                    // horizontal travel the ray falls `fall`.
+                    let along = (q - apex_xy).normalize();
+                    let fall = (1.0 - hq) / (q - apex_xy).length();
+                    let mut s = march;
+                    loop {
+                        let xy = q + along * s;
+                        let z = hq - fall * s;
+                        if z <= 0.0
+                            || xy.x < 0.0
+                            || xy.y < 0.0
+                            || xy.x > aspect[0]
+                            || xy.y > aspect[1]
+                        {
+                            break;
+                        }
+                        if z > surface(xy) {
+                            if z > apex {
+                                *best = best.min((xy - apex_xy).length() / (z - apex));
+                            }
+                            break;
+                        }
+                        s += march;
+                    }
+                });
                 best
             })
         })
         .collect()
+}
+
+/// Maxima of per-texel values over aligned blocks of 2^k x 2^k texels, for
+/// the branch and bound that finds a texel's cone: a block whose lower
+/// bound (from its nearest texel and its largest value) cannot beat the
+/// best ratio so far is skipped whole. The ring-by-ring scan this replaces
+/// stopped only at a ring no texel could beat, which on smooth maps (wide
+/// cones) meant the whole map for every texel: O(n^2) per texel. The result
+/// is the same minimum over the same texels.
+struct BlockMax {
+    /// `(width, height, maxima)` per level, level 0 the texels.
+    levels: Vec<(i64, i64, Vec<f32>)>,
+}
+
+impl BlockMax {
+    fn new(values: Vec<f32>, w: i64, h: i64) -> Self {
+        let mut levels = vec![(w, h, values)];
+        while let Some(&(lw, lh, ref v)) = levels.last() {
+            if lw == 1 && lh == 1 {
+                break;
+            }
+            let (nw, nh) = ((lw + 1) / 2, (lh + 1) / 2);
+            let at = |x: i64, y: i64| {
+                if x < lw && y < lh {
+                    v[(y * lw + x) as usize]
+                } else {
+                    f32::NEG_INFINITY
+                }
+            };
+            let next = (0..nh)
+                .flat_map(|y| (0..nw).map(move |x| (x, y)))
+                .map(|(x, y)| {
+                    at(2 * x, 2 * y)
+                        .max(at(2 * x + 1, 2 * y))
+                        .max(at(2 * x, 2 * y + 1))
+                        .max(at(2 * x + 1, 2 * y + 1))
+                })
+                .collect();
+            levels.push((nw, nh, next));
+        }
+        Self { levels }
+    }
+
+    /// Visits the texels of every block not ruled out for texel `from`,
+    /// nearest blocks first: `bound([gx, gy], max)` is a lower bound of the
+    /// ratio of any texel of a block whose nearest texel is `gx` columns and
+    /// `gy` rows from `from` and whose largest value is `max`, and
+    /// `leaf((i, j), best)` tries texel `(i, j)`.
+    fn search(
+        &self,
+        from: (i64, i64),
+        best: &mut f32,
+        bound: impl Fn([i64; 2], f32) -> f32,
+        mut leaf: impl FnMut((i64, i64), &mut f32),
+    ) {
+        let gap = |lo: i64, hi: i64, at: i64| (lo - at).max(at - hi).max(0);
+        let node_bound = |level: usize, x: i64, y: i64| {
+            let (lw, _, ref v) = self.levels[level];
+            let size = 1i64 << level;
+            let (w, h) = (self.levels[0].0, self.levels[0].1);
+            let gx = gap(x * size, ((x + 1) * size).min(w) - 1, from.0);
+            let gy = gap(y * size, ((y + 1) * size).min(h) - 1, from.1);
+            bound([gx, gy], v[(y * lw + x) as usize])
+        };
+        // Depth-first; at most three siblings wait per level, so the stack
+        // never holds more than 3 per level plus the root.
+        let top = self.levels.len() - 1;
+        let mut stack = vec![(0usize, 0i64, 0i64, 0.0f32); 3 * top + 2];
+        stack[0] = (top, 0, 0, node_bound(top, 0, 0));
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let (level, x, y, b) = stack[len];
+            if b >= *best {
+                continue;
+            }
+            if level == 0 {
+                leaf((x, y), best);
+                continue;
+            }
+            let (lw, lh, _) = self.levels[level - 1];
+            let first = len;
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (cx, cy) = (2 * x + dx, 2 * y + dy);
+                if cx < lw && cy < lh {
+                    let cb = node_bound(level - 1, cx, cy);
+                    if cb < *best {
+                        // Insertion by decreasing bound: the nearest on top.
+                        let mut k = len;
+                        while k > first && stack[k - 1].3 < cb {
+                            stack[k] = stack[k - 1];
+                            k -= 1;
+                        }
+                        stack[k] = (level - 1, cx, cy, cb);
+                        len += 1;
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Cone stepping with `cones` for at most `budget` steps (two fetches each:
@@ -328,18 +436,41 @@ mod tests {
     use super::*;
 
     #[test]
-    fn rings_hold_exactly_the_texels_at_their_distance() {
-        let (w, h) = (7i64, 5i64);
-        for (i, j) in [(0i64, 0i64), (3, 2), (6, 4)] {
-            for r in 1..8 {
-                let mut got: Vec<_> = ring(i, j, r, w, h).collect();
-                got.sort_unstable();
-                let mut want: Vec<_> = (0..h)
+    fn block_search_finds_the_brute_force_minimum() {
+        // Random values; the ratio of texel q from p is its distance over
+        // its value, as the cone bakes' bounds are shaped.
+        let mut state = 11u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for (w, h) in [(1i64, 1i64), (7, 5), (16, 16), (33, 9)] {
+            let values: Vec<f32> = (0..w * h).map(|_| next()).collect();
+            let peaks = BlockMax::new(values.clone(), w, h);
+            let ratio = |gx: i64, gy: i64, v: f32| ((gx * gx + gy * gy) as f32).sqrt() / v;
+            for (i, j) in [(0i64, 0i64), (w / 2, h / 2), (w - 1, h - 1)] {
+                let mut best = 1e6f32;
+                let mut visited = 0;
+                peaks.search(
+                    (i, j),
+                    &mut best,
+                    |[gx, gy], v| ratio(gx, gy, v),
+                    |(ii, jj), best| {
+                        visited += 1;
+                        if (ii, jj) != (i, j) {
+                            *best = best.min(ratio(ii - i, jj - j, values[(jj * w + ii) as usize]));
+                        }
+                    },
+                );
+                let want = (0..h)
                     .flat_map(|jj| (0..w).map(move |ii| (ii, jj)))
-                    .filter(|&(ii, jj)| (ii - i).abs().max((jj - j).abs()) == r)
-                    .collect();
-                want.sort_unstable();
-                assert_eq!(got, want, "({i}, {j}) r {r}");
+                    .filter(|&q| q != (i, j))
+                    .map(|(ii, jj)| ratio(ii - i, jj - j, values[(jj * w + ii) as usize]))
+                    .fold(1e6f32, f32::min);
+                assert_eq!(best, want, "{w}x{h} from ({i}, {j})");
+                assert!(visited <= w * h, "{visited} leaves of {}", w * h);
             }
         }
     }
