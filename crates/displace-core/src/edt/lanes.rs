@@ -67,7 +67,11 @@ pub fn transform_lanes(
     s: &mut LaneScratch,
 ) {
     assert!(stride >= LANES && n > 0 && data.len() >= (n - 1) * stride + LANES);
-    if vector(data, stride, n, spacing, periodic, s) {
+    #[cfg(target_arch = "x86_64")]
+    if vector_kernel() && n <= MAX_LEN && all_finite(data, stride, n) {
+        // SAFETY: AVX2 is present, the values are finite and the bounds the
+        // kernel relies on were asserted above.
+        unsafe { avx2::envelope(data, stride, n, spacing, periodic, s) };
         return;
     }
     let line = &mut s.line;
@@ -81,29 +85,10 @@ pub fn transform_lanes(
     }
 }
 
-/// Runs the vector kernel where it applies; false if it did not.
+/// Whether the eight lanes hold finite values only (the kernel's domain).
 #[cfg(target_arch = "x86_64")]
-fn vector(
-    data: &mut [f32],
-    stride: usize,
-    n: usize,
-    spacing: f32,
-    periodic: bool,
-    s: &mut LaneScratch,
-) -> bool {
-    let finite = || (0..n).all(|t| data[t * stride..][..LANES].iter().all(|x| x.is_finite()));
-    if !(vector_kernel() && n <= MAX_LEN && finite()) {
-        return false;
-    }
-    // SAFETY: AVX2 is present (checked above), the values are finite and the
-    // bounds the kernel relies on were asserted by the caller.
-    unsafe { avx2::envelope(data, stride, n, spacing, periodic, s) };
-    true
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-fn vector(_: &mut [f32], _: usize, _: usize, _: f32, _: bool, _: &mut LaneScratch) -> bool {
-    false
+fn all_finite(data: &[f32], stride: usize, n: usize) -> bool {
+    (0..n).all(|t| data[t * stride..][..LANES].iter().all(|x| x.is_finite()))
 }
 
 /// Interleaves `rows` rows of `w` samples (`group[b * w + x]`, `rows <= 8`)
@@ -163,6 +148,7 @@ fn transposed(src: &[f32], from: [usize; 2], dst: &mut [f32], to: [usize; 2], n:
 
 /// Longest line the kernel takes: element indices of the extended periodic
 /// line (`2n * 8`) must fit an `i32`, and sites must be exact in `f32`.
+#[cfg(target_arch = "x86_64")]
 const MAX_LEN: usize = 1 << 22;
 
 #[cfg(target_arch = "x86_64")]
