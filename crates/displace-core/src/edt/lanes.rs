@@ -8,7 +8,7 @@
 //! eight and the loop runs as long as the lane that pops the most.
 //!
 //! A lane's stack is a linked list in arrays indexed by site (element
-//! `site * 8 + lane`): pushing parabola `q` stores its value, its left end and
+//! `(site + 1) * 8 + lane`, after a sentinel group): pushing parabola `q` stores its value, its left end and
 //! the index of the parabola below it at `q`, one contiguous 8-lane store for
 //! all lanes, and popping follows that link with a gather. AVX2 has gathers
 //! but no scatters, which a stack indexed by depth would need. The read-back
@@ -29,7 +29,7 @@ pub const LANES: usize = 8;
 /// Per-thread scratch of the lane kernel, reused across groups.
 #[derive(Default)]
 pub struct LaneScratch {
-    /// The input value at each site (element `site * 8 + lane`).
+    /// The input value at each site (element `(site + 1) * 8 + lane`).
     f: Vec<f32>,
     /// Left end of the site's interval of the envelope, when it was pushed.
     z: Vec<f32>,
