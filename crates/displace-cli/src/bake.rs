@@ -250,7 +250,17 @@ pub fn run(args: BakeArgs) -> Result<()> {
     }
     if let Some(c) = &args.cone {
         let start = Instant::now();
-        let cones = ConeMap::build(&height, extent.aspect(), args.cone_kind);
+        let bar = DelayedBar::counting(
+            format!("baking the {} cone map", args.cone_kind.name()),
+            "rows",
+        );
+        let cones = ConeMap::build_with(
+            &height,
+            extent.aspect(),
+            args.cone_kind,
+            Some(&bar.callback()),
+        );
+        bar.finish();
         let seconds = start.elapsed().as_secs_f64();
         dio::npy::write_file(c, &[cones.height(), cones.width()], cones.data())
             .with_context(|| format!("writing {}", c.display()))?;

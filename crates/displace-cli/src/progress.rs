@@ -13,15 +13,23 @@ pub struct DelayedBar {
     start: Instant,
     delay: Duration,
     label: String,
+    /// What a step is ("slices", "rows").
+    unit: &'static str,
     bar: Mutex<Option<ProgressBar>>,
 }
 
 impl DelayedBar {
+    /// A bar counting the slices of a bake.
     pub fn new(label: impl Into<String>) -> Arc<Self> {
+        Self::counting(label, "slices")
+    }
+
+    pub fn counting(label: impl Into<String>, unit: &'static str) -> Arc<Self> {
         Arc::new(Self {
             start: Instant::now(),
             delay: Duration::from_secs(1),
             label: label.into(),
+            unit,
             bar: Mutex::new(None),
         })
     }
@@ -36,9 +44,10 @@ impl DelayedBar {
             let bar =
                 ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
             bar.set_style(
-                ProgressStyle::with_template(
-                    "{msg} [{bar:40}] {pos}/{len} slices, {elapsed} elapsed, ETA {eta}",
-                )
+                ProgressStyle::with_template(&format!(
+                    "{{msg}} [{{bar:40}}] {{pos}}/{{len}} {}, {{elapsed}} elapsed, ETA {{eta}}",
+                    self.unit
+                ))
                 .unwrap_or_else(|_| ProgressStyle::default_bar())
                 .progress_chars("=> "),
             );

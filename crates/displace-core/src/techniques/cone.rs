@@ -34,9 +34,11 @@
 use super::linear::{bisect, Bracket, BINARY_STEPS};
 use super::{Segment, Traced};
 use crate::convention::texel_centre;
+use crate::displacement::Progress;
 use crate::HeightMap;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Largest ratio stored: a cone that wide covers any face the tests and
 /// `displace compare` use from any height.
@@ -72,11 +74,29 @@ impl ConeMap {
     /// Bakes the cone map of `height` for a tile of `aspect` (shell depths),
     /// texels in parallel.
     pub fn build(height: &HeightMap, aspect: [f32; 2], kind: ConeKind) -> Self {
+        Self::build_with(height, aspect, kind, None)
+    }
+
+    /// [`Self::build`], telling `progress` `(rows done, rows)` as rows of
+    /// texels finish: relaxed cones of a large smooth map take minutes.
+    pub fn build_with(
+        height: &HeightMap,
+        aspect: [f32; 2],
+        kind: ConeKind,
+        progress: Option<&Progress>,
+    ) -> Self {
         let (w, h) = (height.width(), height.height());
         let texel = Vec2::new(aspect[0] / w as f32, aspect[1] / h as f32);
+        let done = AtomicUsize::new(0);
+        let row_done = || {
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if let Some(p) = progress {
+                p(n, h);
+            }
+        };
         let data = match kind {
-            ConeKind::Conservative => conservative(height, texel),
-            ConeKind::Relaxed => relaxed(height, aspect, texel),
+            ConeKind::Conservative => conservative(height, texel, &row_done),
+            ConeKind::Relaxed => relaxed(height, aspect, texel, &row_done),
         };
         Self {
             kind,
@@ -152,7 +172,7 @@ fn cell_slopes(height: &HeightMap, texel: Vec2) -> Vec<f32> {
         .collect()
 }
 
-fn conservative(height: &HeightMap, texel: Vec2) -> Vec<f32> {
+fn conservative(height: &HeightMap, texel: Vec2, row_done: &(dyn Fn() + Sync)) -> Vec<f32> {
     let (w, h) = (height.width() as i64, height.height() as i64);
     let ranges = footprint_ranges(height);
     let slopes = cell_slopes(height, texel);
@@ -162,62 +182,71 @@ fn conservative(height: &HeightMap, texel: Vec2) -> Vec<f32> {
         .into_par_iter()
         .flat_map_iter(|j| {
             let (range, slopes, peaks) = (&range, &slopes, &peaks);
-            (0..w).map(move |i| {
-                let lo = range(i, j).0;
-                // Texels next to T: the steepest slope over the 3x3 block,
-                // whose bilinear cells are indices i - 1 ..= i + 2.
-                let mut best = MAX_RATIO;
-                let mut rises = false;
-                let mut slope = 0.0f32;
-                for jj in (j - 1).max(0)..=(j + 1).min(h - 1) {
-                    for ii in (i - 1).max(0)..=(i + 1).min(w - 1) {
-                        rises |= range(ii, jj).1 > lo;
-                    }
-                }
-                if rises {
-                    for k in (j - 1).max(0)..=(j + 2).min(h) {
-                        for c in (i - 1).max(0)..=(i + 2).min(w) {
-                            slope = slope.max(slopes[(k * (w + 1) + c) as usize]);
+            let row: Vec<f32> = (0..w)
+                .map(move |i| {
+                    let lo = range(i, j).0;
+                    // Texels next to T: the steepest slope over the 3x3 block,
+                    // whose bilinear cells are indices i - 1 ..= i + 2.
+                    let mut best = MAX_RATIO;
+                    let mut rises = false;
+                    let mut slope = 0.0f32;
+                    for jj in (j - 1).max(0)..=(j + 1).min(h - 1) {
+                        for ii in (i - 1).max(0)..=(i + 1).min(w - 1) {
+                            rises |= range(ii, jj).1 > lo;
                         }
                     }
-                    if slope > 0.0 {
-                        best = best.min(1.0 / slope);
+                    if rises {
+                        for k in (j - 1).max(0)..=(j + 2).min(h) {
+                            for c in (i - 1).max(0)..=(i + 2).min(w) {
+                                slope = slope.max(slopes[(k * (w + 1) + c) as usize]);
+                            }
+                        }
+                        if slope > 0.0 {
+                            best = best.min(1.0 / slope);
+                        }
                     }
-                }
-                // Farther texels (Chebyshev distance 2 and up): through the
-                // gap between the footprints, searched block by block.
-                if lo < 1.0 {
-                    let ratio = |gx: i64, gy: i64, hi: f32| {
-                        let dx = ((gx - 1) as f32 * texel.x).max(0.0);
-                        let dy = ((gy - 1) as f32 * texel.y).max(0.0);
-                        (dx * dx + dy * dy).sqrt() / (hi - lo)
-                    };
-                    peaks.search(
-                        (i, j),
-                        &mut best,
-                        |[gx, gy], hi| {
-                            if hi > lo {
-                                ratio(gx, gy, hi)
-                            } else {
-                                f32::INFINITY
-                            }
-                        },
-                        |(ii, jj), best| {
-                            let (gx, gy) = ((ii - i).abs(), (jj - j).abs());
-                            let hi = range(ii, jj).1;
-                            if gx.max(gy) >= 2 && hi > lo {
-                                *best = best.min(ratio(gx, gy, hi));
-                            }
-                        },
-                    );
-                }
-                best
-            })
+                    // Farther texels (Chebyshev distance 2 and up): through the
+                    // gap between the footprints, searched block by block.
+                    if lo < 1.0 {
+                        let ratio = |gx: i64, gy: i64, hi: f32| {
+                            let dx = ((gx - 1) as f32 * texel.x).max(0.0);
+                            let dy = ((gy - 1) as f32 * texel.y).max(0.0);
+                            (dx * dx + dy * dy).sqrt() / (hi - lo)
+                        };
+                        peaks.search(
+                            (i, j),
+                            &mut best,
+                            |[gx, gy], hi| {
+                                if hi > lo {
+                                    ratio(gx, gy, hi)
+                                } else {
+                                    f32::INFINITY
+                                }
+                            },
+                            |(ii, jj), best| {
+                                let (gx, gy) = ((ii - i).abs(), (jj - j).abs());
+                                let hi = range(ii, jj).1;
+                                if gx.max(gy) >= 2 && hi > lo {
+                                    *best = best.min(ratio(gx, gy, hi));
+                                }
+                            },
+                        );
+                    }
+                    best
+                })
+                .collect();
+            row_done();
+            row
         })
         .collect()
 }
 
-fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
+fn relaxed(
+    height: &HeightMap,
+    aspect: [f32; 2],
+    texel: Vec2,
+    row_done: &(dyn Fn() + Sync),
+) -> Vec<f32> {
     let (w, h) = (height.width() as i64, height.height() as i64);
     let centre = |i: i64, j: i64| {
         Vec2::new(
@@ -232,63 +261,67 @@ fn relaxed(height: &HeightMap, aspect: [f32; 2], texel: Vec2) -> Vec<f32> {
         .into_par_iter()
         .flat_map_iter(|j| {
             let peaks = &peaks;
-            (0..w).map(move |i| {
-                let apex_xy = centre(i, j);
-                let apex = height.texel(i, j);
-                let mut best = MAX_RATIO;
-                if apex >= 1.0 {
-                    return best;
-                }
-                // The exit point of a ray through (q, hq) lies past q and
-                // below hq, so a block's ratios are at least the distance to
-                // its nearest texel centre over its highest texel's rise
-                // (shrunk by a few ulps: the leaves measure between rounded
-                // centres).
-                let bound = |[gx, gy]: [i64; 2], hq: f32| {
-                    if hq <= apex {
-                        return f32::INFINITY;
+            let row: Vec<f32> = (0..w)
+                .map(move |i| {
+                    let apex_xy = centre(i, j);
+                    let apex = height.texel(i, j);
+                    let mut best = MAX_RATIO;
+                    if apex >= 1.0 {
+                        return best;
                     }
-                    let d = Vec2::new(gx as f32 * texel.x, gy as f32 * texel.y).length();
-                    d / (hq - apex) * (1.0 - 1e-5)
-                };
-                peaks.search((i, j), &mut best, bound, |(ii, jj), best| {
-                    let hq = height.texel(ii, jj);
-                    if hq <= apex {
-                        return;
-                    }
-                    let q = centre(ii, jj);
-                    // The exit point lies past q and below hq: no ratio
-                    // under this one.
-                    if (q - apex_xy).length() >= *best * (hq - apex) {
-                        return;
-                    }
-                    // From (apex_xy, 1) through (q, hq), on down: per unit of
-                    // horizontal travel the ray falls `fall`.
-                    let along = (q - apex_xy).normalize();
-                    let fall = (1.0 - hq) / (q - apex_xy).length();
-                    let mut s = march;
-                    loop {
-                        let xy = q + along * s;
-                        let z = hq - fall * s;
-                        if z <= 0.0
-                            || xy.x < 0.0
-                            || xy.y < 0.0
-                            || xy.x > aspect[0]
-                            || xy.y > aspect[1]
-                        {
-                            break;
+                    // The exit point of a ray through (q, hq) lies past q and
+                    // below hq, so a block's ratios are at least the distance to
+                    // its nearest texel centre over its highest texel's rise
+                    // (shrunk by a few ulps: the leaves measure between rounded
+                    // centres).
+                    let bound = |[gx, gy]: [i64; 2], hq: f32| {
+                        if hq <= apex {
+                            return f32::INFINITY;
                         }
-                        if z > surface(xy) {
-                            if z > apex {
-                                *best = best.min((xy - apex_xy).length() / (z - apex));
+                        let d = Vec2::new(gx as f32 * texel.x, gy as f32 * texel.y).length();
+                        d / (hq - apex) * (1.0 - 1e-5)
+                    };
+                    peaks.search((i, j), &mut best, bound, |(ii, jj), best| {
+                        let hq = height.texel(ii, jj);
+                        if hq <= apex {
+                            return;
+                        }
+                        let q = centre(ii, jj);
+                        // The exit point lies past q and below hq: no ratio
+                        // under this one.
+                        if (q - apex_xy).length() >= *best * (hq - apex) {
+                            return;
+                        }
+                        // From (apex_xy, 1) through (q, hq), on down: per unit of
+                        // horizontal travel the ray falls `fall`.
+                        let along = (q - apex_xy).normalize();
+                        let fall = (1.0 - hq) / (q - apex_xy).length();
+                        let mut s = march;
+                        loop {
+                            let xy = q + along * s;
+                            let z = hq - fall * s;
+                            if z <= 0.0
+                                || xy.x < 0.0
+                                || xy.y < 0.0
+                                || xy.x > aspect[0]
+                                || xy.y > aspect[1]
+                            {
+                                break;
                             }
-                            break;
+                            if z > surface(xy) {
+                                if z > apex {
+                                    *best = best.min((xy - apex_xy).length() / (z - apex));
+                                }
+                                break;
+                            }
+                            s += march;
                         }
-                        s += march;
-                    }
-                });
-                best
-            })
+                    });
+                    best
+                })
+                .collect();
+            row_done();
+            row
         })
         .collect()
 }
@@ -434,6 +467,28 @@ pub(crate) fn trace(seg: &Segment, cones: &ConeMap, budget: u32) -> Traced {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn progress_counts_every_row_once() {
+        use std::sync::{Arc, Mutex};
+        let height = crate::generators::generate("gen:gaussian", 12, 9, crate::Address::Clamp)
+            .expect("generator");
+        for kind in [ConeKind::Conservative, ConeKind::Relaxed] {
+            let seen = Arc::new(Mutex::new(Vec::new()));
+            let s = Arc::clone(&seen);
+            let progress: Progress =
+                Arc::new(move |done, total| s.lock().unwrap().push((done, total)));
+            let cones = ConeMap::build_with(&height, [2.0, 1.5], kind, Some(&progress));
+            let mut seen = seen.lock().unwrap().clone();
+            seen.sort_unstable();
+            assert_eq!(
+                seen,
+                (1..=9).map(|n| (n, 9)).collect::<Vec<_>>(),
+                "{kind:?}"
+            );
+            assert_eq!(cones, ConeMap::build(&height, [2.0, 1.5], kind));
+        }
+    }
 
     #[test]
     fn block_search_finds_the_brute_force_minimum() {
