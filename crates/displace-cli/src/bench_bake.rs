@@ -180,7 +180,14 @@ pub fn run(args: BenchBakeArgs) -> Result<()> {
         pool.current_num_threads(),
         args.peer_threads
     );
-    println!("edt.sdf: signed, both sides (as our map); edt.edt and scipy: one side only");
+    println!(
+        "envelope kernel: {}; edt.sdf: signed, both sides (as our map); edt.edt and scipy: one side only",
+        if displace_core::edt::vector_kernel() {
+            "AVX2, 8 lines at a time"
+        } else {
+            "scalar (no AVX2 on this CPU)"
+        }
+    );
     println!(
         "{:<14} {:<9} {:>8} {:>8} {:>8} {:>8} {:>12} {:>12} {:>11}",
         "size",
