@@ -129,9 +129,10 @@ pub fn deinterleave(block: &[f32], rows: usize, w: usize, group: &mut [f32]) {
 
 /// Transposes the `n / 8` whole 8x8 tiles of a strided layout, where the
 /// vector unit is there, and returns how many columns it did (`0` or
-/// `n / 8 * 8`). `src` and `dst` are `[row stride, tile step]`: tile `t`
-/// reads row `b` at `src[b * src.0 + t * src.1..][..8]` and writes its
-/// column `k` to `dst[k * dst.0 + t * dst.1..][..8]`.
+/// `n / 8 * 8`). `from` and `to` are `[row stride, tile step]` of `src`
+/// and `dst`: tile `t` reads row `b` at `src[b * from[0] + t * from[1]..]`
+/// and writes its column `k` to `dst[k * to[0] + t * to[1]..]`, eight
+/// values each.
 fn transposed(src: &[f32], from: [usize; 2], dst: &mut [f32], to: [usize; 2], n: usize) -> usize {
     let tiles = n / LANES;
     let reach = |[stride, step]: [usize; 2]| 7 * stride + tiles.saturating_sub(1) * step + LANES;
@@ -142,7 +143,7 @@ fn transposed(src: &[f32], from: [usize; 2], dst: &mut [f32], to: [usize; 2], n:
         unsafe { avx2::transpose_tiles(src, from, dst, to, tiles) };
         return tiles * LANES;
     }
-    let _ = (src, dst, reach);
+    let _ = (src, from, dst, to, reach);
     0
 }
 
