@@ -257,6 +257,31 @@ fn relaxed(
     let surface = |p: Vec2| height.sample(p.x / aspect[0], p.y / aspect[1]);
     let march = 0.25 * texel.min_element();
     let peaks = BlockMax::new(height.data().to_vec(), w, h);
+    // Where the ray is below the lowest texel a sample could interpolate,
+    // it is still inside the surface: that step needs no sample. A sample
+    // at texel coordinate t (centre of texel i at i + 0.5) interpolates
+    // texels floor(t) - 1 ..= floor(t) + 1, so block `t / FLOOR` takes the
+    // minimum over its texels and one more on each side (through the map's
+    // addressing). The margin covers the interpolation's rounding.
+    const FLOOR: i64 = 4;
+    let (bw, bh) = (w / FLOOR + 1, h / FLOOR + 1);
+    let floors: Vec<f32> = (0..bh)
+        .flat_map(|by| (0..bw).map(move |bx| (bx, by)))
+        .map(|(bx, by)| {
+            let mut m = f32::INFINITY;
+            for jj in by * FLOOR - 1..=(by + 1) * FLOOR {
+                for ii in bx * FLOOR - 1..=(bx + 1) * FLOOR {
+                    m = m.min(height.texel(ii, jj));
+                }
+            }
+            m - 1e-6
+        })
+        .collect();
+    let inside = |xy: Vec2, z: f32| {
+        let bx = ((xy.x / texel.x) as i64 / FLOOR).min(bw - 1);
+        let by = ((xy.y / texel.y) as i64 / FLOOR).min(bh - 1);
+        z < floors[(by * bw + bx) as usize]
+    };
     (0..h)
         .into_par_iter()
         .flat_map_iter(|j| {
@@ -308,7 +333,7 @@ fn relaxed(
                             {
                                 break;
                             }
-                            if z > surface(xy) {
+                            if !inside(xy, z) && z > surface(xy) {
                                 if z > apex {
                                     *best = best.min((xy - apex_xy).length() / (z - apex));
                                 }
@@ -467,6 +492,136 @@ pub(crate) fn trace(seg: &Segment, cones: &ConeMap, budget: u32) -> Traced {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cone maps against the plain definitions, every texel against
+    /// every other with no pruning and no skipped steps: the block search
+    /// and the march's inside test must not change a single ratio.
+    #[test]
+    fn cone_maps_equal_their_unpruned_definitions() {
+        for (name, address, [w, h], aspect) in [
+            (
+                "gaussian",
+                crate::Address::Clamp,
+                [13i64, 11i64],
+                [3.0f32, 2.5f32],
+            ),
+            ("studded", crate::Address::Clamp, [13, 11], [3.0, 2.5]),
+            ("noise", crate::Address::Repeat, [24, 20], [1.0, 0.8]),
+            ("noise", crate::Address::Clamp, [20, 24], [0.5, 0.6]),
+        ] {
+            let height = crate::generators::generate(
+                &format!("gen:{name}"),
+                w as usize,
+                h as usize,
+                address,
+            )
+            .expect("generator");
+            let texel = Vec2::new(aspect[0] / w as f32, aspect[1] / h as f32);
+            let all = || (0..h).flat_map(move |jj| (0..w).map(move |ii| (ii, jj)));
+
+            let got = ConeMap::build(&height, aspect, ConeKind::Conservative);
+            let ranges = footprint_ranges(&height);
+            let near = conservative_near_only(&height, texel);
+            for (i, j) in all() {
+                let lo = ranges[(j * w + i) as usize].0;
+                let mut best = near[(j * w + i) as usize];
+                for (ii, jj) in all() {
+                    let (gx, gy) = ((ii - i).abs(), (jj - j).abs());
+                    let hi = ranges[(jj * w + ii) as usize].1;
+                    if gx.max(gy) >= 2 && hi > lo {
+                        let dx = ((gx - 1) as f32 * texel.x).max(0.0);
+                        let dy = ((gy - 1) as f32 * texel.y).max(0.0);
+                        best = best.min((dx * dx + dy * dy).sqrt() / (hi - lo));
+                    }
+                }
+                assert_eq!(
+                    got.data()[(j * w + i) as usize],
+                    best,
+                    "{name} conservative ({i},{j})"
+                );
+            }
+
+            let got = ConeMap::build(&height, aspect, ConeKind::Relaxed);
+            let centre = |i: i64, j: i64| {
+                Vec2::new(
+                    texel_centre(i as usize, w as usize) * aspect[0],
+                    texel_centre(j as usize, h as usize) * aspect[1],
+                )
+            };
+            let march = 0.25 * texel.min_element();
+            for (i, j) in all() {
+                let (apex_xy, apex) = (centre(i, j), height.texel(i, j));
+                let mut best = MAX_RATIO;
+                for (ii, jj) in all() {
+                    let hq = height.texel(ii, jj);
+                    if hq <= apex {
+                        continue;
+                    }
+                    let q = centre(ii, jj);
+                    let along = (q - apex_xy).normalize();
+                    let fall = (1.0 - hq) / (q - apex_xy).length();
+                    let mut s = march;
+                    loop {
+                        let xy = q + along * s;
+                        let z = hq - fall * s;
+                        if z <= 0.0
+                            || xy.x < 0.0
+                            || xy.y < 0.0
+                            || xy.x > aspect[0]
+                            || xy.y > aspect[1]
+                        {
+                            break;
+                        }
+                        if z > height.sample(xy.x / aspect[0], xy.y / aspect[1]) {
+                            if z > apex {
+                                best = best.min((xy - apex_xy).length() / (z - apex));
+                            }
+                            break;
+                        }
+                        s += march;
+                    }
+                }
+                assert_eq!(
+                    got.data()[(j * w + i) as usize],
+                    best,
+                    "{name} relaxed ({i},{j})"
+                );
+            }
+        }
+    }
+
+    /// The conservative ratios from the 3x3 block alone (the slope bound),
+    /// as the bake computes them before searching farther texels.
+    fn conservative_near_only(height: &HeightMap, texel: Vec2) -> Vec<f32> {
+        let (w, h) = (height.width() as i64, height.height() as i64);
+        let ranges = footprint_ranges(height);
+        let slopes = cell_slopes(height, texel);
+        (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let lo = ranges[(j * w + i) as usize].0;
+                let mut rises = false;
+                for jj in (j - 1).max(0)..=(j + 1).min(h - 1) {
+                    for ii in (i - 1).max(0)..=(i + 1).min(w - 1) {
+                        rises |= ranges[(jj * w + ii) as usize].1 > lo;
+                    }
+                }
+                let mut slope = 0.0f32;
+                if rises {
+                    for k in (j - 1).max(0)..=(j + 2).min(h) {
+                        for c in (i - 1).max(0)..=(i + 2).min(w) {
+                            slope = slope.max(slopes[(k * (w + 1) + c) as usize]);
+                        }
+                    }
+                }
+                if slope > 0.0 {
+                    MAX_RATIO.min(1.0 / slope)
+                } else {
+                    MAX_RATIO
+                }
+            })
+            .collect()
+    }
 
     #[test]
     fn progress_counts_every_row_once() {
