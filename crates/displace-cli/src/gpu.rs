@@ -40,9 +40,11 @@ pub struct FaceArgs {
 /// With SCENE, the CPU renderer's scene file: each displaced parallelogram,
 /// triangle and mesh is drawn by the GPU raster path with its own bake and
 /// its material's colour, lit by the first point light (else the centre of
-/// the first area light, as a point of intensity radiance x area). Left
-/// out, and listed on stderr: non-displaced shapes, textures, reflections,
-/// other lights, depth of field, and shadows between faces. --height, --map-size, --extent,
+/// the first area light, as a point of intensity radiance x area); every
+/// other shape (quads, boxes, spheres, plain meshes, visible area-light
+/// quads) is drawn as plain triangles in the same depth buffer. Left out,
+/// and listed on stderr: textures, reflections, other lights, depth of
+/// field, shadows between faces and shadows on plain shapes. --height, --map-size, --extent,
 /// --address, --method, --iterations, --eye and --light configure the
 /// built-in plane only.
 #[derive(clap::Args, Debug)]
@@ -208,8 +210,9 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     }
     write_outputs(&args.output, &out.image, args.uv_aov)?;
     println!(
-        "rendered {} displaced faces and meshes, {}x{} -> {}",
+        "rendered {} displaced faces and meshes and {} plain triangles, {}x{} -> {}",
         out.faces,
+        out.plain_triangles,
         out.image.width,
         out.image.height,
         args.output.display()
