@@ -60,7 +60,8 @@ pub struct GpuRenderArgs {
     #[arg(long, value_name = "WxH")]
     pub size: Option<String>,
     /// Also write `<output stem>.uvkt.npy`, float32 [height, width, 4]: u,
-    /// v, hit kind (0 none, 1 surface, 2 wall) and map-space t per pixel.
+    /// v, hit kind (0 none, 1 surface, 2 wall, 3 non-displaced shape) and
+    /// map-space t (world distance from the eye for kind 3) per pixel.
     #[arg(long)]
     pub uv_aov: bool,
     /// Scene mode: do not read or write the on-disk bake cache.

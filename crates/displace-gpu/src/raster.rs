@@ -1,9 +1,10 @@
 //! The raster path: one displaced planar face drawn as its shell box with
 //! Donnelly's vertex and fragment stages (`shaders/raster.wgsl`), or a mesh
 //! drawn as the shells of its triangles ([`crate::mesh`],
-//! `shaders/mesh.wgsl`), rendered offscreen, with a UV AOV (uv, hit kind,
-//! t) beside the colour so renders can be checked against the CPU trace
-//! pixel by pixel.
+//! `shaders/mesh.wgsl`), and a scene's non-displaced shapes as plain
+//! triangles ([`crate::plain`], `shaders/plain.wgsl`) in the same depth
+//! buffer, rendered offscreen, with a UV AOV (uv, hit kind, t) beside the
+//! colour so renders can be checked against the CPU trace pixel by pixel.
 
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::mesh::{ShellMesh, ShellVertex};
@@ -256,7 +257,8 @@ pub struct FrameUniform {
 }
 
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
-/// (`kind` 0 where nothing was hit).
+/// (`kind` 0 where nothing was hit; [`crate::convention::HIT_PLAIN`] on a
+/// non-displaced shape, whose `t` is the world distance from the eye).
 pub struct Image {
     pub width: u32,
     pub height: u32,
