@@ -524,6 +524,17 @@ impl Classified {
             .collect()
     }
 
+    /// The sRGB channel differences (8-bit steps) on `pixels`, sorted.
+    fn colour_diffs(&self, pixels: &[usize]) -> Diffs {
+        let mut d: Vec<f32> = pixels
+            .iter()
+            .flat_map(|&i| (0..3).map(move |k| (self.cpu_rgb[i][k] - self.gpu_rgb[i][k]).abs()))
+            .collect();
+        d.sort_by(f32::total_cmp);
+        assert!(!d.is_empty(), "no pixels to compare");
+        Diffs(d)
+    }
+
     /// [`Classified::both`] pixels whose four neighbours are seen alike
     /// too: away from silhouettes, where the CPU's jittered sample may land
     /// on the other side.
@@ -540,6 +551,19 @@ impl Classified {
                     && [i - 1, i + 1, i - width, i + width].into_iter().all(alike)
             })
             .collect()
+    }
+}
+
+/// Sorted colour differences.
+struct Diffs(Vec<f32>);
+
+impl Diffs {
+    fn mean(&self) -> f32 {
+        self.0.iter().sum::<f32>() / self.0.len() as f32
+    }
+
+    fn quantile(&self, f: f64) -> f32 {
+        self.0[((self.0.len() as f64 * f) as usize).min(self.0.len() - 1)]
     }
 }
 
@@ -585,14 +609,8 @@ material = "wall"
     let all = f32::NEG_INFINITY..f32::INFINITY;
     let wall = c.inside(Seen::Plain, all.clone(), 64);
     let floor = c.both(Seen::Displaced, all);
-    let (cpu_rgb, gpu_rgb) = (&c.cpu_rgb, &c.gpu_rgb);
-    let mut diffs: Vec<f32> = wall
-        .iter()
-        .flat_map(|&i| (0..3).map(move |k| (cpu_rgb[i][k] - gpu_rgb[i][k]).abs()))
-        .collect();
-    diffs.sort_by(f32::total_cmp);
-    let mean = diffs.iter().sum::<f32>() / diffs.len().max(1) as f32;
-    let p99 = diffs[(diffs.len() * 99 / 100).min(diffs.len() - 1)];
+    let d = c.colour_diffs(&wall);
+    let (mean, p99) = (d.mean(), d.quantile(0.99));
     eprintln!(
         "wall: classes agree {agree:.4}, {} wall and {} floor pixels, colour mean {mean:.2}/255, p99 {p99}/255",
         wall.len(),
@@ -816,14 +834,8 @@ material = "wall"
     ));
     let agree = c.agreement();
     let torus = c.inside(Seen::Plain, f32::NEG_INFINITY..f32::INFINITY, 64);
-    let (cpu_rgb, gpu_rgb) = (&c.cpu_rgb, &c.gpu_rgb);
-    let mut diffs: Vec<f32> = torus
-        .iter()
-        .flat_map(|&i| (0..3).map(move |k| (cpu_rgb[i][k] - gpu_rgb[i][k]).abs()))
-        .collect();
-    diffs.sort_by(f32::total_cmp);
-    let mean = diffs.iter().sum::<f32>() / diffs.len().max(1) as f32;
-    let q = |f: f64| diffs[((diffs.len() as f64 * f) as usize).min(diffs.len() - 1)];
+    let d = c.colour_diffs(&torus);
+    let (mean, q) = (d.mean(), |f| d.quantile(f));
     eprintln!(
         "torus: classes agree {agree:.4}; {} torus pixels, colour mean {mean:.2}/255, median {}, p90 {}, p99 {}",
         torus.len(), q(0.5), q(0.9), q(0.99)
