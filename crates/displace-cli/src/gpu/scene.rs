@@ -209,13 +209,15 @@ fn add_plain(plain: &mut PlainMesh, shape: &Shape, m: &PlainMaterial) {
             let uv = [Vec2::ZERO, Vec2::X, Vec2::Y];
             plain.triangle(std::array::from_fn(|c| (p[c], n, uv[c])), m);
         }
+        // Drawn by its own renderer, not here.
         Shape::Displaced(_) => {}
     }
 }
 
-/// Unit normal of the triangle `p` by its winding.
+/// Unit normal of the triangle `p` by its winding; zero for a degenerate
+/// one (which covers no pixel; a shell refuses it).
 fn flat_normal(p: [Vec3; 3]) -> Vec3 {
-    (p[1] - p[0]).cross(p[2] - p[0]).normalize()
+    (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
 }
 
 /// The GPU shell of a scene mesh, its texture addressed as its bake is.
