@@ -40,9 +40,11 @@ pub struct FaceArgs {
 /// With SCENE, the CPU renderer's scene file: each displaced parallelogram,
 /// triangle and mesh is drawn by the GPU raster path with its own bake and
 /// its material's colour, lit by the first point light (else the centre of
-/// the first area light, as a point of intensity radiance x area). Left
-/// out, and listed on stderr: non-displaced shapes, textures, reflections,
-/// other lights, depth of field, and shadows between faces. --height, --map-size, --extent,
+/// the first area light, as a point of intensity radiance x area); every
+/// other shape (quads, boxes, spheres, plain meshes, visible area-light
+/// quads) is drawn as plain triangles in the same depth buffer. Left out,
+/// and listed on stderr: textures, reflections, other lights, depth of
+/// field, shadows between faces and shadows on plain shapes. --height, --map-size, --extent,
 /// --address, --method, --iterations, --eye and --light configure the
 /// built-in plane only.
 #[derive(clap::Args, Debug)]
@@ -58,7 +60,8 @@ pub struct GpuRenderArgs {
     #[arg(long, value_name = "WxH")]
     pub size: Option<String>,
     /// Also write `<output stem>.uvkt.npy`, float32 [height, width, 4]: u,
-    /// v, hit kind (0 none, 1 surface, 2 wall) and map-space t per pixel.
+    /// v, hit kind (0 none, 1 surface, 2 wall, 3 non-displaced shape) and
+    /// map-space t (world distance from the eye for kind 3) per pixel.
     #[arg(long)]
     pub uv_aov: bool,
     /// Scene mode: do not read or write the on-disk bake cache.
@@ -208,8 +211,9 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     }
     write_outputs(&args.output, &out.image, args.uv_aov)?;
     println!(
-        "rendered {} displaced faces and meshes, {}x{} -> {}",
+        "rendered {} displaced faces and meshes and {} plain triangles, {}x{} -> {}",
         out.faces,
+        out.plain_triangles,
         out.image.width,
         out.image.height,
         args.output.display()

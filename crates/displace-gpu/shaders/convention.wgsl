@@ -22,6 +22,8 @@ const METHOD_EXACT: u32 = 2u;
 const HIT_NONE: u32 = 0u;
 const HIT_SURFACE: u32 = 1u;
 const HIT_WALL: u32 = 2u;
+// A non-displaced scene shape (plain.wgsl writes it to the AOV).
+const HIT_PLAIN: u32 = 3u;
 
 // Result flags.
 const FLAG_CONVERGED: u32 = 1u;

@@ -15,6 +15,8 @@ pub const METHOD_EXACT: u32 = 2;
 pub const HIT_NONE: u32 = 0;
 pub const HIT_SURFACE: u32 = 1;
 pub const HIT_WALL: u32 = 2;
+/// A non-displaced shape ([`crate::plain`]), in the AOV's kind channel.
+pub const HIT_PLAIN: u32 = 3;
 pub const FLAG_CONVERGED: u32 = 1;
 pub const FLAG_CELL_CAP: u32 = 2;
 /// `exact.rs`: a segment starts inside when `z < h - 1e-7`.

@@ -1,13 +1,15 @@
 //! The raster path: one displaced planar face drawn as its shell box with
 //! Donnelly's vertex and fragment stages (`shaders/raster.wgsl`), or a mesh
 //! drawn as the shells of its triangles ([`crate::mesh`],
-//! `shaders/mesh.wgsl`), rendered offscreen, with a UV AOV (uv, hit kind,
-//! t) beside the colour so renders can be checked against the CPU trace
-//! pixel by pixel.
+//! `shaders/mesh.wgsl`), and a scene's non-displaced shapes as plain
+//! triangles ([`crate::plain`], `shaders/plain.wgsl`) in the same depth
+//! buffer, rendered offscreen, with a UV AOV (uv, hit kind, t) beside the
+//! colour so renders can be checked against the CPU trace pixel by pixel.
 
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::mesh::{ShellMesh, ShellVertex};
-use crate::shaders::{mesh_source, raster_source, DistanceTexture};
+use crate::plain::{PlainFrame, PlainMesh, PLAIN_VERTEX_LAYOUT};
+use crate::shaders::{mesh_source, plain_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
@@ -179,6 +181,16 @@ impl PlaneScene {
         MapRay::new(to_map(self.eye - self.origin), to_map(far - self.eye))
     }
 
+    /// The shell's depth (displaced draws only: a plain draw has none).
+    fn check_depth(&self) -> Result<()> {
+        if !(self.depth.is_finite() && self.depth > 0.0) {
+            return Err(Error::InvalidOption(
+                "scene vectors must be finite and the depth positive".into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// The face's own checks (box renderers only).
     fn check_face(&self) -> Result<()> {
         if !(self.origin.is_finite() && self.tangent.is_finite() && self.bitangent.is_finite()) {
@@ -198,10 +210,8 @@ impl PlaneScene {
             )));
         }
         let vecs = [self.eye, self.target, self.up, self.light];
-        if !(vecs.iter().all(|v| v.is_finite()) && self.depth.is_finite() && self.depth > 0.0) {
-            return Err(Error::InvalidOption(
-                "scene vectors must be finite and the depth positive".into(),
-            ));
+        if !vecs.iter().all(|v| v.is_finite()) {
+            return Err(Error::InvalidOption("scene vectors must be finite".into()));
         }
         if (self.eye - self.target).length_squared() == 0.0 {
             return Err(Error::InvalidOption("degenerate camera".into()));
@@ -247,7 +257,8 @@ pub struct FrameUniform {
 }
 
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
-/// (`kind` 0 where nothing was hit).
+/// (`kind` 0 where nothing was hit; [`crate::convention::HIT_PLAIN`] on a
+/// non-displaced shape, whose `t` is the world distance from the eye).
 pub struct Image {
     pub width: u32,
     pub height: u32,
@@ -272,15 +283,33 @@ enum Geometry {
     },
 }
 
-/// Pipelines and textures for rendering one displacement map.
+/// A pipeline and what it draws: one displacement map's face or mesh, or
+/// the plain (non-displaced) triangles of a scene ([`Renderer::plain`]).
 pub struct Renderer {
-    map: GpuMap,
     pipeline: wgpu::RenderPipeline,
+    kind: Kind,
+}
+
+enum Kind {
+    Displaced {
+        shading: Box<MapShading>,
+        geometry: Geometry,
+    },
+    /// [`PlainMesh`] triangles: group 0 is their [`PlainFrame`].
+    Plain {
+        vertices: wgpu::Buffer,
+        count: u32,
+        frame_layout: wgpu::BindGroupLayout,
+    },
+}
+
+/// The map, normal map, colour texture and sampler a displaced draw binds.
+struct MapShading {
+    map: GpuMap,
     shade_group: wgpu::BindGroupLayout,
     normal_view: wgpu::TextureView,
     color_view: wgpu::TextureView,
     sampler: wgpu::Sampler,
-    geometry: Geometry,
 }
 
 impl Renderer {
@@ -353,6 +382,90 @@ impl Renderer {
             1,
             Shape::Box { mirrored },
         )
+    }
+
+    /// A renderer of a scene's plain triangles (`shaders/plain.wgsl`),
+    /// drawn two-sided into the same targets and depth buffer as the
+    /// displaced faces. Its [`PlaneScene`] gives the camera and light only:
+    /// `light_intensity` scales the vertices' `diffuse` and `specular`, and
+    /// `depth`, the face vectors and the trace settings are not used (set
+    /// [`PlaneScene::bounds`] to the mesh's so [`shared_depth_range`]
+    /// holds it).
+    pub fn plain(ctx: &GpuContext, mesh: &PlainMesh) -> Result<Self> {
+        mesh.check()?;
+        let (pipeline, frame_layout) = ctx.checked("building the plain pipeline", || {
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("plain"),
+                    source: wgpu::ShaderSource::Wgsl(plain_source().into()),
+                });
+            let frame_layout =
+                ctx.device
+                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some("plain frame"),
+                        entries: &[wgpu::BindGroupLayoutEntry {
+                            binding: 0,
+                            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                            ty: wgpu::BindingType::Buffer {
+                                ty: wgpu::BufferBindingType::Uniform,
+                                has_dynamic_offset: false,
+                                min_binding_size: None,
+                            },
+                            count: None,
+                        }],
+                    });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("plain"),
+                    bind_group_layouts: &[Some(&frame_layout)],
+                    immediate_size: 0,
+                });
+            let pipeline = ctx
+                .device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("plain"),
+                    layout: Some(&layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_plain"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(PLAIN_VERTEX_LAYOUT)],
+                    },
+                    // Two-sided, as the CPU renderer's surfaces.
+                    primitive: wgpu::PrimitiveState {
+                        cull_mode: None,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(depth_state()),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_plain"),
+                        compilation_options: Default::default(),
+                        targets: &color_targets(),
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
+            (pipeline, frame_layout)
+        })?;
+        let vertices = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("plain vertices"),
+                contents: bytemuck::cast_slice(&mesh.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+        Ok(Self {
+            pipeline,
+            kind: Kind::Plain {
+                vertices,
+                count: mesh.vertices.len() as u32,
+                frame_layout,
+            },
+        })
     }
 
     fn with_colour(
@@ -461,13 +574,6 @@ impl Renderer {
                     bind_group_layouts: &[Some(&gpu_map.layout), Some(&shade_group)],
                     immediate_size: 0,
                 });
-            let target = |format| {
-                Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })
-            };
             let pipeline = ctx
                 .device
                 .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -494,13 +600,7 @@ impl Renderer {
                         cull_mode: Some(wgpu::Face::Back),
                         ..Default::default()
                     },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_FORMAT,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::LessEqual),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
+                    depth_stencil: Some(depth_state()),
                     multisample: Default::default(),
                     fragment: Some(wgpu::FragmentState {
                         module: &module,
@@ -509,7 +609,7 @@ impl Renderer {
                             Shape::Mesh(_) => "fs_mesh",
                         }),
                         compilation_options: Default::default(),
-                        targets: &[target(COLOR_FORMAT), target(AOV_FORMAT)],
+                        targets: &color_targets(),
                     }),
                     multiview_mask: None,
                     cache: None,
@@ -532,23 +632,67 @@ impl Renderer {
             },
         };
         Ok(Self {
-            map: gpu_map,
             pipeline,
-            shade_group,
-            normal_view,
-            color_view,
-            sampler,
-            geometry,
+            kind: Kind::Displaced {
+                shading: Box::new(MapShading {
+                    map: gpu_map,
+                    shade_group,
+                    normal_view,
+                    color_view,
+                    sampler,
+                }),
+                geometry,
+            },
         })
     }
 
-    fn uniforms(
+    /// The bind groups of one draw of this renderer with `scene`'s camera
+    /// and light, in group order.
+    fn uniforms(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Vec<wgpu::BindGroup>> {
+        scene.check()?;
+        match &self.kind {
+            Kind::Displaced { shading, geometry } => shading.uniforms(ctx, geometry, scene),
+            Kind::Plain { frame_layout, .. } => Ok(vec![plain_uniforms(ctx, frame_layout, scene)]),
+        }
+    }
+
+    /// Times `frames` renders of `scene` (benchmarks).
+    pub fn time(
         &self,
         ctx: &GpuContext,
         scene: &PlaneScene,
-    ) -> Result<(wgpu::BindGroup, wgpu::BindGroup)> {
-        scene.check()?;
-        let (tiles, uv_shift) = match &self.geometry {
+        frames: u32,
+    ) -> Result<crate::timing::Timing> {
+        let groups = self.uniforms(ctx, scene)?;
+        let targets = Targets::new(ctx, scene.size);
+        crate::timing::time_frames(ctx, frames, |encoder, query| {
+            record(
+                encoder,
+                &targets,
+                &[(self, groups.clone())],
+                DEFAULT_CLEAR,
+                frames.max(1),
+                query,
+            );
+            Ok(())
+        })
+    }
+
+    /// Renders `scene` offscreen and reads colour and AOV back.
+    pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
+        render_faces(ctx, &[(self, scene)], DEFAULT_CLEAR)
+    }
+}
+
+impl MapShading {
+    fn uniforms(
+        &self,
+        ctx: &GpuContext,
+        geometry: &Geometry,
+        scene: &PlaneScene,
+    ) -> Result<Vec<wgpu::BindGroup>> {
+        scene.check_depth()?;
+        let (tiles, uv_shift) = match geometry {
             Geometry::ShellBox { mirrored } => {
                 scene.check_face()?;
                 if scene.mirrored != *mirrored {
@@ -631,34 +775,63 @@ impl Renderer {
                 },
             ],
         });
-        Ok((map_group, shade))
+        Ok(vec![map_group, shade])
     }
+}
 
-    /// Times `frames` renders of `scene` (benchmarks).
-    pub fn time(
-        &self,
-        ctx: &GpuContext,
-        scene: &PlaneScene,
-        frames: u32,
-    ) -> Result<crate::timing::Timing> {
-        let groups = self.uniforms(ctx, scene)?;
-        let targets = Targets::new(ctx, scene.size);
-        crate::timing::time_frames(ctx, frames, |encoder, query| {
-            record(
-                encoder,
-                &targets,
-                &[(self, groups.0.clone(), groups.1.clone())],
-                DEFAULT_CLEAR,
-                frames.max(1),
-                query,
-            );
-            Ok(())
+/// Group 0 of a plain draw: `scene`'s camera and light.
+fn plain_uniforms(
+    ctx: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
+    scene: &PlaneScene,
+) -> wgpu::BindGroup {
+    let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+    let frame = PlainFrame {
+        view_proj: scene.view_proj().to_cols_array_2d(),
+        eye: v4(scene.eye, 1.0),
+        light: v4(scene.light, 1.0),
+        ambient: scene.ambient,
+        light_intensity: scene.light_intensity,
+        falloff: scene.falloff as u32,
+        _pad: 0.0,
+    };
+    let buffer = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("plain frame"),
+            contents: bytemuck::bytes_of(&frame),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("plain frame"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: buffer.as_entire_binding(),
+        }],
+    })
+}
+
+/// The colour and AOV targets every pipeline writes.
+fn color_targets() -> [Option<wgpu::ColorTargetState>; 2] {
+    [COLOR_FORMAT, AOV_FORMAT].map(|format| {
+        Some(wgpu::ColorTargetState {
+            format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
         })
-    }
+    })
+}
 
-    /// Renders `scene` offscreen and reads colour and AOV back.
-    pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
-        render_faces(ctx, &[(self, scene)], DEFAULT_CLEAR)
+/// One depth test for every draw, so the nearest surface wins whichever
+/// pipeline drew it.
+fn depth_state() -> wgpu::DepthStencilState {
+    wgpu::DepthStencilState {
+        format: DEPTH_FORMAT,
+        depth_write_enabled: Some(true),
+        depth_compare: Some(wgpu::CompareFunction::LessEqual),
+        stencil: Default::default(),
+        bias: Default::default(),
     }
 }
 
@@ -715,7 +888,7 @@ fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-type Draw<'a> = (&'a Renderer, wgpu::BindGroup, wgpu::BindGroup);
+type Draw<'a> = (&'a Renderer, Vec<wgpu::BindGroup>);
 
 fn record(
     encoder: &mut wgpu::CommandEncoder,
@@ -778,13 +951,24 @@ fn record(
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        for (renderer, map_group, shade) in draws {
+        for (renderer, groups) in draws {
             pass.set_pipeline(&renderer.pipeline);
-            pass.set_bind_group(0, map_group, &[]);
-            pass.set_bind_group(1, shade, &[]);
-            match &renderer.geometry {
-                Geometry::ShellBox { .. } => pass.draw(0..36, 0..1),
-                Geometry::Mesh {
+            for (k, group) in groups.iter().enumerate() {
+                pass.set_bind_group(k as u32, group, &[]);
+            }
+            match &renderer.kind {
+                Kind::Displaced {
+                    geometry: Geometry::ShellBox { .. },
+                    ..
+                } => pass.draw(0..36, 0..1),
+                Kind::Displaced {
+                    geometry:
+                        Geometry::Mesh {
+                            vertices, count, ..
+                        },
+                    ..
+                }
+                | Kind::Plain {
                     vertices, count, ..
                 } => {
                     pass.set_vertex_buffer(0, vertices.slice(..));
@@ -806,8 +990,11 @@ pub fn render_faces(
 ) -> Result<Image> {
     let first = check_shared_camera(faces)?;
     // Sizes and vectors are checked before anything is allocated.
-    for (_, s) in faces {
+    for (r, s) in faces {
         s.check()?;
+        if matches!(r.kind, Kind::Displaced { .. }) {
+            s.check_depth()?;
+        }
     }
     let targets = Targets::new(ctx, first.size);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
@@ -905,7 +1092,7 @@ pub fn encode_faces(
     }
     let draws = faces
         .iter()
-        .map(|(r, s)| r.uniforms(ctx, s).map(|(m, sh)| (*r, m, sh)))
+        .map(|(r, s)| r.uniforms(ctx, s).map(|groups| (*r, groups)))
         .collect::<Result<Vec<_>>>()?;
     ctx.checked("rendering", || {
         record(encoder, targets, &draws, clear, 1, None)

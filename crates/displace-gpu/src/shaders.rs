@@ -10,6 +10,7 @@ pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
+pub const PLAIN: &str = include_str!("../shaders/plain.wgsl");
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
 pub const PRESENT: &str = include_str!("../shaders/present.wgsl");
 pub const TECHNIQUES: &str = include_str!("../shaders/techniques.wgsl");
@@ -106,6 +107,11 @@ pub fn mesh_source(texture: DistanceTexture) -> String {
     [map_trace_source(texture).as_str(), SHADE, MESH].join("\n")
 }
 
+/// Non-displaced triangles beside the displaced draws (no map).
+pub fn plain_source() -> String {
+    [CONVENTION, PLAIN].join("\n")
+}
+
 /// The bare loop of dependent filtered fetches (benchmarks only).
 pub fn fetch_loop_source() -> String {
     [CONVENTION, DISTANCE_FILTERED, FETCH_LOOP].join("\n")
@@ -126,6 +132,7 @@ pub fn all_modules() -> Vec<(String, String)> {
             technique_compute_source(t),
         ));
     }
+    out.push(("plain".into(), plain_source()));
     out.push(("fetch-loop/filtered".into(), fetch_loop_source()));
     out.push(("present".into(), PRESENT.to_string()));
     out

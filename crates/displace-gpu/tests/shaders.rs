@@ -66,6 +66,7 @@ fn convention_constants_match_rust() {
         ("HIT_NONE", rs::HIT_NONE as f64),
         ("HIT_SURFACE", rs::HIT_SURFACE as f64),
         ("HIT_WALL", rs::HIT_WALL as f64),
+        ("HIT_PLAIN", rs::HIT_PLAIN as f64),
         ("FLAG_CONVERGED", rs::FLAG_CONVERGED as f64),
         ("FLAG_CELL_CAP", rs::FLAG_CELL_CAP as f64),
         ("INSIDE_EPS", rs::INSIDE_EPS as f64),

@@ -13,28 +13,35 @@
 //! (`displace_gpu::mesh`, which says where that differs from the CPU's
 //! prisms), lit by one point light (the first point light, else the centre
 //! of the first area light) with the CPU's point-light falloff and Lambert /
-//! normalised Blinn-Phong terms. Everything else is left out and reported:
-//! non-displaced shapes, textures, reflections, other lights, and shadows
-//! cast by one face onto another (each face shadows only itself).
+//! normalised Blinn-Phong terms. Every other shape (quads, boxes, spheres,
+//! triangles and meshes without displacement, visible area-light quads with
+//! their radiance) is drawn as plain triangles (`displace_gpu::plain`) in
+//! the same depth buffer, lit by the same light and terms without shadows.
+//! Everything else is left out and reported: textures, reflections, other
+//! lights, shadows cast by one face onto another (each face shadows only
+//! itself) and shadows on the plain shapes.
 
 use anyhow::{bail, Context, Result};
 use displace_core::Method;
 use displace_gpu::raster::{render_faces, shared_depth_range};
 use displace_gpu::{
-    DistanceTexture, GpuContext, Image, MeshTriangle, PlaneScene, Renderer, Shadows, ShellMesh,
+    DistanceTexture, GpuContext, Image, MeshTriangle, PlainMaterial, PlainMesh, PlaneScene,
+    Renderer, Shadows, ShellMesh,
 };
 use displace_render::light::Light;
 use displace_render::material::Material;
 use displace_render::scene::{SceneMesh, Shape};
 use displace_render::{Scene, SceneOptions};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 use std::path::Path;
 
 /// A rendered scene and what of it was not drawn.
 pub struct SceneImage {
     pub image: Image,
+    /// Displaced faces and meshes drawn.
     pub faces: usize,
+    pub plain_triangles: usize,
     pub left_out: Vec<String>,
 }
 
@@ -169,6 +176,50 @@ fn material_shading(mat: &Material, intensity: Vec3) -> Shading {
     }
 }
 
+/// The plain-draw material of `mat` under a light of radiant intensity
+/// `intensity`: the weights [`material_shading`] splits between albedo and
+/// light strength, multiplied back together (a vertex attribute need not be
+/// an 8-bit texel), and `emission` for a visible area-light quad.
+fn plain_material(
+    mat: &Material,
+    intensity: Vec3,
+    emission: Vec3,
+    skip: &mut impl FnMut(&str),
+) -> PlainMaterial {
+    let shading = material_shading(mat, intensity);
+    shading.note(skip);
+    PlainMaterial {
+        diffuse: shading.albedo * shading.strength,
+        specular: shading.specular * shading.strength,
+        shininess: shading.shininess,
+        emission,
+    }
+}
+
+/// Appends a non-displaced primitive's triangles: a quad (a box is six)
+/// as two, a sphere tessellated, a lone triangle flat with its
+/// barycentric coordinates as uv (the CPU's parameters).
+fn add_plain(plain: &mut PlainMesh, shape: &Shape, m: &PlainMaterial) {
+    match shape {
+        Shape::Quad(q) => plain.quad(q.origin, q.edge_u, q.edge_v, m),
+        Shape::Sphere(s) => plain.sphere(s.center, s.radius, m),
+        Shape::Triangle { tri, .. } => {
+            let p = [tri.p0, tri.p0 + tri.e1, tri.p0 + tri.e2];
+            let n = flat_normal(p);
+            let uv = [Vec2::ZERO, Vec2::X, Vec2::Y];
+            plain.triangle(std::array::from_fn(|c| (p[c], n, uv[c])), m);
+        }
+        // Drawn by its own renderer, not here.
+        Shape::Displaced(_) => {}
+    }
+}
+
+/// Unit normal of the triangle `p` by its winding; zero for a degenerate
+/// one (which covers no pixel; a shell refuses it).
+fn flat_normal(p: [Vec3; 3]) -> Vec3 {
+    (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
+}
+
 /// The GPU shell of a scene mesh, its texture addressed as its bake is.
 fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMesh> {
     let tris: Vec<MeshTriangle> = mesh
@@ -176,12 +227,7 @@ fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMe
         .iter()
         .map(|t| MeshTriangle {
             positions: t.positions,
-            normals: t.normals.unwrap_or_else(|| {
-                let n = (t.positions[1] - t.positions[0])
-                    .cross(t.positions[2] - t.positions[0])
-                    .normalize();
-                [n; 3]
-            }),
+            normals: t.normals.unwrap_or([flat_normal(t.positions); 3]),
             uvs: t.uvs,
         })
         .collect();
@@ -192,7 +238,9 @@ fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMe
 /// [`PlaneScene`] (sharing one camera and depth range), and what was left out.
 /// `gpu-render` draws them once; `view` every frame.
 pub struct SceneFaces {
+    /// The displaced draws, then one draw of every plain triangle.
     pub faces: Vec<(Renderer, PlaneScene)>,
+    pub plain_triangles: usize,
     pub left_out: Vec<String>,
     /// Linear background colour.
     pub background: [f64; 3],
@@ -231,26 +279,30 @@ pub fn prepare(
         shadows,
     };
     let mut faces = Vec::new();
+    let mut plain = PlainMesh::default();
     let mut skip = |what: &str| left_out.push(what.to_string());
-    // Displaced triangles and meshes are drawn as meshes, not per primitive.
+    // Triangles and meshes are drawn as meshes, not per primitive.
     let meshed: std::collections::HashSet<usize> = scene
         .meshes()
         .iter()
-        .filter(|m| m.displacement.is_some())
         .flat_map(|m| m.prims.clone())
         .collect();
     for (k, prim) in scene.primitives().iter().enumerate() {
         if meshed.contains(&k) {
             continue;
         }
+        let material = &scene.materials()[prim.material as usize];
         let face = match &prim.shape {
             Shape::Displaced(d) => d,
-            Shape::Quad(_) if prim.emitter.is_some() => {
-                skip("visible area-light quads");
-                continue;
-            }
-            _ => {
-                skip("non-displaced shapes");
+            other => {
+                let emission =
+                    prim.emitter
+                        .map_or(Vec3::ZERO, |e| match &scene.lights()[e as usize] {
+                            Light::Area { radiance, .. } => *radiance,
+                            Light::Point { .. } => Vec3::ZERO,
+                        });
+                let m = plain_material(material, intensity, emission, &mut skip);
+                add_plain(&mut plain, other, &m);
                 continue;
             }
         };
@@ -289,6 +341,15 @@ pub fn prepare(
     }
     for (k, mesh) in scene.meshes().iter().enumerate() {
         let Some(disp) = &mesh.displacement else {
+            let material = &scene.materials()[mesh.material as usize];
+            let m = plain_material(material, intensity, Vec3::ZERO, &mut skip);
+            for t in &mesh.triangles {
+                let n = t.normals.unwrap_or([flat_normal(t.positions); 3]);
+                plain.triangle(
+                    std::array::from_fn(|c| (t.positions[c], n[c], t.uvs[c])),
+                    &m,
+                );
+            }
             continue;
         };
         if disp.trace.method == Method::Exact {
@@ -322,10 +383,30 @@ pub fn prepare(
                 .with_context(|| format!("uploading displaced mesh {k}"))?;
         faces.push((renderer, plane));
     }
+    if let Some(bounds) = plain.bounds() {
+        left_out.push("shadows on non-displaced shapes".to_string());
+        let renderer =
+            Renderer::plain(ctx, &plain).context("uploading the non-displaced shapes")?;
+        // Lit with the vertices' own diffuse and specular weights; no shell.
+        let unit = Shading {
+            albedo: Vec3::ONE,
+            strength: 1.0,
+            specular: 0.0,
+            shininess: 1.0,
+            textured: false,
+            reflects: false,
+        };
+        let plane = PlaneScene {
+            depth: 0.0,
+            bounds: Some(bounds),
+            ..view.with(&unit)
+        };
+        faces.push((renderer, plane));
+    }
     left_out.sort();
     left_out.dedup();
     if faces.is_empty() {
-        bail!("the scene has no displaced face gpu-render can draw (left out: {left_out:?})");
+        bail!("the scene has nothing gpu-render can draw (left out: {left_out:?})");
     }
     // One depth range for all faces, so their exact fragment depths compare.
     let planes: Vec<PlaneScene> = faces.iter().map(|(_, p)| *p).collect();
@@ -338,6 +419,7 @@ pub fn prepare(
     let bg = scene.background();
     Ok(SceneFaces {
         faces,
+        plain_triangles: plain.vertices.len() / 3,
         left_out,
         background: [bg.x as f64, bg.y as f64, bg.z as f64],
     })
@@ -355,7 +437,8 @@ pub fn render(
         render_faces(ctx, &draws, prepared.background).context("rendering the scene on the GPU")?;
     Ok(SceneImage {
         image,
-        faces: draws.len(),
+        faces: draws.len() - usize::from(prepared.plain_triangles > 0),
+        plain_triangles: prepared.plain_triangles,
         left_out: prepared.left_out,
     })
 }
