@@ -59,27 +59,29 @@ pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<Scene
     Ok(Scene::load(path, &opts)?)
 }
 
-/// The light the GPU path uses: position and radiant intensity (RGB).
-/// An area light becomes a point at its centre with its on-axis intensity
-/// `L A` (radiance times area).
+/// The light the GPU path uses: position and radiant intensity (RGB) of
+/// the scene's strongest light. An area light becomes a point at its centre
+/// with its on-axis intensity `L A` (radiance times area), so an area-lit
+/// scene with a dim point fill (the seed scenes' Cornell boxes) is lit by
+/// its area light, not by the fill.
 fn pick_light(scene: &Scene) -> Option<(Vec3, Vec3)> {
-    let lights = scene.lights();
-    let point = lights.iter().find_map(|l| match l {
-        Light::Point {
-            position,
-            intensity,
-        } => Some((*position, *intensity)),
-        Light::Area { .. } => None,
-    });
-    point.or_else(|| {
-        lights.iter().find_map(|l| match l {
-            Light::Area { quad, radiance } => Some((
+    scene
+        .lights()
+        .iter()
+        .map(|l| match l {
+            Light::Point {
+                position,
+                intensity,
+            } => (*position, *intensity),
+            Light::Area { quad, radiance } => (
                 quad.origin + 0.5 * (quad.edge_u + quad.edge_v),
                 *radiance * quad.edge_u.cross(quad.edge_v).length(),
-            )),
-            Light::Point { .. } => None,
+            ),
         })
-    })
+        .fold(None, |best: Option<(Vec3, Vec3)>, l| match best {
+            Some(b) if b.1.element_sum() >= l.1.element_sum() => Some(b),
+            _ => Some(l),
+        })
 }
 
 /// The camera and light every draw shares.
@@ -261,11 +263,11 @@ pub fn prepare(
         left_out.push("depth of field (drawn as a pinhole)".to_string());
     }
     let Some((light, intensity)) = pick_light(scene) else {
-        bail!("the scene has no light; gpu-render lights with its first point or area light");
+        bail!("the scene has no light; gpu-render lights with its strongest point or area light");
     };
     if scene.lights().len() > 1 {
         left_out.push(format!(
-            "{} lights after the one used",
+            "{} lights besides the strongest",
             scene.lights().len() - 1
         ));
     }
@@ -441,4 +443,54 @@ pub fn render(
         plain_triangles: prepared.plain_triangles,
         left_out: prepared.left_out,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn lights(toml: &str) -> Option<(Vec3, Vec3)> {
+        let text = format!(
+            "[image]\nwidth = 8\nheight = 8\n\n[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n\n\
+             [materials.m]\ntype = \"lambert\"\ncolor = [0.5, 0.5, 0.5]\n\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n\n{toml}"
+        );
+        let scene = Scene::from_toml(
+            &text,
+            Path::new("t.toml"),
+            Path::new("."),
+            &SceneOptions::default(),
+        )
+        .expect("scene");
+        pick_light(&scene)
+    }
+
+    /// The strongest light wins, an area light counting as `L A` at its
+    /// centre: the seed scenes' area light beats their dim point fill, and a
+    /// bright point beats a small area light, whatever their order.
+    #[test]
+    fn the_strongest_light_is_the_one_drawn() {
+        let area = "[[lights]]\ntype = \"area\"\norigin = [0, 4, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [10, 10, 10]\n";
+        let dim = "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = [5, 5, 5]\n";
+        let bright =
+            "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = [50, 50, 50]\n";
+        for toml in [format!("{area}{dim}"), format!("{dim}{area}")] {
+            let (p, i) = lights(&toml).expect("a light");
+            assert_eq!(
+                (p, i),
+                (Vec3::new(1.0, 4.0, 0.5), Vec3::splat(20.0)),
+                "{toml}"
+            );
+        }
+        for toml in [format!("{area}{bright}"), format!("{bright}{area}")] {
+            let (p, i) = lights(&toml).expect("a light");
+            assert_eq!(
+                (p, i),
+                (Vec3::new(1.0, 2.0, 3.0), Vec3::splat(50.0)),
+                "{toml}"
+            );
+        }
+        assert_eq!(lights(""), None);
+    }
 }
