@@ -18,9 +18,10 @@ fn displace() -> Command {
     c
 }
 
-/// One displaced quad, primitive visibility and direct light only: one
-/// sample, no reflections, one point light, pinhole camera.
-fn scene(material: &str) -> String {
+/// What every scene here shares: 64x64 pixels, primitive visibility and
+/// direct light only (one sample, no reflections), a pinhole `camera` and
+/// one point `light` (TOML keys of each).
+fn frame(camera: &str, light: &str) -> String {
     format!(
         r#"[image]
 width = 64
@@ -30,18 +31,26 @@ max_depth = 0
 shadow_samples = 1
 
 [camera]
-position = [0.5, -0.45, 0.95]
-look_at = [0.5, 0.5, 0.0]
-up = [0.0, 0.0, 1.0]
-vfov = 50.0
-
-[materials.clay]
-{material}
+{camera}
 
 [[lights]]
 type = "point"
-position = [-0.3, 0.2, 1.5]
-intensity = [3.0, 2.5, 2.0]
+{light}
+"#
+    )
+}
+
+/// The camera and light of [`scene`].
+const QUAD_CAMERA: &str =
+    "position = [0.5, -0.45, 0.95]\nlook_at = [0.5, 0.5, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0";
+const QUAD_LIGHT: &str = "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]";
+
+/// One displaced unit quad in material `clay`, without the frame.
+fn displaced_quad(material: &str) -> String {
+    format!(
+        r#"
+[materials.clay]
+{material}
 
 [[shapes]]
 type = "quad"
@@ -52,6 +61,11 @@ material = "clay"
 displacement = {{ height = "gen:gaussian", height_size = [64, 64], depth = 0.15, map_size = [64, 64, 16] }}
 "#
     )
+}
+
+/// One displaced quad seen from above, lit from the side.
+fn scene(material: &str) -> String {
+    frame(QUAD_CAMERA, QUAD_LIGHT) + &displaced_quad(material)
 }
 
 fn run(args: &[&str], dir: &Path) -> Output {
@@ -261,27 +275,14 @@ displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, m
 /// The scene's camera and light around a displaced mesh `shape` (TOML of
 /// one `[[shapes]]` entry, material `clay`).
 fn mesh_scene(shape: &str) -> String {
-    format!(
-        r#"[image]
-width = 64
-height = 64
-spp = 1
-max_depth = 0
-shadow_samples = 1
-
-[camera]
-position = [3.3, 2.7, -3.9]
-look_at = [0.0, 0.0, 0.0]
-vfov = 45.0
-
+    frame(
+        "position = [3.3, 2.7, -3.9]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 45.0",
+        "position = [1.5, 4.0, -3.0]\nintensity = [12.0, 11.0, 10.0]",
+    ) + &format!(
+        r#"
 [materials.clay]
 type = "lambert"
 color = [0.8, 0.6, 0.4]
-
-[[lights]]
-type = "point"
-position = [1.5, 4.0, -3.0]
-intensity = [12.0, 11.0, 10.0]
 
 {shape}
 "#
@@ -570,11 +571,10 @@ impl Diffs {
 /// The camera, light and displaced floor of the plain-shape tests, with
 /// `shapes` (TOML `[[shapes]]` entries, material `wall`) added.
 fn plain_scene(shapes: &str) -> String {
-    scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
-        .replace("[0.5, -0.45, 0.95]", "[0.5, -0.8, 1.0]")
-        .replace("[0.5, 0.5, 0.0]", "[0.5, 0.6, 0.2]")
-        .replace("vfov = 50.0", "vfov = 60.0")
-        .replace("[-0.3, 0.2, 1.5]", "[0.3, -0.3, 1.6]")
+    frame(
+        "position = [0.5, -0.8, 1.0]\nlook_at = [0.5, 0.6, 0.2]\nup = [0.0, 0.0, 1.0]\nvfov = 60.0",
+        "position = [0.3, -0.3, 1.6]\nintensity = [3.0, 2.5, 2.0]",
+    ) + &displaced_quad("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
         + r#"
 [materials.wall]
 type = "lambert"
