@@ -70,12 +70,24 @@ impl DisplacementMap {
     }
 
     /// First hit of a map-space ray. Faces of a clamped map are one tile.
+    /// [`crate::Method::Sphere`] runs the CPU's throughput tracer
+    /// ([`crate::cell_trace`]), which finds the same exact hit as
+    /// [`Self::trace_counted`]'s GPU-mirroring loop with fewer loads.
     pub fn trace(&self, ray: &MapRay, opts: &TraceOptions) -> Option<MapHit> {
-        sphere_trace::trace(&self.height, &self.distance, ray, opts)
+        crate::cell_trace::trace(&self.height, &self.distance, ray, opts)
     }
 
-    /// [`Self::trace`] with its fetch count (distance samples plus patches
-    /// walked), which misses report too.
+    /// Whether anything of the displaced solid lies on `ray` within
+    /// `[opts.t_min, opts.t_max]`: the shadow-ray query, which may stop
+    /// before working out the first hit.
+    pub fn occluded(&self, ray: &MapRay, opts: &TraceOptions) -> bool {
+        crate::cell_trace::occluded(&self.height, &self.distance, ray, opts)
+    }
+
+    /// The first hit as the GPU tracer finds it (trilinear steps, Donnelly
+    /// section 8.3), with its fetch count (distance samples plus patches
+    /// walked), which misses report too: what `displace compare` charges
+    /// and the WGSL techniques mirror fetch for fetch.
     pub fn trace_counted(&self, ray: &MapRay, opts: &TraceOptions) -> (Option<MapHit>, u32) {
         sphere_trace::trace_counted(&self.height, &self.distance, ray, opts)
     }

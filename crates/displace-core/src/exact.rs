@@ -87,7 +87,8 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
     loop {
         let tb = tx.min(ty).min(t1);
         cells += 1;
-        if let Some((t, n)) = patch_hit(height, ci, cj, o, d, sx, sy, ta, tb) {
+        let corners = height.cell(ci, cj);
+        if let Some((t, n)) = patch_hit(corners, ci, cj, o, d, sx, sy, ta, tb) {
             return Walk::Hit(SurfaceHit {
                 t,
                 normal: n,
@@ -120,11 +121,14 @@ fn floor_f64(x: f64) -> i64 {
 }
 
 /// First root of `z(t) - h(x(t), y(t))` in `[ta, tb]` on bilinear cell
-/// `(ci, cj)`: a quadratic in `t`, solved relative to `ta` in double
-/// precision.
+/// `(ci, cj)` whose corner heights are `corners` (`h00, h10, h01, h11`, as
+/// [`HeightMap::cell`] gives them): a quadratic in `t`, solved relative to
+/// `ta` in double precision. Shared by this reference walk and the
+/// throughput tracer's ([`crate::cell_trace`]), so both solve every patch
+/// alike.
 #[allow(clippy::too_many_arguments)]
-fn patch_hit(
-    height: &HeightMap,
+pub(crate) fn patch_hit(
+    corners: [f32; 4],
     ci: i64,
     cj: i64,
     o: DVec3,
@@ -134,7 +138,7 @@ fn patch_hit(
     ta: f64,
     tb: f64,
 ) -> Option<(f64, Vec3)> {
-    let [h00, h10, h01, h11] = height.cell(ci, cj).map(|v| v as f64);
+    let [h00, h10, h01, h11] = corners.map(|v| v as f64);
     let a = h10 - h00;
     let b = h01 - h00;
     let c = h00 - h10 - h01 + h11;

@@ -134,33 +134,35 @@ pub struct Clip {
 
 /// Where `ray` crosses the box `[0, hi]` within `[t_min, t_max]` (slabs), or
 /// `None` when it misses it. Every map-space tracer clips with this.
+#[inline]
 pub fn clip(ray: &MapRay, hi: Vec3, t_min: f32, t_max: f32) -> Option<Clip> {
     let mut t_in = t_min;
     let mut t_out = t_max;
     let mut entry_normal = Vec3::ZERO;
-    for a in 0..3 {
-        let o = ray.origin[a];
-        let d = ray.dir[a];
+    // One slab per axis, in the order x, y, z (a later axis takes the entry
+    // only when it enters strictly later), unrolled: indexing a `Vec3` by a
+    // loop variable is a branch per access.
+    let mut slab = |o: f32, d: f32, hi: f32, axis: Vec3| -> bool {
         if d == 0.0 {
-            if o < 0.0 || o > hi[a] {
-                return None;
-            }
-            continue;
+            return (0.0..=hi).contains(&o);
         }
-        let (mut t0, mut t1) = ((0.0 - o) / d, (hi[a] - o) / d);
-        let mut n = Vec3::ZERO;
-        n[a] = -1.0;
-        if t0 > t1 {
-            std::mem::swap(&mut t0, &mut t1);
-            n[a] = 1.0;
-        }
+        let (t0, t1) = ((0.0 - o) / d, (hi - o) / d);
+        let (t0, t1, n) = if t0 > t1 {
+            (t1, t0, axis)
+        } else {
+            (t0, t1, -axis)
+        };
         if t0 > t_in {
             t_in = t0;
             entry_normal = n;
         }
         t_out = t_out.min(t1);
-    }
-    (t_in <= t_out).then_some(Clip {
+        true
+    };
+    let inside = slab(ray.origin.x, ray.dir.x, hi.x, Vec3::X)
+        && slab(ray.origin.y, ray.dir.y, hi.y, Vec3::Y)
+        && slab(ray.origin.z, ray.dir.z, hi.z, Vec3::Z);
+    (inside && t_in <= t_out).then_some(Clip {
         t_in,
         t_out,
         entry_normal,
@@ -193,37 +195,10 @@ pub fn trace_counted(
     };
     let hit = |h: MapHit| (Some(h), h.iterations);
     let at = |t: f32| ray.origin + ray.dir * t;
-    let uv_of = |p: Vec3| Vec2::new(p.x / aspect[0], p.y / aspect[1]);
     let surface = |t: f64, normal: Vec3, iterations: u32, converged: bool| {
-        let t = t as f32;
-        let p = at(t);
-        MapHit {
-            t,
-            position: p,
-            uv: uv_of(p),
-            normal,
-            kind: HitKind::Surface,
-            iterations,
-            converged,
-        }
+        surface_hit(ray, aspect, t as f32, normal, iterations, converged)
     };
-    let wall = |t: f32, iterations: u32| {
-        let p = at(t);
-        let normal = if clip.entry_normal == Vec3::ZERO {
-            -ray.dir
-        } else {
-            clip.entry_normal
-        };
-        MapHit {
-            t,
-            position: p,
-            uv: uv_of(p),
-            normal,
-            kind: HitKind::Wall,
-            iterations,
-            converged: true,
-        }
-    };
+    let wall = |t: f32, iterations: u32| wall_hit(ray, aspect, &clip, t, iterations);
     let walk = |t0: f32, t1: f32| exact::walk(height, aspect, ray.origin, ray.dir, t0, t1);
 
     // Under the surface where the ray enters: the wall of the slab.
@@ -319,9 +294,56 @@ pub fn trace_counted(
     (None, iterations)
 }
 
+/// The hit on the displaced surface at `t` along `ray`.
+pub(crate) fn surface_hit(
+    ray: &MapRay,
+    aspect: [f32; 2],
+    t: f32,
+    normal: Vec3,
+    iterations: u32,
+    converged: bool,
+) -> MapHit {
+    let p = ray.origin + ray.dir * t;
+    MapHit {
+        t,
+        position: p,
+        uv: Vec2::new(p.x / aspect[0], p.y / aspect[1]),
+        normal,
+        kind: HitKind::Surface,
+        iterations,
+        converged,
+    }
+}
+
+/// The hit on the shell's side or bottom at `t`, entered under the
+/// surface: its normal is the face the ray entered through (`-dir` for a
+/// ray that starts inside the solid).
+pub(crate) fn wall_hit(
+    ray: &MapRay,
+    aspect: [f32; 2],
+    clip: &Clip,
+    t: f32,
+    iterations: u32,
+) -> MapHit {
+    let p = ray.origin + ray.dir * t;
+    MapHit {
+        t,
+        position: p,
+        uv: Vec2::new(p.x / aspect[0], p.y / aspect[1]),
+        normal: if clip.entry_normal == Vec3::ZERO {
+            -ray.dir
+        } else {
+            clip.entry_normal
+        },
+        kind: HitKind::Wall,
+        iterations,
+        converged: true,
+    }
+}
+
 /// Normal of the bilinear surface at map-space point `p` (used where a hit
 /// has no patch of its own: an unconverged fixed-step hit).
-fn shading_normal(height: &HeightMap, aspect: [f32; 2], p: Vec3) -> Vec3 {
+pub(crate) fn shading_normal(height: &HeightMap, aspect: [f32; 2], p: Vec3) -> Vec3 {
     let g = height.gradient(p.x / aspect[0], p.y / aspect[1]);
     Vec3::new(-g[0] / aspect[0], -g[1] / aspect[1], 1.0).normalize()
 }

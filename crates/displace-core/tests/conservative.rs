@@ -1,7 +1,8 @@
-//! The bake's promise (DESIGN.md "Conservative"): the interpolated stored
-//! value never exceeds the true signed distance to the continuous bilinear
-//! surface, anywhere in the shell and after quantisation; and it is not
-//! uselessly small either.
+//! The bake's promise: the interpolated stored value never exceeds the true
+//! signed distance to the continuous bilinear surface, anywhere in the shell
+//! and after quantisation, and neither does the value of the one voxel that
+//! contains a point (what the CPU tracer steps by); and it is not uselessly
+//! small either.
 
 mod common_ref;
 
@@ -40,6 +41,10 @@ proptest! {
             let pf = p.as_vec3();
             let stored = map.distance.sample(pf) as f64;
             prop_assert!(stored <= truth + 1e-4, "stored {stored} > true {truth} at {p:?}");
+            // The CPU tracer's one-voxel step: the value of the voxel that
+            // contains the point bounds the distance too.
+            let cell = map.distance.cell_bound(pf) as f64;
+            prop_assert!(cell <= truth + 1e-4, "cell bound {cell} > true {truth} at {p:?}");
             for q in &quantized {
                 let s = q.sample(pf) as f64;
                 prop_assert!(s <= truth + 1e-4, "quantised {s} > true {truth} at {p:?}");

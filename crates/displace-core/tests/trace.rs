@@ -67,6 +67,34 @@ proptest! {
                 (None, None) => agree += 1,
                 (e, s) => prop_assert!(false, "hit/miss disagree: exact {e:?} sphere {s:?} ray {ray:?}"),
             }
+            // The GPU-mirroring trilinear loop (`displace compare`'s and
+            // the WGSL tracer's) finds the same hit.
+            let (mirror, _) = map.trace_counted(&ray, &TraceOptions { method: Method::Sphere, tiles, ..TraceOptions::default() });
+            prop_assert_eq!(mirror.is_some(), exact.is_some(), "trilinear loop {:?} exact {:?}", mirror, exact);
+            if let (Some(e), Some(m)) = (exact, mirror) {
+                prop_assert!((e.t - m.t).abs() <= 1e-3, "exact t {} trilinear t {}", e.t, m.t);
+            }
+            // The any-hit query over a random stretch of the ray agrees with
+            // the first hit (away from the stretch's ends, where rounding
+            // may decide either way).
+            let t_max = rng.next_f64() as f32 * 8.0;
+            let blocked = map.occluded(&ray, &TraceOptions { tiles, t_max, ..TraceOptions::default() });
+            if let Some(e) = exact {
+                if (e.t - t_max).abs() > 1e-3 {
+                    prop_assert_eq!(blocked, e.t < t_max, "any-hit {} exact t {} t_max {}", blocked, e.t, t_max);
+                }
+            } else {
+                prop_assert!(!blocked, "any-hit blocked where the exact walk misses: {ray:?}");
+            }
+            // A shadow ray: from just above an exact hit, towards a random
+            // direction of the upper half space.
+            if let Some(e) = exact.filter(|e| e.kind == HitKind::Surface) {
+                let up = Vec3::new(rng.next_f64() as f32 - 0.5, rng.next_f64() as f32 - 0.5, rng.next_f64() as f32 + 0.05);
+                let shadow = MapRay::new(e.position + e.normal * 1e-3, up);
+                let first = map.trace(&shadow, &exact_opts);
+                let any = map.occluded(&shadow, &TraceOptions { tiles, ..TraceOptions::default() });
+                prop_assert_eq!(any, first.is_some(), "shadow ray {:?}: any-hit {} exact {:?}", shadow, any, first);
+            }
             // Donnelly's fixed loop, any step count, never passes the hit.
             let steps = 1 + (rng.next_f64() * 24.0) as u32;
             let fixed = map.trace(&ray, &TraceOptions { method: Method::SphereFixed, iterations: steps, tiles, ..TraceOptions::default() });

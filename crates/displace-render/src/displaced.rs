@@ -139,6 +139,37 @@ impl DisplacedFace {
     /// and the map-space hit.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, MapHit)> {
+        let (map_ray, s, opts, entry) = self.to_map_ray(ray, t_min, t_max)?;
+        let mut hit = self.map.trace(&map_ray, &opts)?;
+        if hit.kind == HitKind::Wall {
+            if let Some(n) = entry {
+                hit.normal = n;
+            }
+        }
+        Some((hit.t / s, hit))
+    }
+
+    /// Whether the face's displaced solid blocks `ray` within `[t_min,
+    /// t_max]`: a shadow ray's any-hit query, which stops at the first proof
+    /// of a blocker ([`displace_core::cell_trace::occluded`]).
+    #[inline]
+    pub fn occludes(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.to_map_ray(ray, t_min, t_max)
+            .is_some_and(|(map_ray, _, opts, _)| self.map.occluded(&map_ray, &opts))
+    }
+
+    /// `ray` in map space: the unit map-space ray, the length scale `s`
+    /// (`t_map = s t_world`), the trace options clipped to `[t_min, t_max]`
+    /// (and to a triangle's prism), and the outward normal of the prism
+    /// side the ray enters through. `None` when the ray misses the prism or
+    /// has no map-space length.
+    #[inline]
+    fn to_map_ray(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(MapRay, f32, TraceOptions, Option<Vec3>)> {
         let origin = self.to_map * (ray.origin - self.origin);
         let d = self.to_map * ray.dir;
         let s = d.length();
@@ -156,13 +187,7 @@ impl DisplacedFace {
             opts.t_max = b;
             entry = n;
         }
-        let mut hit = self.map.trace(&MapRay { origin, dir }, &opts)?;
-        if hit.kind == HitKind::Wall {
-            if let Some(n) = entry {
-                hit.normal = n;
-            }
-        }
-        Some((hit.t / s, hit))
+        Some((MapRay { origin, dir }, s, opts, entry))
     }
 
     /// The world-space description of a map-space hit.

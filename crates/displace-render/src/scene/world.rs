@@ -148,7 +148,12 @@ impl Scene {
     /// Whether anything lies on the ray within `[t_min, t_max]`.
     pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
         self.bvh.traverse(ray, t_min, t_max, true, |i, t_max| {
-            self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t)
+            match &self.prims[i as usize].shape {
+                // Any blocker ends the query: the value only has to be a
+                // distance within the range.
+                Shape::Displaced(d) => d.occludes(ray, t_min, t_max).then_some(t_min),
+                _ => self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t),
+            }
         })
     }
 

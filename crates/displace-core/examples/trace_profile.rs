@@ -1,0 +1,86 @@
+//! Map-space tracing on the renderer benchmark's two faces
+//! (`scripts/bench_render_peers.py`: `studded` 256x256 heights, 1 x 1 x 0.1,
+//! 256x256x16 map; `gaussian` 512x512, 1 x 1 x 0.3, 256x256x32), with its
+//! camera (45 degrees down onto the face centre, 20 degree field of view):
+//! first hits per second on one thread for the GPU-mirroring trilinear loop
+//! ([`DisplacementMap::trace_counted`]) and the CPU's throughput tracer
+//! ([`DisplacementMap::trace`]), and the mean cost per ray. A profiling aid:
+//!
+//!     cargo run --release -p displace-core --example trace_profile [RAYS_PER_SIDE]
+
+use displace_core::{
+    bake, generators, Address, BakeOptions, DisplacementMap, Extent, MapRay, TraceOptions,
+};
+use glam::Vec3;
+use std::time::Instant;
+
+fn camera_rays(n: usize, depth: f32) -> Vec<MapRay> {
+    let centre = Vec3::new(0.5, 0.5, 0.0);
+    let s = 0.5f32.sqrt();
+    let pos = centre + 1.2 * Vec3::new(0.0, -s, s);
+    let fwd = (centre - pos).normalize();
+    let right = fwd.cross(Vec3::Z).normalize();
+    let up = right.cross(fwd);
+    let t = (10.0f32).to_radians().tan();
+    let mut rays = Vec::with_capacity(n * n);
+    for y in 0..n {
+        for x in 0..n {
+            let fx = (x as f32 + 0.5) / n as f32;
+            let fy = (y as f32 + 0.5) / n as f32;
+            let d = (fwd + (2.0 * fx - 1.0) * t * right + (1.0 - 2.0 * fy) * t * up).normalize();
+            // World (x along u, z up, depth `depth`) to map space: divide by
+            // the depth; directions keep their unit length after it.
+            rays.push(MapRay::new(pos / depth, d));
+        }
+    }
+    rays
+}
+
+fn main() {
+    let n: usize = std::env::args()
+        .nth(1)
+        .map_or(1000, |a| a.parse().expect("rays per side"));
+    let faces = [
+        ("studded", "gen:studded?period=32", 256, 0.1, [256, 256, 16]),
+        ("gaussian", "gen:gaussian", 512, 0.3, [256, 256, 32]),
+    ];
+    for (name, src, texels, depth, size) in faces {
+        let height = generators::generate(src, texels, texels, Address::Clamp).expect("height");
+        let map: DisplacementMap = bake(
+            &height,
+            &BakeOptions {
+                size,
+                extent: Extent::new(1.0, 1.0, depth).expect("extent"),
+                ..BakeOptions::default()
+            },
+        )
+        .expect("bake");
+        let rays = camera_rays(n, depth);
+        let opts = TraceOptions::default();
+        let time = |f: &dyn Fn(&MapRay) -> Option<u32>| {
+            let mut best = f64::INFINITY;
+            let mut stats = (0usize, 0u64);
+            for _ in 0..3 {
+                let start = Instant::now();
+                stats = rays
+                    .iter()
+                    .filter_map(f)
+                    .fold((0, 0), |(h, it), i| (h + 1, it + i as u64));
+                best = best.min(start.elapsed().as_secs_f64());
+            }
+            (rays.len() as f64 / best / 1e6, stats)
+        };
+        let only_cell = std::env::args().nth(2).as_deref() == Some("cell");
+        let (old, (h0, i0)) = if only_cell {
+            (0.0, (0, 0))
+        } else {
+            time(&|r| map.trace_counted(r, &opts).0.map(|h| h.iterations))
+        };
+        let (new, (h1, i1)) = time(&|r| map.trace(r, &opts).map(|h| h.iterations));
+        println!(
+            "{name}: trilinear {old:.2} Mrays/s ({h0} hits, {:.1} fetches/hit), cell {new:.2} Mrays/s ({h1} hits, {:.1} fetches/hit)",
+            i0 as f64 / h0.max(1) as f64,
+            i1 as f64 / h1.max(1) as f64,
+        );
+    }
+}
