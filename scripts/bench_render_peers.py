@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
 """Side-by-side benchmark of displace against the renderers a user would pick
-instead (issue 3, "Benchmarks"): Mitsuba 3 (`llvm_ad_rgb`, `direct`) for
-whole renders and image difference, Embree (through `embreex`) for first-hit
-rays per second on the same camera rays.
+instead: Mitsuba 3 (`llvm_ad_rgb`, `direct`) for whole renders and image
+difference, Embree (through `embreex`) for first-hit and shadow rays per
+second, on the same rays read from the same files: the camera's rays, and
+the shadow rays from our first hits to the light, traced by
+`displace trace --scene` (first hits, `--any-hit`) and by Embree's
+intersect and occluded queries.
 
 The same surface for all: `displace export-mesh` writes the height field as
 a triangle grid at the height map's resolution and at 4x; the peers render
@@ -59,7 +62,8 @@ def camera():
 
 def camera_rays(n):
     """Rays through the pixel centres of an n x n image, as
-    displace_render::camera::Camera::ray makes them (pinhole)."""
+    displace_render::camera::Camera::ray makes them (pinhole); written once
+    to a file that both tools read."""
     pos, look, up = camera()
     fwd = (look - pos) / np.linalg.norm(look - pos)
     right = np.cross(fwd, up)
@@ -141,7 +145,7 @@ def rss_mb():
 # ---------------------------------------------------------------- workers
 
 
-def worker_embree(ply, n, threads, repeat):
+def worker_embree(ply, rays_path, shadow_path, threads, repeat):
     from concurrent.futures import ThreadPoolExecutor
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
@@ -149,7 +153,11 @@ def worker_embree(ply, n, threads, repeat):
     t = time.perf_counter()
     verts, faces = read_ply(ply)
     load_s = time.perf_counter() - t
-    o, d = camera_rays(n)
+    rays = np.load(rays_path)
+    o, d = np.ascontiguousarray(rays[:, :3]), np.ascontiguousarray(rays[:, 3:6])
+    shadow = np.load(shadow_path)
+    so, sd = np.ascontiguousarray(shadow[:, :3]), np.ascontiguousarray(shadow[:, 3:6])
+    st = np.ascontiguousarray(shadow[:, 6])
     before = rss_mb()
     t = time.perf_counter()
     scene = rtcs.EmbreeScene()
@@ -158,25 +166,32 @@ def worker_embree(ply, n, threads, repeat):
     build_s = time.perf_counter() - t
     structure_mb = rss_mb() - before
     out = {"load_s": load_s, "build_s": build_s, "structure_mb": structure_mb,
-           "triangles": len(faces)}
+           "mesh_mb": (verts.nbytes + faces.nbytes) / 2**20, "triangles": len(faces)}
 
-    def trace(k):
-        # output=1: u, v, Ng, t, ids, as a first hit that is shaded needs.
-        chunks = np.array_split(np.arange(len(o)), 64 * k)
-        def one(idx):
-            r = scene.run(o[idx], d[idx], output=1)
-            return int((r["geomID"] >= 0).sum())
+    def timed(k, n, one):
+        chunks = np.array_split(np.arange(n), 64 * k)
         with ThreadPoolExecutor(k) as ex:
-            hits = sum(ex.map(one, chunks))  # warm-up
+            found = sum(ex.map(one, chunks))  # warm-up
             best = math.inf
             for _ in range(repeat):
                 t0 = time.perf_counter()
                 sum(ex.map(one, chunks))
                 best = min(best, time.perf_counter() - t0)
-        return len(o) / best / 1e6, hits
+        return n / best / 1e6, found
 
-    out["mrays_1t"], out["hits"] = trace(1)
-    out["mrays_nt"], _ = trace(threads)
+    def first(idx):
+        # output=1: u, v, Ng, t, ids, as a first hit that is shaded needs.
+        r = scene.run(o[idx], d[idx], output=1)
+        return int((r["geomID"] >= 0).sum())
+
+    def occluded(idx):
+        r = scene.run(so[idx], sd[idx], dists=st[idx], query="OCCLUDED")
+        return int((r >= 0).sum())
+
+    out["mrays_1t"], out["hits"] = timed(1, len(o), first)
+    out["mrays_nt"], _ = timed(threads, len(o), first)
+    out["shadow_1t"], out["blocked"] = timed(1, len(so), occluded)
+    out["shadow_nt"], _ = timed(threads, len(so), occluded)
     print(json.dumps(out))
 
 
@@ -262,6 +277,44 @@ def read_linear(path):
     return np.array(mi.Bitmap(path))[..., :3]
 
 
+def trace_ours(exe, toml, rays, out, threads, repeat, env, any_hit=False):
+    """`displace trace --scene` on `threads` threads, best of `repeat` runs:
+    Mrays/s as it prints them (the queries alone, not the scene load), the
+    fastest load (bake included, no cache), the maps' MB, and the peak MB of
+    the process."""
+    env = dict(env, RAYON_NUM_THREADS=str(threads))
+    cmd = [exe, "trace", "--scene", toml, "--rays", rays, "-o", out, "--no-cache"]
+    if any_hit:
+        cmd.append("--any-hit")
+    best, load, maps, peak, found = 0.0, math.inf, 0.0, 0.0, 0
+    for _ in range(repeat):
+        text, _, _, rss = run_measured(cmd, env)
+        m = re.search(r"loaded the scene in ([\d.]+) s \(displacement maps ([\d.]+) MB\)", text)
+        r = re.search(r"traced \d+ rays \((\d+) \w+\) in [\d.]+ s \(([\d.]+) Mrays/s", text)
+        best = max(best, float(r.group(2)))
+        found = int(r.group(1))
+        load = min(load, float(m.group(1)))
+        maps, peak = float(m.group(2)), max(peak, rss)
+    return {"mrays": best, "load_s": load, "maps_mb": maps * 1e6 / 2**20, "rss": peak,
+            "found": found}
+
+
+def shadow_rays(hits_path, rays_path, out_path):
+    """The render's shadow rays from our first hits: from each hit (just off
+    the surface on the camera's side) to the point light, where the light
+    is above the surface: `(N, 7)`, t_max just short of the light."""
+    hits, rays = np.load(hits_path), np.load(rays_path)
+    ok = np.isfinite(hits[:, 0])
+    p, n, d = hits[ok, 1:4], hits[ok, 4:7], rays[ok, 3:6]
+    n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)
+    o = p + n * 1e-4
+    to = np.array(LIGHT_POS, np.float32) - o
+    lit = np.sum(to * n, axis=1) > 0
+    out = np.concatenate([o[lit], to[lit], np.full((lit.sum(), 1), 1.0 - 1e-4)], axis=1)
+    np.save(out_path, out.astype(np.float32))
+    return len(out)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--displace", default="target/release/displace")
@@ -275,10 +328,12 @@ def main():
     ap.add_argument("--workdir", default=None, help="keep meshes and images here")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--ply", help=argparse.SUPPRESS)
+    ap.add_argument("--ray-file", help=argparse.SUPPRESS)
+    ap.add_argument("--shadow-file", help=argparse.SUPPRESS)
     a = ap.parse_args()
 
     if a.worker == "embree":
-        return worker_embree(a.ply, a.rays, a.threads, a.repeat)
+        return worker_embree(a.ply, a.ray_file, a.shadow_file, a.threads, a.repeat)
     if a.worker == "mitsuba":
         return worker_mitsuba(a.ply, a.size, a.spp)
 
@@ -304,18 +359,28 @@ def main():
             [exe, "render", toml, "-o", ours_img, "--no-cache", "-q"], env)
         mt = re.search(r"setup ([\d.]+) s.*render ([\d.]+) s", err)
         img_ours = read_linear(ours_img)
-        out, _, _, rss_b = run_measured(
-            [exe, "bench", "render", toml, "--size", f"{a.rays}x{a.rays}", "--spp", "1",
-             "--threads", str(a.threads), "--repeat", str(a.repeat), "--tsv"], env)
-        hdr, vals = [l.split("\t") for l in out.strip().splitlines()[:2]]
-        b = dict(zip(hdr, vals))
+        # First hits and the shadow rays from them: the same files go to
+        # `displace trace --scene` and to Embree.
+        rays_path = os.path.join(work, "rays.npy")
+        if not os.path.exists(rays_path):
+            o, d = camera_rays(a.rays)
+            np.save(rays_path, np.concatenate([o, d], axis=1))
+        hits_path = os.path.join(work, f"{m}.hits.npy")
+        shadow_path = os.path.join(work, f"{m}.shadow.npy")
+        first_1 = trace_ours(exe, toml, rays_path, hits_path, 1, a.repeat, env)
+        first_n = trace_ours(exe, toml, rays_path, hits_path, a.threads, a.repeat, env)
+        n_shadow = shadow_rays(hits_path, rays_path, shadow_path)
+        blocked_path = os.path.join(work, f"{m}.blocked.npy")
+        shadow_1 = trace_ours(exe, toml, shadow_path, blocked_path, 1, a.repeat, env, True)
+        shadow_n = trace_ours(exe, toml, shadow_path, blocked_path, a.threads, a.repeat, env, True)
         rows.append({
             "map": m, "tool": "displace", "tris": "-",
-            "setup_s": float(b["setup_s"]), "render_s": float(mt.group(2)),
-            "render_wall_s": wall, "rss_render": rss, "rss_rays": rss_b,
-            "mrays_1t": float(b["primary_mrays_1t"]),
-            "mrays_nt": float(b[f"primary_mrays_{a.threads}t"]),
-            "rmse": None, "hits": int(b["primary_rays"]),
+            "setup_s": first_n["load_s"], "render_s": float(mt.group(2)),
+            "render_wall_s": wall, "rss_render": rss, "rss_rays": first_n["rss"],
+            "mrays_1t": first_1["mrays"], "mrays_nt": first_n["mrays"],
+            "shadow_1t": shadow_1["mrays"], "shadow_nt": shadow_n["mrays"],
+            "memory_mb": first_n["maps_mb"], "shadow_rays": n_shadow,
+            "blocked": shadow_n["found"], "rmse": None, "hits": first_n["found"],
         })
         ours = rows[-1]
         for k in [int(s) for s in a.scales.split(",")]:
@@ -324,7 +389,8 @@ def main():
                 [exe, "export-mesh", src, "--height-size", f"{texels}x{texels}",
                  "--extent", ",".join(map(str, ext)), "--scale", str(k), "-o", ply], env)
             out, _, _, rss_e = run_measured(
-                me + ["--worker", "embree", "--ply", ply, "--rays", str(a.rays),
+                me + ["--worker", "embree", "--ply", ply, "--ray-file", rays_path,
+                      "--shadow-file", shadow_path,
                       "--threads", str(a.threads), "--repeat", str(a.repeat)], env)
             e = json.loads(out.strip().splitlines()[-1])
             out, _, wall_m, rss_m = run_measured(
@@ -341,40 +407,59 @@ def main():
                 "map": m, "tool": f"mesh x{k}", "tris": e["triangles"],
                 "mesh_s": mesh_s, "embree_build_s": e["build_s"], "embree_mb": e["structure_mb"],
                 "rss_rays": rss_e, "mrays_1t": e["mrays_1t"], "mrays_nt": e["mrays_nt"],
+                "shadow_1t": e["shadow_1t"], "shadow_nt": e["shadow_nt"], "blocked": e["blocked"],
+                "memory_mb": e["structure_mb"] + e["mesh_mb"],
                 "hits": e["hits"], "mitsuba_load_s": r["load_s"], "mitsuba_first_s": r["first_s"],
                 "render_s": r["render_s"], "rss_render": rss_m, "rmse": rmse,
             })
         ours["mean"] = float(img_ours.mean())
 
     n = a.rays * a.rays
+    t = a.threads
     print(f"\n{a.size}x{a.size} image at {a.spp} spp (direct light, one point light); "
-          f"first hits: {n} camera rays 45 degrees down; {a.threads} threads; workdir {work}")
-    print(f"{'map':<9} {'surface':<22} {'tris':>9} {'setup s':>18} {'first-hit Mrays/s':>18} "
-          f"{'peak MB':>8} {'render s':>16} {'peak MB':>8} {'RMSE':>8}")
-    print(f"{'':<9} {'':<22} {'':>9} {'':>18} {'1 thr':>8} {f'{a.threads} thr':>9} "
-          f"{'(rays)':>8} {'':>16} {'(render)':>8} {'vs ours':>8}")
+          f"first hits: {n} camera rays 45 degrees down, shadow rays from our hits to the "
+          f"light; {t} threads; workdir {work}")
+    print(f"{'map':<9} {'surface':<22} {'tris':>9} {'setup s':>18} {'memory':>8} "
+          f"{'first hits Mrays/s':>18} {'shadow Mrays/s':>16} {'render s':>16} {'RMSE':>8}")
+    print(f"{'':<9} {'':<22} {'':>9} {'':>18} {'MB':>8} {'1 thr':>8} {f'{t} thr':>9} "
+          f"{'1 thr':>7} {f'{t} thr':>8} {'':>16} {'vs ours':>8}")
     for r in rows:
         if r["tool"] == "displace":
             surf = "displace (bake+trace)"
-            setup = f"bake {r['setup_s']:.2f}"
+            setup = f"load {r['setup_s']:.2f}"
             rend = f"{r['render_s']:.2f}"
             rmse = f"mean {r['mean']:.3f}"
         else:
             surf = f"{r['tool']}: Embree/Mitsuba"
-            setup = f"bvh {r['embree_build_s']:.2f} (+{r['embree_mb']:.0f}MB)"
+            setup = f"bvh {r['embree_build_s']:.2f}"
             rend = f"{r['render_s']:.2f} (1st {r['mitsuba_first_s']:.1f})"
             rmse = f"{r['rmse']:.4f}"
-        print(f"{r['map']:<9} {surf:<22} {str(r['tris']):>9} {setup:>18} {r['mrays_1t']:>8.2f} "
-              f"{r['mrays_nt']:>9.2f} {r['rss_rays']:>8.0f} {rend:>16} {r['rss_render']:>8.0f} {rmse:>8}")
-    print("\nsetup: ours = scene build with the bake (no cache); mesh = Embree BVH build "
-          "(and its resident-memory growth); mesh export times: " +
+        print(f"{r['map']:<9} {surf:<22} {str(r['tris']):>9} {setup:>18} {r['memory_mb']:>8.1f} "
+              f"{r['mrays_1t']:>8.2f} {r['mrays_nt']:>9.2f} {r['shadow_1t']:>7.2f} "
+              f"{r['shadow_nt']:>8.2f} {rend:>16} {rmse:>8}")
+    print("\nsetup: ours = scene load with the bake (no cache); mesh = Embree BVH build; "
+          "mesh export times: " +
           ", ".join(f"{r['map']} {r['tool']} {r['mesh_s']:.2f} s" for r in rows if "mesh_s" in r))
+    print("memory: ours = the displacement maps (heights, normals, distance values and codes); "
+          "mesh = Embree's resident growth at build plus the vertex and index arrays")
     print("render: whole render after scene load (Mitsuba: second render, after its JIT "
           "compile; loads: " + ", ".join(f"{r['map']} {r['tool']} {r['mitsuba_load_s']:.2f} s"
                                           for r in rows if "mitsuba_load_s" in r) + ")")
     print(f"Mitsuba's LLVM: {env.get('DRJIT_LIBLLVM_PATH', 'Dr.Jit default')}")
-    print("peak MB: peak resident memory of the measuring process (ours: bench render / render; "
-          "peers: the Python worker, interpreter and rays included)")
+    print(f"\nratios ({t} threads; first hits and shadow rays: ours / Embree, at least 1 wanted; "
+          "memory and setup against the x4 mesh: at most 0.5 and 0.25 wanted; render: ours / "
+          "Mitsuba's faster, at most 3 wanted)")
+    for m in dict.fromkeys(r["map"] for r in rows):
+        ours = next(r for r in rows if r["map"] == m and r["tool"] == "displace")
+        meshes = [r for r in rows if r["map"] == m and r["tool"] != "displace"]
+        for r in meshes:
+            print(f"  {m} vs {r['tool']}: first hits {ours['mrays_nt'] / r['mrays_nt']:.2f}, "
+                  f"shadow {ours['shadow_nt'] / r['shadow_nt']:.2f}, "
+                  f"memory {ours['memory_mb'] / r['memory_mb']:.3f}, "
+                  f"setup {ours['setup_s'] / r['embree_build_s']:.3f}")
+        fastest = min(r["render_s"] for r in meshes)
+        print(f"  {m} render: ours {ours['render_s']:.2f} s / Mitsuba {fastest:.2f} s = "
+              f"{ours['render_s'] / fastest:.1f}")
     with open(os.path.join(work, "results.json"), "w") as f:
         json.dump({"args": vars(a), "rows": rows}, f, indent=1)
 

@@ -13,6 +13,7 @@ mod gpu;
 mod progress;
 mod render;
 mod trace;
+mod trace_scene;
 mod view;
 
 use clap::{Parser, Subcommand};
@@ -33,7 +34,8 @@ enum Command {
     /// Bake a height map into a conservative 3D distance map (KTX2, DDS or
     /// npy) and optionally a normal map.
     Bake(bake::BakeArgs),
-    /// Batch ray queries against one displaced face (rays and hits as .npy).
+    /// Batch ray queries against one displaced face, or with --scene against
+    /// a whole scene (first hits or any-hit; rays and hits as .npy).
     Trace(trace::TraceArgs),
     /// Ray trace a scene (or the built-in studded Cornell box) to PNG/EXR.
     Render(render::RenderArgs),

@@ -1,6 +1,6 @@
 //! `displace trace`: batch ray queries against one displaced face, in the
 //! face's physical frame, so users can check our tracer against their own
-//! tools.
+//! tools (or, with `--scene`, against a whole scene: [`crate::trace_scene`]).
 //!
 //! **Frames.** A physical point `(x, y, z)` (x along u in `[0, SX]`, y along
 //! v in `[0, SY]`, z up, the shell in `[0, SZ]`) is map-space point
@@ -24,14 +24,27 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct TraceArgs {
+    /// Trace against a whole scene file instead of one face: rays in world
+    /// space, (N, 6) or (N, 7) with t_max; hits (N, 8): t, position xyz,
+    /// geometric normal xyz, index in [[shapes]] (-1 miss, -2 light quad)
+    #[arg(long, value_name = "SCENE.toml", conflicts_with_all = ["height", "map", "size", "backend", "method"])]
+    pub scene: Option<PathBuf>,
+    /// With --scene: any-hit (shadow-ray) queries, (N, 1): 1 where the ray is
+    /// blocked within t_max, else 0
+    #[arg(long)]
+    pub any_hit: bool,
+    /// With --scene: do not read or write the on-disk bake cache
+    #[arg(long)]
+    pub no_cache: bool,
     /// Height map: gen:NAME[?...], a PNG or an EXR file
-    #[arg(long, value_name = "HEIGHT")]
-    pub height: String,
+    #[arg(long, value_name = "HEIGHT", required_unless_present = "scene")]
+    pub height: Option<String>,
     #[command(flatten)]
     pub height_args: HeightArgs,
     /// Physical width, height and displacement depth of the face
-    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
-    pub extent: Extent,
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true,
+          required_unless_present = "scene")]
+    pub extent: Option<Extent>,
     /// Bake a distance map of this many voxels [default: 256x256x16]
     #[arg(long, value_name = "WxHxD", conflicts_with = "map")]
     pub size: Option<String>,
@@ -40,6 +53,7 @@ pub struct TraceArgs {
     #[arg(long, value_name = "MAP")]
     pub map: Option<PathBuf>,
     /// Rays: float32 .npy of shape (N, 6), origin xyz then direction xyz
+    /// (with --scene also (N, 7): then t_max)
     #[arg(long, value_name = "RAYS.npy")]
     pub rays: PathBuf,
     /// Hits: float32 .npy of shape (N, 5): t (inf on a miss), x, y, z (NaN
@@ -74,21 +88,51 @@ fn parse_method(s: &str) -> Result<Method, String> {
 /// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
 /// directions. Returned in physical units, as given.
 pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
+    let rays = read_ray_rows(path, false)?;
+    Ok(rays
+        .iter()
+        .map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]])
+        .collect())
+}
+
+/// Rays of shape `(N, 6)` or `(N, 7)` (then `t_max`, positive or inf),
+/// checked as [`read_rays`] checks them; a missing `t_max` is inf.
+pub fn read_rays_with_length(path: &Path) -> Result<Vec<[f32; 7]>> {
+    read_ray_rows(path, true)
+}
+
+fn read_ray_rows(path: &Path, with_length: bool) -> Result<Vec<[f32; 7]>> {
     let arr = npy::read_file(path).with_context(|| format!("reading rays {}", path.display()))?;
-    if arr.shape.len() != 2 || arr.shape[1] != 6 {
+    let columns = arr.shape.get(1).copied().unwrap_or(0);
+    if arr.shape.len() != 2 || !(columns == 6 || (with_length && columns == 7)) {
         bail!(
-            "rays {}: shape {:?}, expected (N, 6): origin x, y, z then direction x, y, z per row",
+            "rays {}: shape {:?}, expected (N, 6): origin x, y, z then direction x, y, z per row{}",
             path.display(),
-            arr.shape
+            arr.shape,
+            if with_length {
+                ", or (N, 7) with t_max last"
+            } else {
+                ""
+            }
         );
     }
-    let rays: Vec<[f32; 6]> = arr
+    let rays: Vec<[f32; 7]> = arr
         .data
-        .chunks_exact(6)
-        .map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]])
+        .chunks_exact(columns)
+        .map(|r| {
+            let t_max = if columns == 7 { r[6] } else { f32::INFINITY };
+            [r[0], r[1], r[2], r[3], r[4], r[5], t_max]
+        })
         .collect();
     for (n, r) in rays.iter().enumerate() {
-        if let Some(c) = r.iter().position(|v| !v.is_finite()) {
+        if r[6].is_nan() || r[6] <= 0.0 {
+            bail!(
+                "rays {}: ray {n} has t_max {} in column 6, which must be positive (or inf)",
+                path.display(),
+                r[6]
+            );
+        }
+        if let Some(c) = r[..6].iter().position(|v| !v.is_finite()) {
             bail!(
                 "rays {}: ray {n} has {} in column {c}",
                 path.display(),
@@ -128,7 +172,24 @@ pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) 
 }
 
 pub fn run(args: TraceArgs) -> Result<()> {
-    let extent = args.extent;
+    if let Some(scene) = &args.scene {
+        return crate::trace_scene::run(
+            scene,
+            &args.rays,
+            &args.output,
+            args.any_hit,
+            !args.no_cache,
+        );
+    }
+    if args.any_hit || args.no_cache {
+        bail!(
+            "--{} applies to whole-scene queries: add --scene SCENE.toml",
+            if args.any_hit { "any-hit" } else { "no-cache" }
+        );
+    }
+    let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.extent) else {
+        bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
+    };
     let rays = read_rays(&args.rays)?;
     crate::bake::check_npy_output(&args.output)?;
     let address = args.height_args.address;
@@ -137,7 +198,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
             let distance = dio::read_distance_map(path, extent, address)
                 .with_context(|| format!("reading distance map {}", path.display()))?;
             let [w, h, _] = distance.size();
-            let height = load_height(&args.height, &args.height_args, [w, h])?;
+            let height = load_height(height_source, &args.height_args, [w, h])?;
             DisplacementMap {
                 normals: NormalMap::from_height(&height, extent),
                 height,
@@ -147,7 +208,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
         }
         None => {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
-            let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
+            let height = load_height(height_source, &args.height_args, [size[0], size[1]])?;
             let opts = displace_core::BakeOptions {
                 size,
                 extent,

@@ -109,6 +109,17 @@ impl DisplacementMap {
         Ok(())
     }
 
+    /// Bytes this map holds in memory: heights, normals, the distance
+    /// values and their 8-bit codes (what a scene's displaced surfaces cost
+    /// beside the triangles a tessellation would need).
+    pub fn memory_bytes(&self) -> usize {
+        let texels = self.height.width() * self.height.height();
+        let voxels: usize = self.distance.size().iter().product();
+        texels * std::mem::size_of::<f32>()
+            + self.normals.data.len() * std::mem::size_of::<Vec3>()
+            + voxels * (std::mem::size_of::<f32>() + 1)
+    }
+
     /// Shading normal at texture coordinate `uv` (tiles), map space.
     pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
         self.normals.sample(uv.x, uv.y)

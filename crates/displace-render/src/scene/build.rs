@@ -166,6 +166,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                         shape: Shape::Quad(quad),
                         material: light_material,
                         emitter: Some(lights.len() as u32),
+                        shape_index: None,
                     });
                 }
                 lights.push(Light::Area { quad, radiance });
@@ -193,6 +194,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                 shape,
                 material,
                 emitter: None,
+                shape_index: Some(k as u32),
             })
         };
         match s {

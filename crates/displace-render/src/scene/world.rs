@@ -59,6 +59,9 @@ pub struct Primitive {
     pub material: u32,
     /// Index of the light this primitive is the visible emitter of.
     pub emitter: Option<u32>,
+    /// Index of the `[[shapes]]` entry of the scene file this primitive was
+    /// built from (`None` for a visible area light's quad).
+    pub shape_index: Option<u32>,
 }
 
 impl Primitive {
@@ -135,6 +138,30 @@ impl Scene {
         });
         let (i, t, local) = best?;
         Some((i, self.resolve(i, ray, t, local)))
+    }
+
+    /// The `[[shapes]]` entry primitive `i` was built from, `None` for a
+    /// visible area light (what `displace trace --scene` reports per hit).
+    pub fn shape_of(&self, i: u32) -> Option<u32> {
+        self.prims.get(i as usize).and_then(|p| p.shape_index)
+    }
+
+    /// Bytes held by the scene's distinct displacement maps
+    /// ([`DisplacementMap::memory_bytes`]; faces sharing a map count it
+    /// once).
+    pub fn map_bytes(&self) -> usize {
+        let mut seen: Vec<*const DisplacementMap> = Vec::new();
+        let mut bytes = 0;
+        for p in &self.prims {
+            if let Shape::Displaced(d) = &p.shape {
+                let ptr = Arc::as_ptr(d.map());
+                if !seen.contains(&ptr) {
+                    seen.push(ptr);
+                    bytes += d.map().memory_bytes();
+                }
+            }
+        }
+        bytes
     }
 
     /// Whether primitive `i` is a displaced face.
