@@ -121,7 +121,9 @@ fn run<const ANY: bool>(
     };
     let voxel = distance.voxel_size();
     let tau = TRACE_STOP_VOXELS * voxel.min_element();
-    let band = TRACE_BAND_FACTOR * distance.max_underestimate() + tau;
+    // The values read are unrounded: their bound is the data's, without the
+    // 8-bit codes' quantum.
+    let band = TRACE_BAND_FACTOR * distance.data_underestimate() + tau;
     let max_steps = opts.iterations.max(1);
     let mut t = clip.t_in;
     let mut steps = 0u32;

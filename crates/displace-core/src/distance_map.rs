@@ -285,9 +285,6 @@ pub struct DistanceMap {
     range: R8Range,
     /// Voxels per map-space unit along each axis ([`Self::cell_bound`]).
     cell_scale: [f32; 3],
-    /// Every code's value, decoded exactly as [`R8Range::decode`] does (so
-    /// never above the value it rounds down).
-    decoded: Box<[f32; 256]>,
 }
 
 impl DistanceMap {
@@ -343,7 +340,6 @@ impl DistanceMap {
                 size[1] as f32 / aspect[1],
                 size[2] as f32,
             ],
-            decoded: Box::new(std::array::from_fn(|c| range.decode(c as u8))),
         })
     }
 
@@ -413,7 +409,11 @@ impl DistanceMap {
     /// `p` in the voxel's box `|p - c| <= e`, and the distance is
     /// 1-Lipschitz, so `dist(p) >= L(c) - |p - c| >= value(c)`: every stored
     /// value bounds the distance over its whole voxel ("cell-conservative").
-    /// Rounding to 8 bits rounds down. Points outside the shell are clamped
+    /// It reads the full-precision values, not the 8-bit codes the
+    /// trilinear [`Self::sample`] reads: one load a step either way, and
+    /// without the codes' rounding the tracer stops closer to the surface
+    /// (fewer patches walked, the same cache misses measured by cachegrind
+    /// on the benchmark faces). Points outside the shell are clamped
     /// to the nearest voxel in depth and in a clamped map's plane, which
     /// the tracer only does within rounding of the box.
     #[inline(always)]
@@ -440,9 +440,8 @@ impl DistanceMap {
         let k = clamped(p.z * sz, d);
         debug_assert!(i < w && j < h && k < d);
         // SAFETY: `i < w`, `j < h`, `k < d` (clamped or wrapped above), and
-        // `codes` holds `w * h * d` values (`from_raw`).
-        let code = unsafe { *self.codes.get_unchecked((k * h + j) * w + i) };
-        self.decoded[code as usize]
+        // `data` holds `w * h * d` values (`from_raw`).
+        unsafe { *self.data.get_unchecked((k * h + j) * w + i) }
     }
 
     /// Trilinear interpolation at map-space point `p` of the 8-bit values the

@@ -48,6 +48,8 @@ proptest! {
             for q in &quantized {
                 let s = q.sample(pf) as f64;
                 prop_assert!(s <= truth + 1e-4, "quantised {s} > true {truth} at {p:?}");
+                let c = q.cell_bound(pf) as f64;
+                prop_assert!(c <= truth + 1e-4, "quantised cell bound {c} > true {truth} at {p:?}");
                 prop_assert!(truth - s <= q.max_underestimate() as f64 + 1e-4, "quantised bound {} < {}", q.max_underestimate(), truth - s);
             }
             // Not uselessly conservative: within the stated bound, which is
