@@ -1,8 +1,12 @@
 //! Map-space trace throughput on one core (rays per second): Donnelly's
-//! fixed-step sphere trace, the early-out sphere trace and the exact
-//! reference, each on 10k seeded random rays per iteration against 256x256x16
-//! maps of `studded`, `gaussian` and `noise`. The mean iterations per ray of
-//! each case are printed once before it is timed.
+//! fixed-step sphere trace, the early-out sphere trace as the CPU runs it
+//! (`sphere`: `cell_trace`, one-voxel steps and culled patches) and as the
+//! GPU runs it (`sphere-trilinear`: `trace_counted`, eight-voxel trilinear
+//! steps, every patch of the band solved), any-hit queries over the same
+//! rays (`any-hit`), and the exact reference, each on 10k seeded random rays
+//! per iteration against 256x256x16 maps of `studded`, `gaussian` and
+//! `noise`. The mean iterations per ray of each case are printed once before
+//! it is timed.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use displace_core::{
@@ -95,6 +99,25 @@ fn trace_rays(c: &mut Criterion) {
                 })
             });
         }
+        let opts = options(Method::Sphere);
+        group.bench_with_input(
+            BenchmarkId::new("sphere-trilinear", name),
+            &rays,
+            |b, rays| {
+                b.iter(|| {
+                    rays.iter()
+                        .filter(|r| map.trace_counted(black_box(r), &opts).0.is_some())
+                        .count()
+                })
+            },
+        );
+        group.bench_with_input(BenchmarkId::new("any-hit", name), &rays, |b, rays| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| map.occluded(black_box(r), &opts))
+                    .count()
+            })
+        });
     }
     group.finish();
 }

@@ -92,8 +92,12 @@ fn run<const ANY: bool>(
             Outcome::Hit(h)
         }
     };
+    // Under the surface where the ray enters: the wall of the slab. A ray
+    // that enters through the top (z = 1) cannot be, as heights are at
+    // most 1: most camera rays skip the look-up.
     let entry = at(clip.t_in);
-    if entry.z < height.sample(entry.x / aspect[0], entry.y / aspect[1]) {
+    let through_top = clip.entry_normal == Vec3::Z;
+    if !through_top && entry.z < height.sample(entry.x / aspect[0], entry.y / aspect[1]) {
         return found(wall_hit(ray, aspect, &clip, clip.t_in, 0));
     }
     let walk = |t0: f32, t1: f32| walk::<ANY>(height, aspect, ray, t0, t1);

@@ -72,9 +72,32 @@ impl NormalMap {
     pub fn sample(&self, u: f32, v: f32) -> Vec3 {
         let (i, fx) = texel_lerp(u, self.width);
         let (j, fy) = texel_lerp(v, self.height);
-        let top = self.texel(i, j).lerp(self.texel(i + 1, j), fx);
-        let bottom = self.texel(i, j + 1).lerp(self.texel(i + 1, j + 1), fx);
-        top.lerp(bottom, fy).normalize()
+        let [n00, n10, n01, n11] = self.cell(i, j);
+        n00.lerp(n10, fx).lerp(n01.lerp(n11, fx), fy).normalize()
+    }
+
+    /// The four normals around cell `(ci, cj)` (`n00, n10, n01, n11`, as
+    /// [`crate::HeightMap::cell`] orders heights): interior cells read two
+    /// rows directly, the border ring goes through the addressing. Every
+    /// shaded hit samples the map once.
+    #[inline]
+    fn cell(&self, ci: i64, cj: i64) -> [Vec3; 4] {
+        let (i, j) = (ci as u64, cj as u64);
+        if i < self.width as u64 - 1 && j < self.height as u64 - 1 {
+            let k = j as usize * self.width + i as usize;
+            let (r0, r1) = (
+                &self.data[k..k + 2],
+                &self.data[k + self.width..k + self.width + 2],
+            );
+            [r0[0], r0[1], r1[0], r1[1]]
+        } else {
+            [
+                self.texel(ci, cj),
+                self.texel(ci + 1, cj),
+                self.texel(ci, cj + 1),
+                self.texel(ci + 1, cj + 1),
+            ]
+        }
     }
 
     /// The map as 8-bit RGB, rows in the height map's order (row 0 = `v = 0`
