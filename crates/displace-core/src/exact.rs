@@ -173,6 +173,12 @@ fn smallest_root(k0: f64, k1: f64, k2: f64, lo: f64, hi: f64) -> Option<f64> {
     if k0 <= 0.0 {
         return Some(0.0f64.max(lo));
     }
+    // Non-decreasing from s = 0 on and still positive at `lo`: no root (the
+    // common case of a ray rising away from a patch, decided without the
+    // square root).
+    if k1 >= 0.0 && k2 >= 0.0 && k0 > k1 * (-lo).max(0.0) {
+        return None;
+    }
     let scale = k0.abs().max(k1.abs()).max(k2.abs());
     if k2.abs() <= 1e-12 * scale {
         if k1 >= 0.0 {
