@@ -11,7 +11,7 @@
 
 use crate::error::Result;
 use crate::sampler::hash;
-use displace_core::io::atomic::write_atomic;
+use displace_core::io::atomic::{remove_stale_temps, write_atomic};
 use displace_core::{
     bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, HeightMap, NormalMap,
 };
@@ -134,7 +134,10 @@ impl BakeCache {
                 self.baked.fetch_add(1, Ordering::Relaxed);
                 if let Some(p) = &path {
                     // A cache that cannot be written only costs time next run.
-                    if std::fs::create_dir_all(self.dir.as_ref().expect("dir")).is_ok() {
+                    let dir = self.dir.as_ref().expect("dir");
+                    if std::fs::create_dir_all(dir).is_ok() {
+                        // Killed bakes leave temporaries no run would rename.
+                        remove_stale_temps(dir);
                         let _ = write_map(p, &m.distance);
                     }
                 }
@@ -174,6 +177,9 @@ fn read_map(
     size: [usize; 3],
     extent: Extent,
 ) -> Option<DisplacementMap> {
+    // A cache entry replaced by a FIFO or a device must not hang the run.
+    displace_core::io::check_input(path, "cache entry", displace_core::io::MAX_ARRAY_FILE_BYTES)
+        .ok()?;
     let bytes = std::fs::read(path).ok()?;
     let header = 8 + 12 + 8 + 1 + 4;
     if bytes.len() < header || &bytes[..8] != MAGIC {
@@ -260,6 +266,20 @@ mod tests {
             .get(&h, [8, 8, 4], Extent::new(2.0, 1.0, 0.5).unwrap())
             .unwrap();
         assert_eq!(again.stats().baked, 1);
+    }
+
+    #[test]
+    fn a_bake_removes_temporaries_of_killed_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        // Left by a process that no longer runs (no pid is above 2^22).
+        let stale = dir.path().join(".0123456789abcdef.dmap.4194305.3.tmp");
+        std::fs::write(&stale, b"half a map").unwrap();
+        BakeCache::new(Some(dir.path().to_path_buf()))
+            .get(&height(), [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap();
+        assert!(!stale.exists());
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "{left:?}");
     }
 
     #[test]
