@@ -71,6 +71,11 @@ fn parse_method(s: &str) -> Result<Method, String> {
     s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
+/// Largest magnitude of a ray's origin or direction component: past it the
+/// direction's length overflows float32 and a ray of direction 1e30 would
+/// be reported as having no length.
+pub const MAX_RAY_COMPONENT: f32 = 1e18;
+
 /// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
 /// directions. Returned in physical units, as given.
 pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
@@ -91,6 +96,13 @@ pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
         if let Some(c) = r.iter().position(|v| !v.is_finite()) {
             bail!(
                 "rays {}: ray {n} has {} in column {c}",
+                path.display(),
+                r[c]
+            );
+        }
+        if let Some(c) = r.iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
+            bail!(
+                "rays {}: ray {n} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
                 path.display(),
                 r[c]
             );
@@ -129,8 +141,8 @@ pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) 
 
 pub fn run(args: TraceArgs) -> Result<()> {
     let extent = args.extent;
-    let rays = read_rays(&args.rays)?;
     crate::bake::check_npy_output(&args.output)?;
+    let rays = read_rays(&args.rays)?;
     let address = args.height_args.address;
     let map = match &args.map {
         Some(path) => {
@@ -147,6 +159,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
         }
         None => {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
+            crate::bake::check_bake_memory(&args.height, &args.height_args, size, false)?;
             let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
             let opts = displace_core::BakeOptions {
                 size,
