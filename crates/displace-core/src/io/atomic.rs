@@ -59,6 +59,20 @@ impl Batch {
             return Ok(());
         }
         let staged = take_staged();
+        // A destination that cannot be replaced is found before any rename,
+        // so that none of the batch lands.
+        if let Some((_, dest)) = staged.iter().find(|(_, d)| d.is_dir()) {
+            for (t, _) in &staged {
+                let _ = std::fs::remove_file(t);
+            }
+            return Err(Error::Io {
+                path: dest.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::IsADirectory,
+                    "a directory is in the way of this output",
+                ),
+            });
+        }
         let mut pending = staged.iter();
         while let Some((tmp, dest)) = pending.next() {
             if let Err(source) = std::fs::rename(tmp, dest) {
@@ -322,6 +336,16 @@ mod tests {
         batch.commit().unwrap();
         assert_eq!(entries(dir.path()), vec!["a.bin", "b.bin"]);
         assert_eq!(std::fs::read(&a).unwrap(), b"3");
+        // A directory in the way of one output: none of them lands.
+        let c = dir.path().join("c.bin");
+        std::fs::create_dir(&c).unwrap();
+        let batch = Batch::new();
+        write_atomic(&dir.path().join("d.bin"), |w| w.write_all(b"d")).unwrap();
+        write_atomic(&c, |w| w.write_all(b"c")).unwrap();
+        let e = batch.commit().unwrap_err().to_string();
+        assert!(e.contains("c.bin"), "{e}");
+        assert_eq!(entries(dir.path()), vec!["a.bin", "b.bin", "c.bin"]);
+        std::fs::remove_dir(&c).unwrap();
         // Outside a batch, writes land at once again.
         write_atomic(&b, |w| w.write_all(b"4")).unwrap();
         assert_eq!(std::fs::read(&b).unwrap(), b"4");
