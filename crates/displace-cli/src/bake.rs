@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
+use displace_core::io::atomic::Batch;
 use displace_core::io::height::{self, Channel, HeightOptions};
 use displace_core::io::{self as dio, MapFile};
 use displace_core::techniques::{ConeKind, ConeMap};
@@ -157,11 +158,66 @@ pub fn check_output_dir(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// `trace` writes `.npy` only; checked before any work is done.
+/// `trace` writes `.npy` only; checked before any work is done, with a
+/// message that names only what trace can write.
 pub fn check_npy_output(path: &Path) -> Result<()> {
-    if check_output(path)? != MapFile::Npy {
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+    {
         bail!("output {}: hits are written as .npy", path.display());
     }
+    check_output_dir(path)
+}
+
+/// Refuses two outputs of one command that name the same file: the later
+/// write would silently replace the earlier one.
+pub fn check_distinct_outputs(outputs: &[(&str, &Path)]) -> Result<()> {
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    for (i, (a_name, a)) in outputs.iter().enumerate() {
+        for (b_name, b) in &outputs[..i] {
+            if absolute(a) == absolute(b) {
+                bail!(
+                    "{b_name} and {a_name} are the same file ({}): each output needs its own path",
+                    a.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a bake whose estimated peak memory exceeds what the machine has
+/// available ([`displace_core::memory`]), before the height map is loaded.
+pub fn check_bake_memory(
+    source: &str,
+    args: &HeightArgs,
+    size: [usize; 3],
+    cones: bool,
+) -> Result<()> {
+    let opts = HeightOptions {
+        channel: args.channel,
+        size: match &args.height_size {
+            Some(s) => parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?,
+            None => [size[0], size[1]],
+        },
+        address: args.address,
+    };
+    let [w, h] = height::dimensions(source, &opts)
+        .with_context(|| format!("loading height map `{source}`"))?;
+    // One buffer too large says so first; then the whole job.
+    HeightMap::check_size(w, h).with_context(|| format!("height map `{source}`"))?;
+    let bytes = displace_core::memory::bake_peak_bytes([w, h], size, cones);
+    displace_core::memory::check(
+        &format!(
+            "baking the {w}x{h} height map into {}x{}x{} voxels{}",
+            size[0],
+            size[1],
+            size[2],
+            if cones { " with its cone map" } else { "" }
+        ),
+        bytes,
+    )?;
     Ok(())
 }
 
@@ -190,6 +246,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
                 n.display()
             );
         }
+        check_output_dir(n).with_context(|| format!("--normals {}", n.display()))?;
     }
     if let Some(c) = &args.cone {
         // Named before the generic output check, whose message is about
@@ -201,6 +258,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             bail!("--cone {}: the cone map is written as .npy", c.display());
         }
     }
+    let mut outputs = vec![("-o", args.output.as_path())];
+    outputs.extend(args.normals.as_deref().map(|n| ("--normals", n)));
+    outputs.extend(args.cone.as_deref().map(|c| ("--cone", c)));
+    check_distinct_outputs(&outputs)?;
+    check_bake_memory(&args.height, &args.height_args, size, args.cone.is_some())?;
     let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
 
     let bar = DelayedBar::new(format!("baking {}x{}x{}", size[0], size[1], size[2]));
@@ -219,12 +281,39 @@ pub fn run(args: BakeArgs) -> Result<()> {
     };
     let seconds = start.elapsed().as_secs_f64();
 
+    // Every output under its temporary name until all are written.
+    let batch = Batch::new();
     dio::write_distance_map(&args.output, &map.distance, extent, format)
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(n) = &args.normals {
         height::write_normal_map_png(n, &map.normals)
             .with_context(|| format!("writing {}", n.display()))?;
     }
+    let cones = match &args.cone {
+        Some(c) => {
+            let start = Instant::now();
+            let bar = DelayedBar::counting(
+                format!("baking the {} cone map", args.cone_kind.name()),
+                "rows",
+            );
+            let cones = ConeMap::build_with(
+                &height,
+                extent.aspect(),
+                args.cone_kind,
+                Some(&bar.callback()),
+            );
+            bar.finish();
+            let seconds = start.elapsed().as_secs_f64();
+            if cancel_flag().load(std::sync::atomic::Ordering::SeqCst) {
+                bail!("interrupted: nothing was written");
+            }
+            dio::npy::write_file(c, &[cones.height(), cones.width()], cones.data())
+                .with_context(|| format!("writing {}", c.display()))?;
+            Some((cones, seconds, c))
+        }
+        None => None,
+    };
+    batch.commit().context("moving the outputs into place")?;
 
     let voxels = (size[0] * size[1] * size[2]) as f64;
     println!(
@@ -248,22 +337,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if let Some(n) = &args.normals {
         println!("normal map -> {}", n.display());
     }
-    if let Some(c) = &args.cone {
-        let start = Instant::now();
-        let bar = DelayedBar::counting(
-            format!("baking the {} cone map", args.cone_kind.name()),
-            "rows",
-        );
-        let cones = ConeMap::build_with(
-            &height,
-            extent.aspect(),
-            args.cone_kind,
-            Some(&bar.callback()),
-        );
-        bar.finish();
-        let seconds = start.elapsed().as_secs_f64();
-        dio::npy::write_file(c, &[cones.height(), cones.width()], cones.data())
-            .with_context(|| format!("writing {}", c.display()))?;
+    if let Some((cones, seconds, c)) = cones {
         println!(
             "{} cone map {}x{} in {:.3} s ({} KiB) -> {}",
             args.cone_kind.name(),

@@ -71,9 +71,6 @@ pub fn run(args: BenchRenderArgs) -> Result<()> {
     if args.repeat == 0 {
         bail!("--repeat must be at least 1");
     }
-    if args.threads == Some(0) {
-        bail!("--threads must be at least 1");
-    }
     let scenes = if args.scenes.is_empty() {
         DEFAULT_SCENES
             .iter()
@@ -87,14 +84,8 @@ pub fn run(args: BenchRenderArgs) -> Result<()> {
             bail!("scene {}: no such file", s.display());
         }
     }
-    let pool = |n: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .context("cannot start the worker threads")
-    };
-    let one = pool(1)?;
-    let all = pool(args.threads.unwrap_or(0))?;
+    let one = crate::bench_bake::pool(Some(1))?;
+    let all = crate::bench_bake::pool(args.threads)?;
     let opts = SceneOptions {
         spp: Some(args.spp),
         size: Some(size),

@@ -13,7 +13,7 @@ use crate::bake::{load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::convention::parse_size;
-use displace_core::io::atomic::write_atomic;
+use displace_core::io::atomic::{write_atomic, Batch};
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique};
 use displace_core::{bake, generators, Address, BakeOptions, Extent, MapRay, Method, TraceOptions};
 use glam::{Vec2, Vec3};
@@ -550,6 +550,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
         }
     }
 
+    // The CSVs, plots and grid land together: a failure (a full disk) in
+    // the last leaves none of them.
+    let batch = Batch::new();
     let csv = args.out.join("compare.csv");
     write_atomic(&csv, |w| {
         writeln!(w, "{CSV_HEADER}")?;
@@ -621,6 +624,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         args.grid_fetches,
         if args.quick { 48 } else { 128 },
     )?;
+    batch.commit().context("moving the outputs into place")?;
 
     println!(
         "compared {} techniques on {} maps x {} elevations x {} rays in {:.1} s",

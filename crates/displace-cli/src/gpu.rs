@@ -11,12 +11,15 @@ pub(crate) mod scene;
 use crate::bake::parse_extent;
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
+use displace_core::io::atomic::Batch;
 use displace_core::io::height::{load, HeightOptions};
 use displace_core::{
     bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, MapRay, Method, TraceOptions,
 };
 use displace_gpu::bench::bench_config;
 use displace_gpu::{DistanceTexture, GpuContext, PlaneScene, RayTracer, Renderer, Shadows};
+use displace_render::output::ImageFile;
+use displace_render::texture::srgb_to_linear;
 use glam::Vec3;
 use std::path::PathBuf;
 
@@ -53,7 +56,7 @@ pub struct GpuRenderArgs {
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub face: FaceArgs,
-    /// Output PNG (sRGB).
+    /// Output image: .png (sRGB, as rendered) or .exr (its linear values).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Image size [default: the scene's, or 640x480 for the built-in plane].
@@ -163,20 +166,62 @@ fn open_gpu() -> Result<GpuContext> {
     Ok(ctx)
 }
 
+/// `<output stem>.uvkt.npy` next to `output`.
+fn uv_aov_path(output: &std::path::Path) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    output
+        .parent()
+        .unwrap_or(std::path::Path::new(""))
+        .join(format!("{stem}.uvkt.npy"))
+}
+
+/// Refuses outputs that cannot be written, before any GPU work: an
+/// unknown image type, a missing directory, and `--iterations` out of
+/// range for the built-in plane.
+fn check_render_args(args: &GpuRenderArgs) -> Result<ImageFile> {
+    let kind = ImageFile::from_path(&args.output)?;
+    crate::bake::check_output_dir(&args.output)?;
+    check_gpu_iterations(args.iterations).context("--iterations")?;
+    Ok(kind)
+}
+
+/// Most steps the GPU paths trace a ray with (`--iterations`, a scene's
+/// `iterations`). The cause of issue 17's all-miss answer at 17000
+/// sphere-fixed steps: lavapipe (llvmpipe) ends every loop of one shader
+/// invocation once the loops have run 65535 iterations in all (Mesa's
+/// `LP_MAX_TGSI_LOOP_ITERATIONS`), and the trace after the cut read as a
+/// miss. Measured (`cargo run -p displace-gpu --example iteration_limit`):
+/// 16382 steps agree with the CPU, 16383 do not, about four loop iterations
+/// a step. The compute path now flags a cut loop and refuses the batch; the
+/// raster path cannot report one, so both are bounded here: 4096 steps use
+/// a quarter of the budget and leave the rest to the exact walk. Hardware
+/// drivers have no such limit but stop long invocations with a watchdog.
+pub const MAX_GPU_ITERATIONS: u32 = 4096;
+
+/// `1..=MAX_GPU_ITERATIONS`.
+pub fn check_gpu_iterations(n: u32) -> Result<()> {
+    if !(1..=MAX_GPU_ITERATIONS).contains(&n) {
+        bail!(
+            "{n} steps: the GPU traces 1..={MAX_GPU_ITERATIONS} steps per ray (drivers cut longer loops short: lavapipe ends a shader's loops after 65535 iterations in all)"
+        );
+    }
+    Ok(())
+}
+
+/// Writes the frame (PNG as rendered, sRGB; EXR as its linear values) and
+/// with `uv_aov` the AOV, together: both or neither.
 fn write_outputs(
     output: &std::path::Path,
+    kind: ImageFile,
     image: &displace_gpu::Image,
     uv_aov: bool,
 ) -> Result<()> {
+    let batch = Batch::new();
     if uv_aov {
-        let stem = output
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "out".into());
-        let npy = output
-            .parent()
-            .unwrap_or(std::path::Path::new(""))
-            .join(format!("{stem}.uvkt.npy"));
+        let npy = uv_aov_path(output);
         let data: Vec<f32> = image.uv.iter().flatten().copied().collect();
         displace_core::io::npy::write_file(
             &npy,
@@ -185,14 +230,35 @@ fn write_outputs(
         )
         .with_context(|| format!("writing {}", npy.display()))?;
     }
-    let rgb: Vec<u8> = image
-        .rgba8
-        .chunks_exact(4)
-        .flat_map(|p| [p[0], p[1], p[2]])
-        .collect();
-    displace_render::output::write_png_rgb8(output, image.width, image.height, &rgb)
-        .with_context(|| format!("writing {}", output.display()))?;
-    Ok(())
+    match kind {
+        ImageFile::Png => {
+            let rgb: Vec<u8> = image
+                .rgba8
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            displace_render::output::write_png_rgb8(output, image.width, image.height, &rgb)
+        }
+        ImageFile::Exr => {
+            // The frame is rendered to an 8-bit sRGB target: its EXR is
+            // those values decoded to linear, as `render` writes EXR.
+            let pixels = image
+                .rgba8
+                .chunks_exact(4)
+                .map(|p| {
+                    Vec3::from_array([p[0], p[1], p[2]].map(|c| srgb_to_linear(c as f32 / 255.0)))
+                })
+                .collect();
+            let linear = displace_render::Image {
+                width: image.width,
+                height: image.height,
+                pixels,
+            };
+            displace_render::output::write_image(output, &linear)
+        }
+    }
+    .with_context(|| format!("writing {}", output.display()))?;
+    batch.commit().context("moving the outputs into place")
 }
 
 fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
@@ -201,6 +267,7 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
             "--eye and --light configure the built-in plane; a scene has its own camera and lights"
         );
     }
+    let kind = check_render_args(args)?;
     let size = args.size.as_deref().map(image_size).transpose()?;
     let loaded = scene::load(path, size, args.no_cache)?;
     let ctx = open_gpu()?;
@@ -209,7 +276,7 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     if !out.left_out.is_empty() {
         eprintln!("gpu-render: not drawn: {}", out.left_out.join("; "));
     }
-    write_outputs(&args.output, &out.image, args.uv_aov)?;
+    write_outputs(&args.output, kind, &out.image, args.uv_aov)?;
     println!(
         "rendered {} displaced faces and meshes and {} plain triangles, {}x{} -> {}",
         out.faces,
@@ -225,6 +292,7 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
     if let Some(path) = args.scene.clone() {
         return run_scene(&args, &path);
     }
+    let kind = check_render_args(&args)?;
     let size = image_size(args.size.as_deref().unwrap_or("640x480"))?;
     if args.method == Method::Exact {
         bail!(
@@ -247,7 +315,7 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
     let image = renderer
         .render(&ctx, &scene)
         .context("rendering on the GPU")?;
-    write_outputs(&args.output, &image, args.uv_aov)?;
+    write_outputs(&args.output, kind, &image, args.uv_aov)?;
     println!(
         "rendered {}x{} -> {}",
         image.width,
@@ -322,6 +390,7 @@ pub fn trace_physical_gpu(
     rays: &[[f32; 6]],
 ) -> Result<Vec<[f32; 5]>> {
     map.check_trace(opts).context("trace options")?;
+    check_gpu_iterations(opts.iterations).context("--iterations with --backend gpu")?;
     let sz = map.extent.sz;
     let map_rays: Vec<MapRay> = rays
         .iter()

@@ -71,8 +71,45 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", report(&e));
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// The error and its causes, joined by `: ` as `{:#}` joins them, but
+/// without a cause whose text the message already ends with: the typed
+/// errors print their source themselves (`FILE: No such file or directory`),
+/// so `{:#}` would say it twice.
+fn report(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.ends_with(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::report;
+    use anyhow::Context;
+
+    #[test]
+    fn causes_already_in_the_message_are_not_repeated() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "gone");
+        let typed = displace_core::Error::Io {
+            path: "a.png".into(),
+            source: io,
+        };
+        let e = Err::<(), _>(typed).context("loading a.png").unwrap_err();
+        assert_eq!(format!("{e:#}"), "loading a.png: a.png: gone: gone");
+        assert_eq!(report(&e), "loading a.png: a.png: gone");
     }
 }

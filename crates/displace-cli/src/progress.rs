@@ -71,7 +71,9 @@ impl DelayedBar {
     }
 }
 
-/// The process-wide Ctrl-C flag. The first call installs the handler; if
+/// The process-wide Ctrl-C flag, raised by SIGINT, SIGTERM and SIGHUP alike
+/// (ctrlc's `termination` feature), so a killed or hung-up job stops as
+/// cleanly as an interrupted one. The first call installs the handler; if
 /// another part of the program already installed one, the flag still works
 /// for code that sets it directly but Ctrl-C keeps its default behaviour
 /// (ending the process, which leaves no output file either: outputs are only

@@ -1,8 +1,10 @@
 //! `displace render`: ray trace a scene file (or the built-in studded Cornell
-//! box) to PNG/EXR, with optional AOVs. Ctrl-C stops the render and writes
-//! nothing; every file is written atomically.
+//! box) to PNG/EXR, with optional AOVs. Ctrl-C (or SIGTERM, SIGHUP) stops
+//! the render and writes nothing; the outputs are written to temporary
+//! names and renamed into place together at the end.
 
 use anyhow::{bail, Context, Result};
+use displace_core::io::atomic::Batch;
 use displace_render::output::{aov_paths, write_aov, write_image, ImageFile};
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -68,13 +70,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--method")?;
-    if args.threads == Some(0) {
-        bail!("--threads must be at least 1");
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .context("cannot start the worker threads")?;
+    crate::bake::check_output_dir(&args.output)?;
+    let pool = crate::bench_bake::pool(args.threads)?;
 
     let opts = SceneOptions {
         spp: args.spp,
@@ -136,10 +133,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let render_time = render_start.elapsed();
 
+    // The image and its AOVs land together or not at all.
+    let batch = Batch::new();
     write_image(&args.output, &rendered.image)?;
     for a in &rendered.aovs {
         write_aov(&args.output, a)?;
     }
+    batch.commit().context("moving the outputs into place")?;
     let name = args
         .scene
         .as_ref()

@@ -85,6 +85,11 @@ fn parse_method(s: &str) -> Result<Method, String> {
     s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
+/// Largest magnitude of a ray's origin or direction component: past it the
+/// direction's length overflows float32 and a ray of direction 1e30 would
+/// be reported as having no length.
+pub const MAX_RAY_COMPONENT: f32 = 1e18;
+
 /// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
 /// directions. Returned in physical units, as given.
 pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
@@ -135,6 +140,13 @@ fn read_ray_rows(path: &Path, with_length: bool) -> Result<Vec<[f32; 7]>> {
         if let Some(c) = r[..6].iter().position(|v| !v.is_finite()) {
             bail!(
                 "rays {}: ray {n} has {} in column {c}",
+                path.display(),
+                r[c]
+            );
+        }
+        if let Some(c) = r[..6].iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
+            bail!(
+                "rays {}: ray {n} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
                 path.display(),
                 r[c]
             );
@@ -190,8 +202,8 @@ pub fn run(args: TraceArgs) -> Result<()> {
     let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.extent) else {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
     };
-    let rays = read_rays(&args.rays)?;
     crate::bake::check_npy_output(&args.output)?;
+    let rays = read_rays(&args.rays)?;
     let address = args.height_args.address;
     let map = match &args.map {
         Some(path) => {
@@ -208,6 +220,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
         }
         None => {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
+            crate::bake::check_bake_memory(height_source, &args.height_args, size, false)?;
             let height = load_height(height_source, &args.height_args, [size[0], size[1]])?;
             let opts = displace_core::BakeOptions {
                 size,

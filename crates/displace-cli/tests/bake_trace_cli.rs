@@ -3,6 +3,9 @@
 //! bad input of issue 2 giving a non-zero exit, a message naming the problem
 //! and no output file (nor a leftover temporary).
 
+mod cli_common;
+
+use cli_common::{files, stderr};
 use displace_core::io::{dds, ktx2, npy};
 use displace_core::{Address, Extent};
 use std::path::Path;
@@ -14,19 +17,6 @@ fn displace(args: &[&str], dir: &Path) -> Output {
         .current_dir(dir)
         .output()
         .expect("run displace")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn files(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 /// Runs a command that must fail: non-zero exit, `needles` in the message

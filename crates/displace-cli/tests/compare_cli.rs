@@ -80,6 +80,15 @@ fn quick_compare_writes_csv_plots_and_grid() {
     assert_eq!(grid.width(), 12 * 48);
 }
 
+/// A quick comparison on the studded map alone.
+const QUICK_STUDDED: [&str; 5] = [
+    "compare",
+    "--quick",
+    "--only-given",
+    "--height",
+    "gen:studded",
+];
+
 /// `--gpu` times every technique and budget on the GPU (lavapipe in CI,
 /// where a missing adapter fails this test): every row gets a positive
 /// GPU time per ray, the CPU columns are unchanged by it.
@@ -88,14 +97,10 @@ fn gpu_timing_fills_its_column() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let common = [
-        "compare",
-        "--quick",
-        "--only-given",
-        "--height",
-        "gen:studded",
-        "--techniques",
-        "distance,pom,relief,max-mip",
-    ];
+        QUICK_STUDDED.as_slice(),
+        &["--techniques", "distance,pom,relief,max-mip"],
+    ]
+    .concat();
     let mut with_gpu = common.to_vec();
     with_gpu.extend([
         "--out",
@@ -195,4 +200,27 @@ fn bad_input_is_refused() {
         ],
         "bogus",
     );
+}
+
+/// The CSVs, plots and grid land together: when the last output cannot be
+/// written (here a directory where grid.png goes), none of them is left.
+#[test]
+fn outputs_land_together_or_not_at_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("out/grid.png")).unwrap();
+    let args = [
+        QUICK_STUDDED.as_slice(),
+        &["--techniques", "distance,pom", "--out", "out"],
+    ]
+    .concat();
+    let o = displace(&args, d);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("grid.png"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(d.join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, ["grid.png"], "{err}");
 }

@@ -108,3 +108,54 @@ fn bench_gpu_prints_a_row_per_path_and_variant() {
         assert!(ms > 0.0 && ms.is_finite(), "{r}");
     }
 }
+
+/// `-o out.exr` writes an EXR (it wrote PNG bytes): the linear values of
+/// the frame the PNG holds, each within rounding of the PNG's sRGB bytes.
+#[test]
+fn gpu_render_writes_a_linear_exr() {
+    if test_context().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["f.png", "f.exr"] {
+        let o = displace()
+            .args([
+                "gpu-render",
+                "--size",
+                "32x32",
+                "--map-size",
+                "32x32x8",
+                "-o",
+            ])
+            .arg(dir.path().join(name))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let bytes = std::fs::read(dir.path().join("f.exr")).unwrap();
+    assert_eq!(&bytes[..4], &[0x76, 0x2f, 0x31, 0x01], "not an EXR");
+    let exr = image::open(dir.path().join("f.exr")).unwrap().to_rgb32f();
+    let png = image::open(dir.path().join("f.png")).unwrap().to_rgb8();
+    assert_eq!(exr.dimensions(), png.dimensions());
+    let srgb = |c: f32| {
+        let c = c.clamp(0.0, 1.0);
+        let s = if c <= 0.003_130_8 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round()
+    };
+    let mut mid = 0;
+    for (e, p) in exr.pixels().zip(png.pixels()) {
+        for c in 0..3 {
+            assert!((srgb(e[c]) - p[c] as f32).abs() <= 1.0, "{e:?} vs {p:?}");
+            // Linear, not the sRGB bytes scaled: mid greys sit well below them.
+            if p[c] > 100 && p[c] < 200 {
+                assert!(e[c] < p[c] as f32 / 255.0 - 0.1, "{e:?} vs {p:?}");
+                mid += 1;
+            }
+        }
+    }
+    assert!(mid > 0);
+}

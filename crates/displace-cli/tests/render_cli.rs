@@ -1,6 +1,9 @@
 //! `displace render` end to end: a tiny default render, AOVs, and bad input
 //! giving a clear message, a non-zero exit and no output file.
 
+mod cli_common;
+
+use cli_common::{stderr, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -11,10 +14,6 @@ fn displace(args: &[&str], dir: &Path) -> Output {
         .env("DISPLACE_CACHE", dir.join("cache"))
         .output()
         .expect("run displace")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 #[test]
@@ -80,27 +79,7 @@ fn refuses(scene: &str, args: &[&str], expect: &[&str]) {
     assert!(left.is_empty(), "files left behind: {left:?}");
 }
 
-const GOOD: &str = r#"
-[image]
-width = 8
-height = 8
-spp = 1
-[camera]
-position = [0, 1, -3]
-look_at = [0, 0, 0]
-[materials.m]
-type = "lambert"
-color = [0.5, 0.5, 0.5]
-[[lights]]
-type = "point"
-position = [0, 3, -1]
-intensity = [5, 5, 5]
-[[shapes]]
-type = "sphere"
-center = [0, 0, 0]
-radius = 1
-material = "m"
-"#;
+const GOOD: &str = SPHERE_SCENE;
 
 #[test]
 fn bad_input_is_refused_with_nothing_written() {

@@ -53,7 +53,7 @@ impl std::str::FromStr for Address {
         match s {
             "clamp" => Ok(Address::Clamp),
             "repeat" => Ok(Address::Repeat),
-            other => Err(Error::InvalidSize(format!(
+            other => Err(Error::UnknownName(format!(
                 "unknown addressing `{other}` (expected clamp or repeat)"
             ))),
         }
@@ -133,6 +133,13 @@ pub const TRACE_STOP_VOXELS: f32 = 0.25;
 /// the ray is above the surface where it ends; this one was fastest on the
 /// seed maps (BENCHMARKS.md).
 pub const TRACE_BAND_FACTOR: f32 = 1.5;
+
+/// Most sphere-tracing steps one ray may take (`TraceOptions::iterations`,
+/// the fixed count of `sphere-fixed`). Each step is a texture fetch, so a
+/// count in the billions would run for hours on one image; no map needs more
+/// steps than a few times its largest side, and 65536 covers the largest map
+/// [`crate::DistanceMap::check_size`] accepts several times over.
+pub const MAX_TRACE_ITERATIONS: u32 = 1 << 16;
 
 /// Largest allocation one bake, map or image may ask for. Requests above it
 /// are refused before any memory is touched.

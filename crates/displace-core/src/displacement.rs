@@ -1,7 +1,7 @@
 //! The bake (height map -> normal map + conservative distance map) and the
 //! baked [`DisplacementMap`] that renderers trace.
 
-use crate::convention::{texel_centre, texel_lerp, Extent};
+use crate::convention::{texel_centre, texel_lerp, Extent, MAX_TRACE_ITERATIONS};
 use crate::distance_map::DistanceMap;
 use crate::edt::{transform_2d_with, SliceScratch};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
@@ -94,6 +94,12 @@ impl DisplacementMap {
 
     /// Checks that `opts` makes sense for this map before tracing many rays.
     pub fn check_trace(&self, opts: &TraceOptions) -> Result<()> {
+        if !(1..=MAX_TRACE_ITERATIONS).contains(&opts.iterations) {
+            return Err(Error::InvalidTrace(format!(
+                "iterations = {}: must be 1..={MAX_TRACE_ITERATIONS} (the most steps one ray may take)",
+                opts.iterations
+            )));
+        }
         if !(opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0)) {
             return Err(Error::InvalidTrace(format!(
                 "tiles {:?} must be positive",

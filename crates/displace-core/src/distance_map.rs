@@ -66,7 +66,7 @@ impl std::str::FromStr for Format {
             "r8" => Ok(Format::R8),
             "r16f" => Ok(Format::R16F),
             "r32f" => Ok(Format::R32F),
-            other => Err(Error::InvalidSize(format!(
+            other => Err(Error::UnknownName(format!(
                 "unknown distance format `{other}` (expected r8, r16f or r32f)"
             ))),
         }

@@ -11,6 +11,10 @@ pub enum Error {
     InvalidExtent(String),
     #[error("invalid size: {0}")]
     InvalidSize(String),
+    /// A name that is none of the known choices (an addressing mode, a
+    /// storage format): the message says which names are known.
+    #[error("{0}")]
+    UnknownName(String),
     #[error(
         "size {what} = {size} is too large: it would need {bytes} bytes (limit {limit} bytes)"
     )]
@@ -20,6 +24,10 @@ pub enum Error {
         bytes: u128,
         limit: u128,
     },
+    /// A job whose estimated peak memory exceeds the limit
+    /// ([`crate::memory::check`]); the message has the estimate.
+    #[error("{message}")]
+    OutOfMemory { message: String },
     #[error("unknown generator `{0}` (known: flat, gaussian, studded, grating, text, noise)")]
     UnknownGenerator(String),
     #[error("generator `{generator}`: {message}")]
@@ -36,6 +44,10 @@ pub enum Error {
     },
     #[error("{path}: {message}")]
     Image { path: PathBuf, message: String },
+    /// An input path that is not a regular file, or too large to read
+    /// ([`crate::io::check_input`]).
+    #[error("{path}: {message}")]
+    Input { path: PathBuf, message: String },
     #[error("operation cancelled")]
     Cancelled,
 }

@@ -35,6 +35,7 @@ pub mod exact;
 pub mod generators;
 pub mod heightmap;
 pub mod io;
+pub mod memory;
 pub mod normal_map;
 pub mod sphere_trace;
 pub mod techniques;

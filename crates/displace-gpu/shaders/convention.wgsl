@@ -29,6 +29,8 @@ const HIT_PLAIN: u32 = 3u;
 const FLAG_CONVERGED: u32 = 1u;
 // The exact walk ran into its cell budget: a bug guard, never expected.
 const FLAG_CELL_CAP: u32 = 2u;
+// The driver ended a trace loop early (surface.wgsl `loop_cut`).
+const FLAG_LOOP_CUT: u32 = 4u;
 
 // A segment starts under the surface when z < h - INSIDE_EPS (exact.rs).
 const INSIDE_EPS: f32 = 1e-7;

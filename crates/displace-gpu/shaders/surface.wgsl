@@ -3,6 +3,11 @@
 // Needs convention.wgsl and one distance_*.wgsl before it.
 
 var<private> cell_cap_reached: bool = false;
+// A loop ended where its own exits cannot: the driver cut it short.
+// lavapipe (llvmpipe) ends every loop of an invocation once they have run
+// 65535 iterations in all (Mesa's LP_MAX_TGSI_LOOP_ITERATIONS); without
+// this flag the trace after the cut reads as a miss.
+var<private> loop_cut: bool = false;
 
 fn height_texel(i: i32, j: i32) -> f32 {
     let n = params.height_size;
@@ -188,6 +193,8 @@ fn walk(o: vec3f, d: vec3f, t0: f32, t1: f32) -> Walk {
             ty += dty;
         }
     }
+    // Every exit of the loop returns: reaching here means it was cut.
+    loop_cut = true;
     return Walk(WALK_MISS, t1, vec3f(0.0), cells);
 }
 
@@ -319,6 +326,10 @@ fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
             // A negative value steps back over points known to be free.
             t = max(t + s, clip.t_in);
         }
+    }
+    if (t <= clip.t_out) {
+        // The loop's condition still holds: the driver ended it.
+        loop_cut = true;
     }
     return trace_miss(iterations);
 }

@@ -40,5 +40,8 @@ fn technique_main(@builtin(global_invocation_id) gid: vec3u) {
     if (cell_cap_reached) {
         flags |= FLAG_CELL_CAP;
     }
+    if (loop_cut) {
+        flags |= FLAG_LOOP_CUT;
+    }
     technique_hits[index] = TechniqueHitOut(p, h.t, p.xy / params.aspect, h.fetches, flags);
 }

@@ -30,5 +30,8 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3u) {
     if (cell_cap_reached) {
         flags |= FLAG_CELL_CAP;
     }
+    if (loop_cut) {
+        flags |= FLAG_LOOP_CUT;
+    }
     hits[index] = HitOut(p, h.t, h.normal, h.kind, p.xy / params.aspect, h.iterations, flags);
 }

@@ -115,9 +115,19 @@ pub(crate) fn dispatch_and_read<T: Pod>(
     .map(|bytes| bytemuck::pod_collect_to_vec(&bytes))
 }
 
-/// Refuses a result whose exact walk hit its cell cap (`FLAG_CELL_CAP`): a
-/// bug guard, never expected.
+/// Refuses a result whose exact walk hit its cell cap (`FLAG_CELL_CAP`, a
+/// bug guard, never expected) or whose loops the driver ended early
+/// (`FLAG_LOOP_CUT`: too many steps for this driver, which would otherwise
+/// read as a miss).
 pub(crate) fn check_cell_cap(flags: u32, during: &str) -> Result<()> {
+    if flags & crate::convention::FLAG_LOOP_CUT != 0 {
+        return Err(Error::Gpu {
+            during: during.to_string(),
+            message: "the driver ended the trace loop early (lavapipe stops the loops of one \
+                      invocation after 65535 iterations in all): use fewer iterations"
+                .into(),
+        });
+    }
     if flags & crate::convention::FLAG_CELL_CAP == 0 {
         return Ok(());
     }

@@ -19,6 +19,10 @@ pub const HIT_WALL: u32 = 2;
 pub const HIT_PLAIN: u32 = 3;
 pub const FLAG_CONVERGED: u32 = 1;
 pub const FLAG_CELL_CAP: u32 = 2;
+/// The driver ended a trace loop before its own exits (lavapipe stops the
+/// loops of one invocation after 65535 iterations in all): the result is
+/// not a miss but unknown, and is refused ([`crate::batch`]).
+pub const FLAG_LOOP_CUT: u32 = 4;
 /// `exact.rs`: a segment starts inside when `z < h - 1e-7`.
 pub const INSIDE_EPS: f32 = 1e-7;
 pub const ROOT_EPS: f32 = 1e-6;

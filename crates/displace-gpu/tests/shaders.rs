@@ -69,6 +69,7 @@ fn convention_constants_match_rust() {
         ("HIT_PLAIN", rs::HIT_PLAIN as f64),
         ("FLAG_CONVERGED", rs::FLAG_CONVERGED as f64),
         ("FLAG_CELL_CAP", rs::FLAG_CELL_CAP as f64),
+        ("FLAG_LOOP_CUT", rs::FLAG_LOOP_CUT as f64),
         ("INSIDE_EPS", rs::INSIDE_EPS as f64),
         ("ROOT_EPS", rs::ROOT_EPS as f64),
         ("LINEAR_EPS", rs::LINEAR_EPS as f64),

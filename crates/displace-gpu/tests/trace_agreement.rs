@@ -252,3 +252,35 @@ fn r8_load_fixed_steps_clamp() {
         9,
     );
 }
+
+/// Issue 17: at 17000 fixed steps lavapipe ended the trace loop and every
+/// ray came back a miss. However long a trace, the GPU either agrees with
+/// the CPU on every ray or refuses the batch; it never answers a silent miss.
+#[test]
+fn long_fixed_traces_agree_or_are_refused() {
+    let Some(ctx) = test_context() else { return };
+    let mut rng = Rng::new(17);
+    let map = random_map(&mut rng, Address::Clamp);
+    let [ax, ay] = map.aspect();
+    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), 64);
+    let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
+    for iterations in [1000, 17000, 65536] {
+        let opts = TraceOptions {
+            method: Method::SphereFixed,
+            iterations,
+            ..TraceOptions::default()
+        };
+        let cpu: Vec<bool> = rays.iter().map(|r| map.trace(r, &opts).is_some()).collect();
+        assert!(cpu.iter().any(|h| *h), "no ray hits");
+        match tracer.trace(ctx, &rays, &opts) {
+            Ok(gpu) => {
+                let gpu: Vec<bool> = gpu.iter().map(Option::is_some).collect();
+                assert_eq!(gpu, cpu, "{iterations} steps");
+            }
+            Err(e) => {
+                assert!(iterations > 1000, "{iterations} steps: {e}");
+                assert!(e.to_string().contains("ended the trace loop early"), "{e}");
+            }
+        }
+    }
+}

@@ -6,12 +6,15 @@
 //! Disk format (`<key>.dmap`, little endian): magic `DSPLDM01`, `u32` width,
 //! height, depth, `f32` aspect x, aspect y, `u8` addressing (0 clamp, 1
 //! repeat), `f32` bound on the stored values' underestimate, then `width * height * depth` `f32`
-//! values in the core's `[k][j][i]` order. The normal map is rebuilt from the
+//! values in the core's `[k][j][i]` order, then a `u64` checksum of the bound
+//! and the values ([`checksum`]): a corrupt entry (a flipped bit on disk) is
+//! baked again rather than trusted, since a wrong distance would make the
+//! tracer step through the surface. The normal map is rebuilt from the
 //! height map (cheap); only the distance transform is cached.
 
 use crate::error::Result;
-use crate::sampler::hash;
-use displace_core::io::atomic::write_atomic;
+use crate::sampler::{hash, hash_iter};
+use displace_core::io::atomic::{remove_stale_temps, write_atomic};
 use displace_core::{
     bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, HeightMap, NormalMap,
 };
@@ -22,7 +25,8 @@ use std::sync::{Arc, Mutex};
 
 const MAGIC: &[u8; 8] = b"DSPLDM01";
 /// Bumped whenever the bake's output for the same inputs could change.
-const BAKE_VERSION: u64 = 2;
+/// (3: entries end with a checksum.)
+const BAKE_VERSION: u64 = 3;
 
 /// The cache directory: `$DISPLACE_CACHE` if set (an empty value disables
 /// the disk cache), else `$XDG_CACHE_HOME/displace`, else
@@ -134,7 +138,10 @@ impl BakeCache {
                 self.baked.fetch_add(1, Ordering::Relaxed);
                 if let Some(p) = &path {
                     // A cache that cannot be written only costs time next run.
-                    if std::fs::create_dir_all(self.dir.as_ref().expect("dir")).is_ok() {
+                    let dir = self.dir.as_ref().expect("dir");
+                    if std::fs::create_dir_all(dir).is_ok() {
+                        // Killed bakes leave temporaries no run would rename.
+                        remove_stale_temps(dir);
                         let _ = write_map(p, &m.distance);
                     }
                 }
@@ -162,8 +169,18 @@ fn write_map(path: &Path, map: &DistanceMap) -> displace_core::Result<()> {
         for v in map.data() {
             buf.extend_from_slice(&v.to_le_bytes());
         }
-        w.write_all(&buf)
+        w.write_all(&buf)?;
+        w.write_all(&checksum(map.data_underestimate(), map.data()).to_le_bytes())
     })
+}
+
+/// Checksum of an entry's bound and values.
+fn checksum(under: f32, data: &[f32]) -> u64 {
+    hash_iter(
+        std::iter::once(under)
+            .chain(data.iter().copied())
+            .map(|v| v.to_bits() as u64),
+    )
 }
 
 /// The cached map, or `None` if absent, unreadable or not the one asked for
@@ -174,6 +191,9 @@ fn read_map(
     size: [usize; 3],
     extent: Extent,
 ) -> Option<DisplacementMap> {
+    // A cache entry replaced by a FIFO or a device must not hang the run.
+    displace_core::io::check_input(path, "cache entry", displace_core::io::MAX_ARRAY_FILE_BYTES)
+        .ok()?;
     let bytes = std::fs::read(path).ok()?;
     let header = 8 + 12 + 8 + 1 + 4;
     if bytes.len() < header || &bytes[..8] != MAGIC {
@@ -184,24 +204,28 @@ fn read_map(
     let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
     let stored = [u32_at(8), u32_at(12), u32_at(16)];
     let aspect = [f32_at(20), f32_at(24)];
-    let address = if bytes[28] == 1 {
-        Address::Repeat
-    } else {
-        Address::Clamp
+    let address = match bytes[28] {
+        0 => Address::Clamp,
+        1 => Address::Repeat,
+        _ => return None,
     };
     let under = f32_at(29);
     let n = size.iter().product::<usize>();
     if stored != size
         || address != height.address()
         || aspect != extent.aspect()
-        || bytes.len() != header + 4 * n
+        || bytes.len() != header + 4 * n + 8
     {
         return None;
     }
-    let data = bytes[header..]
+    let data: Vec<f32> = bytes[header..header + 4 * n]
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
+    let stored_sum = u64::from_le_bytes(bytes[header + 4 * n..].try_into().expect("8 bytes"));
+    if stored_sum != checksum(under, &data) {
+        return None;
+    }
     let distance = DistanceMap::from_raw(size, aspect, address, data, under).ok()?;
     Some(DisplacementMap {
         height: height.clone(),
@@ -260,6 +284,48 @@ mod tests {
             .get(&h, [8, 8, 4], Extent::new(2.0, 1.0, 0.5).unwrap())
             .unwrap();
         assert_eq!(again.stats().baked, 1);
+    }
+
+    #[test]
+    fn a_bake_removes_temporaries_of_killed_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        // Left by a process that no longer runs (no pid is above 2^22).
+        let stale = dir.path().join(".0123456789abcdef.dmap.4194305.3.tmp");
+        std::fs::write(&stale, b"half a map").unwrap();
+        BakeCache::new(Some(dir.path().to_path_buf()))
+            .get(&height(), [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap();
+        assert!(!stale.exists());
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "{left:?}");
+    }
+
+    /// Every single-bit flip of an entry, header or values, is caught:
+    /// the map is baked again and equals the original.
+    #[test]
+    fn flipped_bits_are_rebaked_never_trusted() {
+        let dir = tempfile::tempdir().unwrap();
+        let h = height();
+        let extent = Extent::new(1.0, 1.0, 1.0).unwrap();
+        let original = BakeCache::new(Some(dir.path().to_path_buf()))
+            .get(&h, [4, 4, 2], extent)
+            .unwrap();
+        let entry = std::fs::read_dir(dir.path())
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        let good = std::fs::read(&entry).unwrap();
+        for bit in (0..good.len() * 8).step_by(7) {
+            let mut bad = good.clone();
+            bad[bit / 8] ^= 1 << (bit % 8);
+            std::fs::write(&entry, &bad).unwrap();
+            let cache = BakeCache::new(Some(dir.path().to_path_buf()));
+            let map = cache.get(&h, [4, 4, 2], extent).unwrap();
+            assert_eq!(cache.stats().baked, 1, "bit {bit} was trusted");
+            assert_eq!(map.distance, original.distance);
+        }
     }
 
     #[test]

@@ -9,14 +9,36 @@ use std::path::Path;
 /// Loads `source` for a face: a generator spec at `size` texels, or a file
 /// relative to `base` (its own size).
 pub fn load(source: &str, size: [usize; 2], address: Address, base: &Path) -> Result<HeightMap> {
+    let (source, opts) = resolve(source, size, address, base);
+    Ok(height::load(&source, &opts)?)
+}
+
+/// The texel size [`load`] would give, from the file's header alone.
+pub fn dimensions(
+    source: &str,
+    size: [usize; 2],
+    address: Address,
+    base: &Path,
+) -> Result<[usize; 2]> {
+    let (source, opts) = resolve(source, size, address, base);
+    Ok(height::dimensions(&source, &opts)?)
+}
+
+/// The source as the core reads it (files relative to `base`) and its
+/// options.
+fn resolve(
+    source: &str,
+    size: [usize; 2],
+    address: Address,
+    base: &Path,
+) -> (String, HeightOptions) {
     let opts = HeightOptions {
         size,
         address,
         ..HeightOptions::default()
     };
     if source.starts_with("gen:") {
-        return Ok(height::load(source, &opts)?);
+        return (source.to_string(), opts);
     }
-    let path = base.join(source);
-    Ok(height::load(&path.to_string_lossy(), &opts)?)
+    (base.join(source).to_string_lossy().into_owned(), opts)
 }

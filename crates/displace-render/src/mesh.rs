@@ -22,35 +22,48 @@ pub struct Mesh {
 }
 
 pub fn load(path: &Path) -> Result<Mesh> {
-    if !path.exists() {
-        return Err(Error::Io {
-            path: path.to_path_buf(),
-            source: std::io::Error::new(std::io::ErrorKind::NotFound, "mesh file not found"),
-        });
-    }
+    displace_core::io::check_input(path, "mesh", displace_core::io::MAX_MESH_FILE_BYTES)?;
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..tobj::LoadOptions::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &opts).map_err(|e| {
-        let located = std::fs::read_to_string(path)
-            .ok()
-            .and_then(|text| locate(&text, &e));
-        match located {
-            Some((line, column)) => Error::Parse {
-                path: path.to_path_buf(),
-                line,
-                column,
-                message: e.to_string(),
-            },
-            None => Error::Mesh {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            },
-        }
+    check_face_indices(path)?;
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
     })?;
+    // Material libraries (`mtllib`) are not read: materials come from the
+    // scene, and a library path is one more file (a FIFO, `/dev/zero`)
+    // that could be read for ever.
+    let no_materials = |_: &Path| Err(tobj::LoadError::OpenFileFailed);
+    let mut reader = std::io::BufReader::new(file);
+    let (models, _materials) =
+        tobj::load_obj_buf(&mut reader, &opts, no_materials).map_err(|e| {
+            let located = std::fs::read_to_string(path)
+                .ok()
+                .and_then(|text| locate(&text, &e));
+            match located {
+                Some((line, column)) => Error::Parse {
+                    path: path.to_path_buf(),
+                    line,
+                    column,
+                    message: e.to_string(),
+                },
+                None => Error::Mesh {
+                    path: path.to_path_buf(),
+                    message: e.to_string(),
+                },
+            }
+        })?;
     let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+    if total == 0 {
+        // An empty or face-less file would render as nothing, silently.
+        return Err(Error::Mesh {
+            path: path.to_path_buf(),
+            message: "the file has no faces (`f` lines): nothing to render".into(),
+        });
+    }
     if total > MAX_TRIANGLES {
         return Err(Error::Mesh {
             path: path.to_path_buf(),
@@ -140,15 +153,7 @@ fn locate(text: &str, err: &tobj::LoadError) -> Option<(usize, usize)> {
             }
             "f" if keyword == "f" => {
                 let corners: Vec<&str> = words.collect();
-                let bad_corner = corners.iter().find(|c| {
-                    c.split('/').enumerate().any(|(k, part)| {
-                        !part.is_empty()
-                            && part
-                                .parse::<i64>()
-                                .map_or(true, |i| i == 0 || i.unsigned_abs() as usize > counts[k])
-                    }) || c.split('/').next().is_none_or(str::is_empty)
-                });
-                match bad_corner {
+                match bad_corner(&corners, &counts) {
                     Some(c) => Some(column(c)),
                     None if corners.len() < 3 => Some(line.len() + 1),
                     None => None,
@@ -161,6 +166,66 @@ fn locate(text: &str, err: &tobj::LoadError) -> Option<(usize, usize)> {
         }
     }
     None
+}
+
+/// The first corner of a face (the words after `f`) that does not parse or
+/// indexes past the `v`, `vt` and `vn` statements before it (`counts`),
+/// relative indices counting back from those.
+fn bad_corner<'a>(corners: &[&'a str], counts: &[usize; 3]) -> Option<&'a str> {
+    corners.iter().copied().find(|c| {
+        c.split('/').enumerate().any(|(k, part)| {
+            !part.is_empty()
+                && part
+                    .parse::<i64>()
+                    // A corner has at most v/vt/vn: a fourth part is bad.
+                    .map_or(true, |i| {
+                        i == 0 || counts.get(k).is_none_or(|&n| i.unsigned_abs() as usize > n)
+                    })
+        }) || c.split('/').next().is_none_or(str::is_empty)
+    })
+}
+
+/// Refuses, with its line and column, a face corner that indexes outside
+/// the vertices, texture coordinates or normals declared before it, before
+/// `tobj` reads the file: `tobj` multiplies such an index unchecked (a `vt`
+/// of 2^63 overflows in its `add_vertex`; found by tests/fuzz.rs). Streams
+/// the file, holding one line at a time.
+fn check_face_indices(path: &Path) -> Result<()> {
+    use std::io::BufRead;
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io_err)?;
+    let mut counts = [0usize; 3];
+    for (n, line) in std::io::BufReader::new(file).split(b'\n').enumerate() {
+        let line = line.map_err(io_err)?;
+        // Not UTF-8: tobj refuses the file itself.
+        let Ok(line) = std::str::from_utf8(&line) else {
+            continue;
+        };
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f" | "l") => {
+                let corners: Vec<&str> = words.collect();
+                if let Some(c) = bad_corner(&corners, &counts) {
+                    return Err(Error::Parse {
+                        path: path.to_path_buf(),
+                        line: n + 1,
+                        column: c.as_ptr() as usize - line.as_ptr() as usize + 1,
+                        message: format!(
+                            "face corner `{c}` indexes a vertex, texture coordinate or normal that does not exist"
+                        ),
+                    });
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -179,9 +244,40 @@ mod tests {
             locate(text, &tobj::LoadError::FaceVertexOutOfBounds),
             Some((6, 7))
         );
+        // Found by tests/fuzz.rs: a corner of five parts indexed past v/vt/vn.
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1/2/1 2 3\n";
+        assert_eq!(locate(text, &tobj::LoadError::FaceParseError), Some((6, 3)));
         let text = "v 0 0 0\nv 1 0 0\nf 1 2\n";
         assert_eq!(locate(text, &tobj::LoadError::InvalidPolygon), Some((3, 6)));
         assert_eq!(locate(text, &tobj::LoadError::ReadError), None);
+    }
+
+    #[test]
+    fn huge_face_indices_are_refused_before_tobj_reads_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.obj");
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/9223372036854775807 3/1\n";
+        std::fs::write(&path, text).unwrap();
+        let e = load(&path).unwrap_err().to_string();
+        assert!(e.contains("big.obj:5:7:"), "{e}");
+        // A material library is never opened.
+        std::fs::write(
+            &path,
+            "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        assert_eq!(load(&path).unwrap().triangles.len(), 1);
+    }
+
+    #[test]
+    fn a_mesh_without_faces_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in [("empty.obj", ""), ("points.obj", "v 0 0 0\nv 1 0 0\n")] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            let e = load(&path).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains("no faces"), "{e}");
+        }
     }
 
     #[test]
@@ -192,6 +288,6 @@ mod tests {
         let e = load(&path).unwrap_err().to_string();
         assert!(e.contains("bad.obj:3:"), "{e}");
         let e = load(&dir.path().join("none.obj")).unwrap_err().to_string();
-        assert!(e.contains("none.obj") && e.contains("not found"), "{e}");
+        assert!(e.contains("none.obj") && e.contains("No such file"), "{e}");
     }
 }

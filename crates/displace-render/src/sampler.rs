@@ -14,7 +14,13 @@ fn mix(mut z: u64) -> u64 {
 }
 
 pub fn hash(words: &[u64]) -> u64 {
-    words.iter().fold(0x9e37_79b9_7f4a_7c15u64, |h, &w| {
+    hash_iter(words.iter().copied())
+}
+
+/// [`hash`] of words as they come, without collecting them first (the
+/// bake cache's checksum over a whole distance map).
+pub fn hash_iter(words: impl IntoIterator<Item = u64>) -> u64 {
+    words.into_iter().fold(0x9e37_79b9_7f4a_7c15u64, |h, w| {
         mix(h ^ mix(w.wrapping_add(0x9e37_79b9_7f4a_7c15)))
     })
 }

@@ -36,23 +36,32 @@ impl Texture {
     /// Loads `path`; `srgb` decodes the sRGB transfer function (colour maps),
     /// otherwise values are kept as stored (normal maps).
     pub fn load(path: &Path, srgb: bool) -> Result<Self> {
-        if !path.exists() {
-            return Err(Error::Io {
-                path: path.to_path_buf(),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "texture file not found"),
-            });
-        }
-        let img = image::open(path).map_err(|e| Error::Image {
+        use displace_core::io::{check_input, MAX_IMAGE_FILE_BYTES};
+        check_input(path, "texture", MAX_IMAGE_FILE_BYTES)?;
+        let image_err = |message: String| Error::Image {
             path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+            message,
+        };
+        // The decoded size from the header, before decoding: a small file
+        // can hold a huge image, and each texel costs 12 bytes here.
+        let reader = image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| image_err(e.to_string()))?;
+        let (w, h) = reader
+            .into_dimensions()
+            .map_err(|e| image_err(e.to_string()))?;
+        displace_core::convention::check_allocation(
+            "texture",
+            &format!("{w}x{h}"),
+            w as u128 * h as u128,
+            std::mem::size_of::<Vec3>() as u128 * 2,
+        )
+        .map_err(|e| image_err(e.to_string()))?;
+        let img = image::open(path).map_err(|e| image_err(e.to_string()))?;
         let rgb = img.to_rgb32f();
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         if w == 0 || h == 0 {
-            return Err(Error::Image {
-                path: path.to_path_buf(),
-                message: "empty image".into(),
-            });
+            return Err(image_err("empty image".into()));
         }
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
         let data = rgb

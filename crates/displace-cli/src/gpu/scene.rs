@@ -314,6 +314,8 @@ pub fn prepare(
                 "primitive {k}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed"
             );
         }
+        crate::gpu::check_gpu_iterations(trace.iterations)
+            .with_context(|| format!("primitive {k}: displacement.iterations"))?;
         if face.color.is_some() || face.normal_map.is_some() {
             skip("displacement colour textures and normal maps");
         }
@@ -359,6 +361,8 @@ pub fn prepare(
                 "mesh {k}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed"
             );
         }
+        crate::gpu::check_gpu_iterations(disp.trace.iterations)
+            .with_context(|| format!("mesh {k}: displacement.iterations"))?;
         if disp.textured {
             skip("displacement colour textures and normal maps");
         }

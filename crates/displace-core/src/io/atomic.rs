@@ -3,12 +3,114 @@
 //! directory (same file system, so the rename is atomic), is flushed and
 //! fsynced, and only then replaces the destination. On any error the
 //! temporary file is removed and the destination is left untouched.
+//!
+//! A command with several outputs (a map and its normal map, an image and
+//! its AOVs) opens a [`Batch`]: every write on that thread then stays under
+//! its temporary name until [`Batch::commit`] renames them all, so a failure
+//! in the last output leaves none of the earlier ones behind.
 
 use crate::{Error, Result};
+use std::cell::RefCell;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
+use std::os::unix::ffi::{OsStrExt, OsStringExt};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The longest file name most file systems take (ext4, XFS, tmpfs, APFS).
+const NAME_MAX: usize = 255;
+
+thread_local! {
+    /// Temporary files written under an open [`Batch`], with their
+    /// destinations, in the order written.
+    static STAGED: RefCell<Option<Vec<(PathBuf, PathBuf)>>> = const { RefCell::new(None) };
+}
+
+/// The outputs of one command, committed together. While a batch is open,
+/// [`write_atomic`] on the same thread leaves each file under its temporary
+/// name; [`Batch::commit`] renames them all into place, and dropping the
+/// batch uncommitted (an error, a panic) removes them.
+#[must_use = "a batch writes nothing until it is committed"]
+pub struct Batch {
+    /// False for a batch opened inside another: the outer one commits.
+    owner: bool,
+}
+
+impl Batch {
+    /// Opens a batch on this thread (joining the open one, if any).
+    pub fn new() -> Self {
+        let owner = STAGED.with(|s| {
+            let mut s = s.borrow_mut();
+            let fresh = s.is_none();
+            if fresh {
+                *s = Some(Vec::new());
+            }
+            fresh
+        });
+        Self { owner }
+    }
+
+    /// Renames every staged file into place, in the order written. A rename
+    /// that fails removes the files not yet renamed and is reported; the
+    /// ones before it are already in place (renames are atomic one by one,
+    /// not together).
+    pub fn commit(self) -> Result<()> {
+        if !self.owner {
+            return Ok(());
+        }
+        let staged = take_staged();
+        // A destination that cannot be replaced is found before any rename,
+        // so that none of the batch lands.
+        if let Some((_, dest)) = staged.iter().find(|(_, d)| d.is_dir()) {
+            for (t, _) in &staged {
+                let _ = std::fs::remove_file(t);
+            }
+            return Err(Error::Io {
+                path: dest.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::IsADirectory,
+                    "a directory is in the way of this output",
+                ),
+            });
+        }
+        let mut pending = staged.iter();
+        while let Some((tmp, dest)) = pending.next() {
+            if let Err(source) = std::fs::rename(tmp, dest) {
+                let _ = std::fs::remove_file(tmp);
+                for (t, _) in pending {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(Error::Io {
+                    path: dest.clone(),
+                    source,
+                });
+            }
+            sync_parent(dest);
+        }
+        Ok(())
+    }
+}
+
+impl Default for Batch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Drop for Batch {
+    fn drop(&mut self) {
+        if self.owner {
+            // Empty after a commit; otherwise nothing of the batch survives.
+            for (tmp, _) in take_staged() {
+                let _ = std::fs::remove_file(tmp);
+            }
+        }
+    }
+}
+
+fn take_staged() -> Vec<(PathBuf, PathBuf)> {
+    STAGED.with(|s| s.borrow_mut().take()).unwrap_or_default()
+}
 
 /// Writes the bytes `write` produces to `path`, atomically.
 ///
@@ -33,15 +135,33 @@ where
     let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
     file.sync_all().map_err(io_err)?;
     drop(file);
-    std::fs::rename(&tmp_path, path).map_err(io_err)?;
+    let staged = STAGED.with(|s| match s.borrow_mut().as_mut() {
+        Some(list) => {
+            // A second write of the same path in one batch replaces the first.
+            if let Some(k) = list.iter().position(|(_, d)| d == path) {
+                let (old, _) = list.remove(k);
+                let _ = std::fs::remove_file(old);
+            }
+            list.push((tmp_path.clone(), path.to_path_buf()));
+            true
+        }
+        None => false,
+    });
+    if !staged {
+        std::fs::rename(&tmp_path, path).map_err(io_err)?;
+        sync_parent(path);
+    }
     guard.disarm();
-    // Persist the rename itself; a failure here loses nothing already written.
+    Ok(())
+}
+
+/// Persists a rename; a failure here loses nothing already written.
+fn sync_parent(path: &Path) {
     if let Some(dir) = parent_dir(path) {
         if let Ok(d) = File::open(dir) {
             let _ = d.sync_all();
         }
     }
-    Ok(())
 }
 
 fn parent_dir(path: &Path) -> Option<&Path> {
@@ -51,7 +171,9 @@ fn parent_dir(path: &Path) -> Option<&Path> {
     }
 }
 
-/// A fresh, exclusively created file next to `path`: `.NAME.PID.N.tmp`.
+/// A fresh, exclusively created file next to `path`: `.NAME.PID.N.tmp`,
+/// with `NAME` cut short when the whole would pass [`NAME_MAX`] bytes (a
+/// valid 250-byte output name must not fail for its temporary's sake).
 fn create_temp(path: &Path) -> std::io::Result<(PathBuf, File)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let name = path.file_name().ok_or_else(|| {
@@ -63,16 +185,63 @@ fn create_temp(path: &Path) -> std::io::Result<(PathBuf, File)> {
     let dir = parent_dir(path).unwrap_or(Path::new("."));
     loop {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".{}.{n}.tmp", std::process::id()));
-        let tmp = dir.join(tmp_name);
+        let tmp = dir.join(temp_name(name.as_bytes(), std::process::id(), n));
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
             Ok(f) => return Ok((tmp, f)),
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(e),
         }
     }
+}
+
+/// `.NAME.PID.N.tmp`, `NAME` shortened to keep the whole within
+/// [`NAME_MAX`] bytes (the PID and counter keep it unique).
+fn temp_name(name: &[u8], pid: u32, n: u64) -> std::ffi::OsString {
+    let suffix = format!(".{pid}.{n}.tmp");
+    let keep = name.len().min(NAME_MAX - 1 - suffix.len());
+    let mut out = Vec::with_capacity(NAME_MAX);
+    out.push(b'.');
+    out.extend_from_slice(&name[..keep]);
+    out.extend_from_slice(suffix.as_bytes());
+    std::ffi::OsString::from_vec(out)
+}
+
+/// The process id in a name [`temp_name`] made, if it is one.
+fn temp_pid(name: &[u8]) -> Option<u32> {
+    let name = std::str::from_utf8(name.strip_prefix(b".")?).ok()?;
+    let mut parts = name.strip_suffix(".tmp")?.rsplitn(3, '.');
+    parts.next()?.parse::<u64>().ok()?;
+    let pid = parts.next()?.parse().ok()?;
+    parts.next().filter(|rest| !rest.is_empty())?;
+    Some(pid)
+}
+
+/// Removes from `dir` the temporary files of processes that no longer run
+/// (a bake killed by SIGKILL or a power cut leaves its `.NAME.PID.N.tmp`
+/// behind, and no later run would ever rename it). A process is taken as
+/// running while `/proc/PID` exists; without `/proc` nothing is removed.
+/// Returns how many were removed.
+pub fn remove_stale_temps(dir: &Path) -> usize {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return 0;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(pid) = temp_pid(name.as_bytes()) else {
+            continue;
+        };
+        let is_file = e.file_type().is_ok_and(|t| t.is_file());
+        if is_file && !proc.join(pid.to_string()).exists() && std::fs::remove_file(e.path()).is_ok()
+        {
+            removed += 1;
+        }
+    }
+    removed
 }
 
 struct RemoveOnDrop(Option<PathBuf>);
@@ -133,6 +302,69 @@ mod tests {
         assert!(write_atomic(&p, |_| Err(std::io::Error::other("boom"))).is_err());
         assert_eq!(std::fs::read(&p).unwrap(), b"old");
         assert_eq!(entries(dir.path()), vec!["a.bin"]);
+    }
+
+    #[test]
+    fn a_name_of_250_bytes_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let name = format!("{}.npy", "n".repeat(246));
+        assert_eq!(name.len(), 250);
+        let p = dir.path().join(&name);
+        write_atomic(&p, |w| w.write_all(b"x")).unwrap();
+        assert_eq!(entries(dir.path()), vec![name]);
+        let t = temp_name(&[b'a'; 255], u32::MAX, u64::MAX);
+        assert_eq!(t.len(), NAME_MAX);
+        assert_eq!(temp_pid(t.as_bytes()), Some(u32::MAX));
+    }
+
+    #[test]
+    fn a_batch_commits_all_or_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.bin"), dir.path().join("b.bin"));
+        {
+            let _batch = Batch::new();
+            write_atomic(&a, |w| w.write_all(b"a")).unwrap();
+            assert!(!a.exists(), "renamed before the commit");
+            assert!(write_atomic(&b, |_| Err(std::io::Error::other("boom"))).is_err());
+            // Dropped uncommitted: nothing of it is left.
+        }
+        assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+        let batch = Batch::new();
+        write_atomic(&a, |w| w.write_all(b"1")).unwrap();
+        write_atomic(&b, |w| w.write_all(b"2")).unwrap();
+        write_atomic(&a, |w| w.write_all(b"3")).unwrap();
+        batch.commit().unwrap();
+        assert_eq!(entries(dir.path()), vec!["a.bin", "b.bin"]);
+        assert_eq!(std::fs::read(&a).unwrap(), b"3");
+        // A directory in the way of one output: none of them lands.
+        let c = dir.path().join("c.bin");
+        std::fs::create_dir(&c).unwrap();
+        let batch = Batch::new();
+        write_atomic(&dir.path().join("d.bin"), |w| w.write_all(b"d")).unwrap();
+        write_atomic(&c, |w| w.write_all(b"c")).unwrap();
+        let e = batch.commit().unwrap_err().to_string();
+        assert!(e.contains("c.bin"), "{e}");
+        assert_eq!(entries(dir.path()), vec!["a.bin", "b.bin", "c.bin"]);
+        std::fs::remove_dir(&c).unwrap();
+        // Outside a batch, writes land at once again.
+        write_atomic(&b, |w| w.write_all(b"4")).unwrap();
+        assert_eq!(std::fs::read(&b).unwrap(), b"4");
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        // A process id above the kernel's maximum (2^22) is never running.
+        let dead = dir.path().join(".k.dmap.4194305.0.tmp");
+        let live = dir
+            .path()
+            .join(format!(".k.dmap.{}.0.tmp", std::process::id()));
+        let other = dir.path().join(".k.dmap.tmp");
+        for p in [&dead, &live, &other] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temps(dir.path()), 1);
+        assert!(!dead.exists() && live.exists() && other.exists());
     }
 
     #[test]

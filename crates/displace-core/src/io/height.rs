@@ -77,10 +77,7 @@ pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
         return generators::generate(source, opts.size[0], opts.size[1], opts.address);
     }
     let path = Path::new(source);
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    let ext = lower_extension(path);
     match ext.as_deref() {
         Some("png") => load_png(path, opts),
         Some("exr") => load_exr(path, opts),
@@ -89,6 +86,65 @@ pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
             message: "unsupported height map: expected gen:NAME, a .png or an .exr file".into(),
         }),
     }
+}
+
+/// The texel size [`load`] would give `source`, from a file's header
+/// alone (nothing decoded), so a caller can estimate a job's memory before
+/// loading: `opts.size` for a generator.
+pub fn dimensions(source: &str, opts: &HeightOptions) -> Result<[usize; 2]> {
+    if source.starts_with("gen:") {
+        return Ok(opts.size);
+    }
+    let path = Path::new(source);
+    let ext = lower_extension(path);
+    match ext.as_deref() {
+        Some("png") => {
+            use image::ImageDecoder;
+            let (w, h) = png_decoder(path)?.dimensions();
+            Ok([w as usize, h as usize])
+        }
+        Some("exr") => {
+            let size = exr_size(path)?;
+            Ok([size.width(), size.height()])
+        }
+        // `load` names the problem.
+        _ => load(source, opts).map(|h| [h.width(), h.height()]),
+    }
+}
+
+/// The PNG decoder of a checked, non-empty file, its header read.
+fn png_decoder(
+    path: &Path,
+) -> Result<image::codecs::png::PngDecoder<std::io::BufReader<std::fs::File>>> {
+    super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if file.metadata().is_ok_and(|m| m.len() == 0) {
+        return Err(image_err(path, "the file is empty"));
+    }
+    image::codecs::png::PngDecoder::new(std::io::BufReader::new(file))
+        .map_err(|e| image_err(path, format!("cannot read PNG: {e}")))
+}
+
+/// The size of the first layer of a checked EXR file, from its header.
+fn exr_size(path: &Path) -> Result<exr::math::Vec2<usize>> {
+    super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| image_err(path, format!("cannot read EXR: {e}")))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| image_err(path, "EXR file has no layers"))?;
+    Ok(header.layer_size)
+}
+
+/// The extension of `path` in lower case, which picks its reader.
+fn lower_extension(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
 }
 
 fn image_err(path: &Path, what: impl std::fmt::Display) -> Error {
@@ -105,15 +161,7 @@ fn finish(path: &Path, w: usize, h: usize, data: Vec<f32>, address: Address) -> 
 
 fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     use image::{DynamicImage, ImageDecoder};
-    let file = std::fs::File::open(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    if file.metadata().is_ok_and(|m| m.len() == 0) {
-        return Err(image_err(path, "the file is empty"));
-    }
-    let decoder = image::codecs::png::PngDecoder::new(std::io::BufReader::new(file))
-        .map_err(|e| image_err(path, format!("cannot read PNG: {e}")))?;
+    let decoder = png_decoder(path)?;
     let (w, h) = decoder.dimensions();
     HeightMap::check_size(w as usize, h as usize).map_err(|e| image_err(path, e))?;
     let img = DynamicImage::from_decoder(decoder)
@@ -165,13 +213,7 @@ fn norm16(v: Vec<u16>) -> Vec<f32> {
 
 fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     use exr::prelude::*;
-    let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| image_err(path, format!("cannot read EXR: {e}")))?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| image_err(path, "EXR file has no layers"))?;
-    let size = header.layer_size;
+    let size = exr_size(path)?;
     HeightMap::check_size(size.width(), size.height()).map_err(|e| image_err(path, e))?;
     let image = read()
         .no_deep_data()

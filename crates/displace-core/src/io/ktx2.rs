@@ -215,6 +215,46 @@ pub struct Decoded {
     pub writer: Option<String>,
 }
 
+/// Checks what the `ktx2` crate's parser would panic on rather than
+/// refuse (found by tests/fuzz.rs of displace-render): a data format
+/// descriptor range past the file or shorter than its length field, and a
+/// basic descriptor block whose texel block dimension byte is 255 (the
+/// crate adds 1 to it in a `u8` and unwraps a `NonZeroU8`). Anything else
+/// is left to that parser, which reports it.
+fn check_dfd(bytes: &[u8]) -> std::result::Result<(), FormatError> {
+    let u32_at = |o: usize| -> Option<u32> {
+        Some(u32::from_le_bytes(bytes.get(o..o + 4)?.try_into().ok()?))
+    };
+    let (Some(offset), Some(length)) = (u32_at(48), u32_at(52)) else {
+        return Ok(()); // A short header: the parser says it is cut off.
+    };
+    let (offset, length) = (offset as usize, length as usize);
+    let end = offset
+        .checked_add(length)
+        .filter(|&e| e <= bytes.len())
+        .ok_or_else(|| FormatError::Truncated("the data format descriptor is cut off".into()))?;
+    if length < 4 {
+        return Err(FormatError::Invalid(format!(
+            "the data format descriptor is {length} bytes, shorter than its length field"
+        )));
+    }
+    let mut at = offset + 4;
+    while at + 8 <= end {
+        let size = u16::from_le_bytes([bytes[at + 6], bytes[at + 7]]) as usize;
+        if size < 8 || at + size > end {
+            return Ok(()); // The parser refuses a bad block size.
+        }
+        let basic = u32_at(at) == Some(0);
+        if basic && size >= 16 && bytes[at + 12..at + 16].contains(&255) {
+            return Err(FormatError::Invalid(
+                "a texel block dimension of the data format descriptor is 256 (at most 255)".into(),
+            ));
+        }
+        at += size;
+    }
+    Ok(())
+}
+
 /// Decodes a KTX2 distance map written by [`to_bytes`] (or any tool that
 /// writes the same `displace.*` keys), checking the sizes in the header
 /// before allocating.
@@ -222,6 +262,7 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
     if bytes.len() < IDENTIFIER.len() || bytes[..IDENTIFIER.len()] != IDENTIFIER {
         return Err(FormatError::BadMagic("KTX2"));
     }
+    check_dfd(bytes)?;
     let reader = ::ktx2::Reader::new(bytes).map_err(|e| match e {
         ::ktx2::ParseError::UnexpectedEnd => {
             FormatError::Truncated("the KTX2 container is cut off".into())
@@ -507,6 +548,21 @@ mod tests {
             "{}",
             err(&foreign)
         );
+        // Found by fuzzing: what the ktx2 crate panics on is refused first.
+        let dfd = u32::from_le_bytes(good[48..52].try_into().unwrap()) as usize;
+        let mut dims = good.clone();
+        dims[dfd + 4 + 12] = 255;
+        assert!(
+            err(&dims).contains("texel block dimension"),
+            "{}",
+            err(&dims)
+        );
+        let mut past = good.clone();
+        past[52..56].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(err(&past).contains("truncated"), "{}", err(&past));
+        let mut short = good.clone();
+        short[52..56].copy_from_slice(&2u32.to_le_bytes());
+        assert!(err(&short).contains("descriptor"), "{}", err(&short));
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod height;
 pub mod ktx2;
 pub mod npy;
 
+use crate::convention::MAX_ALLOCATION_BYTES;
 use crate::distance_map::Format;
 use crate::{Address, DistanceMap, Error, Extent, Result};
 use std::path::{Path, PathBuf};
@@ -52,8 +53,67 @@ impl FormatError {
     }
 }
 
-/// Reads a whole file, naming it on failure.
+/// Largest scene file (TOML) read: scenes are hand-written text, and the
+/// biggest seed scene is a few KiB.
+pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
+
+/// Largest mesh file (OBJ) read: about the text of
+/// `displace_render::mesh::MAX_TRIANGLES` triangles.
+pub const MAX_MESH_FILE_BYTES: u64 = 4 << 30;
+
+/// Largest image file (PNG, EXR: height maps and textures) read. Their
+/// decoded size is checked separately, from the header, before decoding.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 2 << 30;
+
+/// Largest array or map file (npy, KTX2, DDS) read: the largest allocation
+/// plus room for a header.
+pub const MAX_ARRAY_FILE_BYTES: u64 = (MAX_ALLOCATION_BYTES as u64) + (1 << 20);
+
+/// Checks that `path` is a regular file of at most `limit` bytes before
+/// anything reads it: a directory, a FIFO or a device such as `/dev/zero`
+/// would otherwise be read until memory runs out (or forever), and an
+/// oversized file would be read whole before any format check. `what` names
+/// the input in the message ("scene file", "mesh"). Returns the file's size.
+pub fn check_input(path: &Path, what: &str, limit: u64) -> Result<u64> {
+    let meta = std::fs::metadata(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let refuse = |message: String| Error::Input {
+        path: path.to_path_buf(),
+        message,
+    };
+    let kind = meta.file_type();
+    if !kind.is_file() {
+        use std::os::unix::fs::FileTypeExt;
+        let is = if kind.is_dir() {
+            "a directory"
+        } else if kind.is_fifo() {
+            "a FIFO (named pipe)"
+        } else if kind.is_char_device() || kind.is_block_device() {
+            "a device"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            "not a regular file"
+        };
+        return Err(refuse(format!(
+            "{what} is {is}; only regular files are read"
+        )));
+    }
+    if meta.len() > limit {
+        return Err(refuse(format!(
+            "{what} is {} bytes, more than the limit of {limit} bytes",
+            meta.len()
+        )));
+    }
+    Ok(meta.len())
+}
+
+/// Reads a whole array or map file, naming it on failure, after
+/// [`check_input`] with [`MAX_ARRAY_FILE_BYTES`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    check_input(path, "the file", MAX_ARRAY_FILE_BYTES)?;
     std::fs::read(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,

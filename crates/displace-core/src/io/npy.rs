@@ -6,7 +6,7 @@
 //! itself does, for float32 and (for occupancy volumes) uint8.
 
 use super::FormatError;
-use crate::convention::{check_allocation, MAX_ALLOCATION_BYTES};
+use crate::convention::check_allocation;
 use crate::{Address, DistanceMap, Error, Extent, Result};
 use std::io::Write;
 use std::path::Path;
@@ -245,17 +245,6 @@ pub fn read_file(path: &Path) -> Result<Array<f32>> {
 
 /// As [`read_file`], for any [`Element`] type.
 pub fn read_file_as<T: Element>(path: &Path) -> Result<Array<T>> {
-    if let Ok(meta) = std::fs::metadata(path) {
-        if meta.len() as u128 > MAX_ALLOCATION_BYTES + (1 << 20) {
-            return Err(Error::Format {
-                path: path.to_path_buf(),
-                message: format!(
-                    "{} bytes is larger than any array this program accepts",
-                    meta.len()
-                ),
-            });
-        }
-    }
     let bytes = super::read_bytes(path)?;
     from_bytes_as::<T>(&bytes).map_err(|e| e.at(path))
 }

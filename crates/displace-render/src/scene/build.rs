@@ -16,22 +16,57 @@ use crate::material::Material;
 use crate::mesh::MeshTriangle;
 use crate::shapes::{box_faces, Quad, Sphere, Triangle};
 use crate::texture::Texture;
+use displace_core::convention::MAX_TRACE_ITERATIONS;
 use displace_core::{Address, Extent, HeightMap, Method, TraceOptions};
 use glam::{Mat3, Vec2, Vec3};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Image sizes above this many pixels are refused before allocating.
 const MAX_PIXELS: u64 = 1 << 28;
 
+/// Largest magnitude of a coordinate or vector component in a scene. Past
+/// it a squared length overflows float32, and a camera at `-3e38` would be
+/// reported as looking nowhere instead of as out of range.
+pub const MAX_COORDINATE: f32 = 1e18;
+
+/// Bytes per image pixel counted in a scene's memory estimate: the linear
+/// film (12), its 8-bit output (3) and room for AOVs (16).
+const IMAGE_BYTES_PER_PIXEL: u128 = 31;
+
+/// Most reflection bounces (`image.max_depth`). Bounces are traced
+/// recursively, one chain of stack frames per bounce on a worker thread's
+/// stack: two facing mirrors at 5000 bounces overflow it, while 64 leaves a
+/// wide margin and is far more than any visible contribution needs (each
+/// bounce is weighted by the mirror's colour).
+pub const MAX_DEPTH: i64 = 64;
+
+/// Most samples per pixel (`image.spp`, `--spp`).
+pub const MAX_SPP: i64 = 1 << 16;
+
+/// Most shadow rays per area light at each hit (`image.shadow_samples`).
+pub const MAX_SHADOW_SAMPLES: i64 = 1 << 12;
+
+/// Most camera samples of one render (pixels times `spp`): about 6.9e10,
+/// hours of work at any speed this renderer reaches, so a typo such as
+/// `spp = 4000000000` is refused rather than left to run for years.
+pub const MAX_SAMPLES: u64 = 1 << 36;
+
+/// A height source as loaded: the source, its generated size, addressing.
+type HeightKey = (String, [usize; 2], Address);
+
 struct Ctx<'a> {
     name: &'a Path,
     base: &'a Path,
     cache: BakeCache,
-    heights: HashMap<(String, [usize; 2], Address), Arc<HeightMap>>,
+    heights: HashMap<HeightKey, Arc<HeightMap>>,
     textures: HashMap<(PathBuf, bool), Arc<Texture>>,
     method: Option<Method>,
+    /// The bakes counted in `memory`: height source and map size.
+    planned: HashSet<(HeightKey, [usize; 3])>,
+    /// Estimated bytes the scene holds: its image and its bakes' peaks.
+    memory: u128,
 }
 
 impl Ctx<'_> {
@@ -43,13 +78,17 @@ impl Ctx<'_> {
     }
 
     fn vec(&self, v: V3, what: &str) -> Result<Vec3> {
-        if v.iter().all(|c| c.is_finite()) {
-            Ok(Vec3::from_array(v))
-        } else {
-            Err(self.err(format!(
+        if !v.iter().all(|c| c.is_finite()) {
+            return Err(self.err(format!(
                 "{what} = {v:?}: every component must be a finite number"
-            )))
+            )));
         }
+        if v.iter().any(|c| c.abs() > MAX_COORDINATE) {
+            return Err(self.err(format!(
+                "{what} = {v:?}: components must be at most {MAX_COORDINATE:e} in magnitude (squared lengths must fit in float32)"
+            )));
+        }
+        Ok(Vec3::from_array(v))
     }
 
     fn color(&self, v: V3, what: &str) -> Result<Vec3> {
@@ -67,12 +106,25 @@ impl Ctx<'_> {
         Ok(v as u32)
     }
 
-    fn texture(&mut self, file: &str, srgb: bool) -> Result<Arc<Texture>> {
+    /// A whole number in `1..=max`, the bound named in the message.
+    fn bounded(&self, v: i64, max: i64, what: &str) -> Result<u32> {
+        let n = self.positive(v, what)?;
+        if v > max {
+            return Err(self.err(format!("{what} = {v} is more than the limit of {max}")));
+        }
+        Ok(n)
+    }
+
+    /// The texture `file` that scene key `key` names; a failure to load it
+    /// names the key as well as the file.
+    fn texture(&mut self, file: &str, srgb: bool, key: &str) -> Result<Arc<Texture>> {
         let path = self.base.join(file);
         if let Some(t) = self.textures.get(&(path.clone(), srgb)) {
             return Ok(t.clone());
         }
-        let t = Arc::new(Texture::load(&path, srgb)?);
+        let t = Arc::new(
+            Texture::load(&path, srgb).map_err(|e| self.err(format!("{key} = \"{file}\": {e}")))?,
+        );
         self.textures.insert((path, srgb), t.clone());
         Ok(t)
     }
@@ -86,6 +138,8 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         heights: HashMap::new(),
         textures: HashMap::new(),
         method: opts.method,
+        planned: HashSet::new(),
+        memory: 0,
     };
     let img = &spec.image;
     let (width, height) = match opts.size {
@@ -103,14 +157,26 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
             "image {width}x{height} has more than {MAX_PIXELS} pixels"
         )));
     }
+    // The film and its AOVs: at most a few colour-sized buffers.
+    cx.memory = width as u128 * height as u128 * IMAGE_BYTES_PER_PIXEL;
     let spp = match opts.spp {
-        Some(s) => cx.positive(s as i64, "--spp")?,
-        None => cx.positive(img.spp, "image.spp")?,
+        Some(s) => cx.bounded(s as i64, MAX_SPP, "--spp")?,
+        None => cx.bounded(img.spp, MAX_SPP, "image.spp")?,
     };
-    let shadow_samples = cx.positive(img.shadow_samples, "image.shadow_samples")?;
-    if img.max_depth < 0 {
+    let samples = width as u64 * height as u64 * spp as u64;
+    if samples > MAX_SAMPLES {
         return Err(cx.err(format!(
-            "image.max_depth must be >= 0, got {}",
+            "{width}x{height} pixels at {spp} spp is {samples} camera samples, more than the limit of {MAX_SAMPLES}; lower image.spp or the size"
+        )));
+    }
+    let shadow_samples = cx.bounded(
+        img.shadow_samples,
+        MAX_SHADOW_SAMPLES,
+        "image.shadow_samples",
+    )?;
+    if !(0..=MAX_DEPTH).contains(&img.max_depth) {
+        return Err(cx.err(format!(
+            "image.max_depth must be 0..={MAX_DEPTH} (bounces are traced recursively), got {}",
             img.max_depth
         )));
     }
@@ -424,8 +490,10 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
 
 fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
     let what = format!("materials.{key}");
-    let tex =
-        |cx: &mut Ctx, t: &Option<String>| t.as_ref().map(|f| cx.texture(f, true)).transpose();
+    let key = format!("{what}.texture");
+    let tex = |cx: &mut Ctx, t: &Option<String>| {
+        t.as_ref().map(|f| cx.texture(f, true, &key)).transpose()
+    };
     Ok(match m {
         MaterialSpec::Lambert { color, texture } => Material {
             diffuse: cx.color(*color, &format!("{what}.color"))?,
@@ -564,7 +632,11 @@ impl DispBuild {
                 "{what}.map_size must be 2..16384 voxels per side, got {ms:?}"
             )));
         }
-        let iterations = cx.positive(d.iterations, &format!("{what}.iterations"))?;
+        let iterations = cx.bounded(
+            d.iterations,
+            MAX_TRACE_ITERATIONS.into(),
+            &format!("{what}.iterations"),
+        )?;
         if d.tiles.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
             return Err(cx.err(format!("{what}.tiles must be positive, got {:?}", d.tiles)));
         }
@@ -575,16 +647,32 @@ impl DispBuild {
         }
         let size = [hs[0] as usize, hs[1] as usize];
         let key = (d.height.clone(), size, address);
+        let map_size = [ms[0] as usize, ms[1] as usize, ms[2] as usize];
+        let core_err = |cx: &Ctx, e: Error| match e {
+            Error::Core(c) => cx.err(format!("{what}.height `{}`: {c}", d.height)),
+            other => other,
+        };
+        if cx.planned.insert((key.clone(), map_size)) {
+            // A new bake: its peak on top of what the scene holds already.
+            let texels = crate::heights::dimensions(&d.height, size, address, cx.base)
+                .map_err(|e| core_err(cx, e))?;
+            let bytes = displace_core::memory::bake_peak_bytes(texels, map_size, false);
+            cx.memory += bytes;
+            displace_core::memory::check(
+                &format!(
+                    "{what}: baking the {}x{} height map into {}x{}x{} voxels (with the scene's other bakes and image)",
+                    texels[0], texels[1], map_size[0], map_size[1], map_size[2]
+                ),
+                cx.memory,
+            )
+            .map_err(|e| cx.err(e.to_string()))?;
+        }
         let height = match cx.heights.get(&key) {
             Some(h) => h.clone(),
             None => {
                 let h = Arc::new(
-                    crate::heights::load(&d.height, size, address, cx.base).map_err(
-                        |e| match e {
-                            Error::Core(c) => cx.err(format!("{what}.height `{}`: {c}", d.height)),
-                            other => other,
-                        },
-                    )?,
+                    crate::heights::load(&d.height, size, address, cx.base)
+                        .map_err(|e| core_err(cx, e))?,
                 );
                 cx.heights.insert(key, h.clone());
                 h
@@ -592,20 +680,16 @@ impl DispBuild {
         };
         let extent =
             Extent::new(tile.x, tile.y, d.depth).map_err(|e| cx.err(format!("{what}: {e}")))?;
-        let map = cx.cache.get(
-            &height,
-            [ms[0] as usize, ms[1] as usize, ms[2] as usize],
-            extent,
-        )?;
+        let map = cx.cache.get(&height, map_size, extent)?;
         let color = d
             .color_texture
             .as_ref()
-            .map(|f| cx.texture(f, true))
+            .map(|f| cx.texture(f, true, &format!("{what}.color_texture")))
             .transpose()?;
         let normal_map = d
             .normal_map
             .as_ref()
-            .map(|f| cx.texture(f, false))
+            .map(|f| cx.texture(f, false, &format!("{what}.normal_map")))
             .transpose()?;
         Ok(Self {
             map,

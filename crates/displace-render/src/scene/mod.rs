@@ -5,6 +5,7 @@ mod build;
 pub mod spec;
 mod world;
 
+pub use build::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
 pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriAttr};
 
 use crate::bake_cache::CacheStats;
@@ -57,9 +58,23 @@ impl Scene {
     /// Reads and builds the scene file at `path`; relative paths inside it
     /// are relative to its directory.
     pub fn load(path: &Path, opts: &SceneOptions) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
+        check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            // Where the bad byte is, as for a TOML error.
+            let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+            let good = std::str::from_utf8(good).unwrap_or_default();
+            let (line, column) = line_column(good, good.len());
+            Error::Parse {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: "invalid UTF-8: a scene file is UTF-8 text".into(),
+            }
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_toml(&text, path, base, opts)

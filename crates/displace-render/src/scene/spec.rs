@@ -2,10 +2,22 @@
 //! unknown keys: a misspelt key is an error, never silently ignored.
 //! `docs/scenes.md` documents each key, its units and its default.
 
-use serde::Deserialize;
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
 
 pub type V3 = [f32; 3];
+
+/// Exactly `[x, y, z]`. A fixed-size array read straight from a TOML array
+/// stops after its three elements and ignores the rest, so `[1, 2, 3, 4]`
+/// (or `[1, 2, 3, "junk"]`) would pass as `[1, 2, 3]`; the tables of tagged
+/// enums (materials, lights, shapes) are buffered first and already refuse
+/// extra elements, the plain tables (`[image]`, `[camera]`) need this.
+fn exact3<'de, D: Deserializer<'de>>(d: D) -> Result<V3, D::Error> {
+    let v = Vec::<f32>::deserialize(d)?;
+    V3::try_from(v.as_slice())
+        .map_err(|_| D::Error::invalid_length(v.len(), &"exactly 3 numbers [x, y, z]"))
+}
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -33,7 +45,7 @@ pub struct ImageSpec {
     pub seed: u64,
     #[serde(default = "default_shadow_samples")]
     pub shadow_samples: i64,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "exact3")]
     pub background: V3,
 }
 
@@ -50,9 +62,11 @@ fn default_shadow_samples() -> i64 {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
+    #[serde(deserialize_with = "exact3")]
     pub position: V3,
+    #[serde(deserialize_with = "exact3")]
     pub look_at: V3,
-    #[serde(default = "default_up")]
+    #[serde(default = "default_up", deserialize_with = "exact3")]
     pub up: V3,
     /// Degrees.
     #[serde(default = "default_vfov")]

@@ -1,0 +1,281 @@
+//! Seeded mutation fuzzing of every parser, on stable Rust: the repository's
+//! scenes, a small OBJ, PNG and EXR height maps and the npy, KTX2 and DDS
+//! maps of a small bake are mutated (bytes flipped, inserted, deleted,
+//! duplicated, truncated, numbers replaced by extreme ones) and fed back.
+//! Every parser must answer `Ok` or `Err`, never panic; a panic names the
+//! parser and the case and keeps its input under `target/fuzz-crashes` to
+//! reproduce. The seed is fixed, so a run is repeatable; `DISPLACE_FUZZ_CASES`
+//! sets the number of cases per corpus (default 1000) and `DISPLACE_FUZZ_SEED`
+//! picks other cases. See
+//! docs/reliability.md for what was tried and found.
+
+mod common;
+
+use common::*;
+use displace_core::io::{dds, height, ktx2, npy};
+use displace_core::{bake, Address, BakeOptions, Extent};
+use displace_render::{Scene, SceneOptions};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+/// xorshift64*: small, seeded, good enough to pick mutations.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// Values that break careless parsers: extremes, signs, non-numbers.
+const NASTY: &[&str] = &[
+    "0",
+    "-1",
+    "1e30",
+    "-3e38",
+    "nan",
+    "inf",
+    "4294967296",
+    "-0",
+    "1e-45",
+    "\"\"",
+    "[]",
+    "{}",
+    "9223372036854775807",
+    "65537",
+];
+
+/// One to four mutations of `input`; `text` inputs also get whole tokens
+/// replaced by [`NASTY`] values.
+fn mutate(rng: &mut Rng, input: &[u8], text: bool) -> Vec<u8> {
+    let mut v = input.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let at = rng.below(v.len() + 1);
+        match rng.below(if text { 7 } else { 6 }) {
+            0 if !v.is_empty() => {
+                let at = at.min(v.len() - 1);
+                v[at] ^= 1 << rng.below(8);
+            }
+            1 => v.insert(at, rng.next() as u8),
+            2 if at < v.len() => {
+                let n = rng.below(16).min(v.len() - at);
+                v.drain(at..at + n);
+            }
+            3 => {
+                let n = rng.below(64).min(v.len() - at);
+                let piece: Vec<u8> = v[at..at + n].to_vec();
+                v.splice(at..at, piece);
+            }
+            4 => v.truncate(at),
+            5 if !v.is_empty() => {
+                // A byte set to an extreme.
+                let at = at.min(v.len() - 1);
+                v[at] = [0, 0xff, 0x7f, 0x80][rng.below(4)];
+            }
+            6 => {
+                // A number-like token replaced by a nasty value.
+                let s = String::from_utf8_lossy(&v).into_owned();
+                let starts: Vec<usize> = s
+                    .char_indices()
+                    .filter(|(i, c)| {
+                        c.is_ascii_digit()
+                            && !s[..*i].ends_with(|p: char| p.is_ascii_alphanumeric() || p == '.')
+                    })
+                    .map(|(i, _)| i)
+                    .collect();
+                if let Some(&i) = starts.get(rng.below(starts.len())) {
+                    let end = s[i..]
+                        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '-'))
+                        .map_or(s.len(), |e| i + e);
+                    let mut t = s[..i].to_string();
+                    t.push_str(NASTY[rng.below(NASTY.len())]);
+                    t.push_str(&s[end..]);
+                    v = t.into_bytes();
+                }
+            }
+            _ => {}
+        }
+    }
+    v
+}
+
+fn cases() -> usize {
+    std::env::var("DISPLACE_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1000)
+}
+
+fn crash_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/fuzz-crashes")
+}
+
+/// Added to every parser's seed: `DISPLACE_FUZZ_SEED` (default 0) fuzzes
+/// other cases.
+fn seed_offset() -> u64 {
+    std::env::var("DISPLACE_FUZZ_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
+}
+
+/// Feeds `cases()` mutations of each of `corpus` to `parse` (which gets
+/// the bytes and a file holding them, named `name`, and says whether it
+/// accepted them), collecting panics. Asserts that some mutated inputs were
+/// still accepted, so the cases reach past the first check.
+fn fuzz(
+    parser: &str,
+    seed: u64,
+    corpus: &[Vec<u8>],
+    name: &str,
+    text: bool,
+    parse: &dyn Fn(&[u8], &Path) -> bool,
+) -> Vec<String> {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join(name);
+    let seed = seed + seed_offset() * 1000;
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ seed);
+    let mut crashes = Vec::new();
+    let mut accepted = 0;
+    for k in 0..cases() {
+        let input = mutate(&mut rng, &corpus[k % corpus.len()], text);
+        std::fs::write(&file, &input).unwrap();
+        match catch_unwind(AssertUnwindSafe(|| parse(&input, &file))) {
+            Ok(ok) => accepted += usize::from(ok),
+            Err(_) => {
+                let keep = crash_dir().join(format!("{parser}-{seed}-{k}-{name}"));
+                let _ = std::fs::create_dir_all(crash_dir());
+                let _ = std::fs::write(&keep, &input);
+                crashes.push(format!(
+                    "{parser} case {k}: input kept in {}",
+                    keep.display()
+                ));
+            }
+        }
+    }
+    assert!(
+        accepted > 0 || cases() < 50,
+        "{parser}: no mutated input was accepted"
+    );
+    crashes
+}
+
+fn small_map() -> displace_core::DisplacementMap {
+    let h = displace_core::generators::generate("gen:studded", 16, 16, Address::Clamp).unwrap();
+    bake(
+        &h,
+        &BakeOptions {
+            size: [8, 8, 4],
+            extent: Extent::new(1.0, 1.0, 0.25).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap()
+}
+
+const OBJ: &str = "# a textured quad and a triangle\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\no second\nv 0 0 1\nf 1 2 5\n";
+
+/// Small bakes for mutated scenes: a scene's own maps (up to 256 voxels a
+/// side) would make each case cost a long bake in a debug build.
+fn small_bakes(text: &str) -> String {
+    text.lines()
+        .map(|l| {
+            if l.starts_with("map_size =") {
+                "map_size = [8, 8, 4]"
+            } else if l.starts_with("height_size =") {
+                "height_size = [16, 16]"
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn mutated_inputs_never_panic() {
+    // Panics are caught and reported below; keep their noise off the log.
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let mut crashes = Vec::new();
+
+    let scenes: Vec<Vec<u8>> = std::fs::read_dir(scenes_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| small_bakes(&std::fs::read_to_string(p).unwrap()).into_bytes())
+        .collect();
+    assert!(scenes.len() >= 12);
+    let base = scenes_dir();
+    let opts = SceneOptions {
+        size: Some([4, 4]),
+        ..SceneOptions::default()
+    };
+    crashes.extend(fuzz("scene", 1, &scenes, "s.toml", true, &|b, _| {
+        std::str::from_utf8(b)
+            .is_ok_and(|text| Scene::from_toml(text, Path::new("s.toml"), &base, &opts).is_ok())
+    }));
+
+    crashes.extend(fuzz(
+        "obj",
+        2,
+        &[OBJ.as_bytes().to_vec()],
+        "m.obj",
+        true,
+        &|_, p| displace_render::mesh::load(p).is_ok(),
+    ));
+
+    let map = small_map();
+    let extent = map.extent;
+    let npy_bytes = npy::to_bytes(&[4, 8, 8], map.distance.data()).unwrap();
+    crashes.extend(fuzz("npy", 3, &[npy_bytes], "m.npy", false, &|b, p| {
+        let parsed = npy::from_bytes(b).is_ok();
+        npy::read_distance_map(p, extent, Address::Clamp).is_ok() || parsed
+    }));
+    let ktx: Vec<Vec<u8>> = [
+        displace_core::distance_map::Format::R8,
+        displace_core::distance_map::Format::R32F,
+    ]
+    .into_iter()
+    .map(|f| ktx2::to_bytes(&map.distance, extent, f).unwrap())
+    .collect();
+    crashes.extend(fuzz("ktx2", 4, &ktx, "m.ktx2", false, &|b, _| {
+        ktx2::from_bytes(b).is_ok()
+    }));
+    let dds_bytes = dds::to_bytes(&map.distance, displace_core::distance_map::Format::R8).unwrap();
+    crashes.extend(fuzz("dds", 5, &[dds_bytes], "m.dds", false, &|_, p| {
+        dds::read(p, extent, Address::Clamp).is_ok()
+    }));
+
+    // Height maps: a 16-bit PNG and an EXR written by our own writers.
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("h.png");
+    height::write_height_png16(&png, &map.height).unwrap();
+    let exr = dir.path().join("h.exr");
+    let img = displace_render::Image {
+        width: 8,
+        height: 8,
+        pixels: (0..64)
+            .map(|k| glam::Vec3::splat(k as f32 / 64.0))
+            .collect(),
+    };
+    displace_render::output::write_image(&exr, &img).unwrap();
+    let opts = height::HeightOptions::default();
+    for (parser, seed, file, name) in [("png", 6, &png, "h.png"), ("exr", 7, &exr, "h.exr")] {
+        let corpus = [std::fs::read(file).unwrap()];
+        crashes.extend(fuzz(parser, seed, &corpus, name, false, &|_, p| {
+            let height = height::load(&p.to_string_lossy(), &opts).is_ok();
+            displace_render::texture::Texture::load(p, true).is_ok() || height
+        }));
+    }
+
+    std::panic::set_hook(hook);
+    assert!(crashes.is_empty(), "{}", crashes.join("\n"));
+}
