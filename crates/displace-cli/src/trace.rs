@@ -142,6 +142,12 @@ pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) 
 pub fn run(args: TraceArgs) -> Result<()> {
     let extent = args.extent;
     crate::bake::check_npy_output(&args.output)?;
+    // Counts are refused before the rays are read or a map baked.
+    displace_core::check_iterations(args.iterations).context("--iterations")?;
+    if args.backend == Backend::Gpu {
+        crate::gpu::check_gpu_iterations(args.iterations)
+            .context("--iterations with --backend gpu")?;
+    }
     let rays = read_rays(&args.rays)?;
     let address = args.height_args.address;
     let map = match &args.map {
