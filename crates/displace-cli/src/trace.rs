@@ -203,6 +203,12 @@ pub fn run(args: TraceArgs) -> Result<()> {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
     };
     crate::bake::check_npy_output(&args.output)?;
+    // Counts are refused before the rays are read or a map baked.
+    displace_core::check_iterations(args.iterations).context("--iterations")?;
+    if args.backend == Backend::Gpu {
+        crate::gpu::check_gpu_iterations(args.iterations)
+            .context("--iterations with --backend gpu")?;
+    }
     let rays = read_rays(&args.rays)?;
     let address = args.height_args.address;
     let map = match &args.map {

@@ -158,32 +158,36 @@ fn runaway_counts_are_refused() {
         &["--threads", "1024"],
         &[],
     );
-    let trace = |iterations: &str| {
-        let args = [
-            "trace",
-            "--height",
-            "gen:flat",
-            "--extent",
-            "1,1,0.1",
-            "--size",
-            "8x8x4",
-            "--rays",
-            "rays.npy",
-            "--method",
-            "sphere-fixed",
-            "--iterations",
-            iterations,
-            "-o",
-            "h.npy",
-        ];
-        args.map(str::to_string)
-    };
-    write_rays(&d.join("rays.npy"), &[[0.5, 0.5, 0.2, 0.0, 0.0, -1.0]]);
-    for n in ["0", "4000000000"] {
-        let args = trace(n);
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        refuses(d, &args, &["iterations"], &[]);
+    // Refused before the rays are read (there are none here) or a map baked
+    // (at 4096^2 x 64 voxels a bake would take minutes).
+    let start = Instant::now();
+    let trace = [
+        "trace",
+        "--height",
+        "gen:flat",
+        "--extent",
+        "1,1,0.1",
+        "--size",
+        "4096x4096x64",
+        "--rays",
+        "missing.npy",
+        "--method",
+        "sphere-fixed",
+        "-o",
+        "h.npy",
+        "--iterations",
+    ];
+    for (n, extra, bound) in [
+        ("0", None, "65536"),
+        ("4000000000", None, "65536"),
+        ("17000", Some("--backend=gpu"), "4096"),
+    ] {
+        let mut args = trace.to_vec();
+        args.push(n);
+        args.extend(extra);
+        refuses(d, &args, &["--iterations", bound], &["missing.npy"]);
     }
+    assert!(start.elapsed() < Duration::from_secs(20));
 }
 
 /// `s.toml` in `dir`: the scene with its sphere replaced by a displaced

@@ -94,12 +94,7 @@ impl DisplacementMap {
 
     /// Checks that `opts` makes sense for this map before tracing many rays.
     pub fn check_trace(&self, opts: &TraceOptions) -> Result<()> {
-        if !(1..=MAX_TRACE_ITERATIONS).contains(&opts.iterations) {
-            return Err(Error::InvalidTrace(format!(
-                "iterations = {}: must be 1..={MAX_TRACE_ITERATIONS} (the most steps one ray may take)",
-                opts.iterations
-            )));
-        }
+        check_iterations(opts.iterations)?;
         if !(opts.tiles.iter().all(|t| t.is_finite() && *t > 0.0)) {
             return Err(Error::InvalidTrace(format!(
                 "tiles {:?} must be positive",
@@ -130,6 +125,18 @@ impl DisplacementMap {
     pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
         self.normals.sample(uv.x, uv.y)
     }
+}
+
+/// Refuses a step count outside `1..=MAX_TRACE_ITERATIONS`, which
+/// [`DisplacementMap::check_trace`] also checks; callers check it before a
+/// bake too, so a bad count costs no bake.
+pub fn check_iterations(iterations: u32) -> Result<()> {
+    if !(1..=MAX_TRACE_ITERATIONS).contains(&iterations) {
+        return Err(Error::InvalidTrace(format!(
+            "iterations = {iterations}: must be 1..={MAX_TRACE_ITERATIONS} (the most steps one ray may take)"
+        )));
+    }
+    Ok(())
 }
 
 /// Bakes the normal map and the conservative distance map of `height` for

@@ -43,7 +43,7 @@ pub mod techniques;
 mod displacement;
 
 pub use convention::{Address, Extent};
-pub use displacement::{bake, BakeOptions, DisplacementMap};
+pub use displacement::{bake, check_iterations, BakeOptions, DisplacementMap};
 pub use distance_map::DistanceMap;
 pub use error::Error;
 pub use heightmap::HeightMap;
