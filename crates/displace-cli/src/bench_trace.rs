@@ -34,24 +34,10 @@ pub struct BenchTraceArgs {
     pub extent: Extent,
 }
 
-/// SplitMix64: a seeded, reproducible stream without a dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// Rays from just above the shell top, at uniformly random points of the
 /// tile, random azimuths and elevations between 5 and 90 degrees, downwards.
 fn random_rays(aspect: [f32; 2], n: usize, seed: u64) -> Vec<MapRay> {
-    let mut rng = Rng(seed);
+    let mut rng = displace_core::random::SplitMix64::new(seed);
     (0..n)
         .map(|_| {
             let o = Vec3::new(

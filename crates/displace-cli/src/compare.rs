@@ -277,23 +277,10 @@ fn prepare(
     Ok((maps, report))
 }
 
-/// SplitMix64: the seeded ray sets.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// `n` rays entering the top of the face at uniform random points,
 /// `elevation` degrees above it, uniform random azimuth.
 fn rays(aspect: [f32; 2], elevation: f32, n: usize, seed: u64) -> Vec<MapRay> {
-    let mut rng = Rng(seed);
+    let mut rng = displace_core::random::SplitMix64::new(seed);
     let e = elevation.to_radians();
     (0..n)
         .map(|_| {

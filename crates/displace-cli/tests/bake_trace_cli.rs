@@ -116,25 +116,16 @@ fn bakes_the_default_with_no_arguments() {
     assert_eq!(files(dir.path()), vec!["out.ktx2"]);
 }
 
-/// SplitMix64, for reproducible rays.
-fn uniform(state: &mut u64) -> f32 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-}
-
 /// Rays in the physical frame of a `sx x sy x sz` face, from above the
 /// shell, with non-unit directions (the reported t is for `dir` as given).
 fn rays(n: usize, sx: f32, sy: f32, sz: f32) -> Vec<f32> {
-    let mut s = 42u64;
+    let mut s = displace_core::random::SplitMix64::new(42);
     let mut out = Vec::with_capacity(n * 6);
     for _ in 0..n {
-        let (x, y) = (uniform(&mut s) * sx, uniform(&mut s) * sy);
-        let az = uniform(&mut s) * std::f32::consts::TAU;
-        let el = (10.0 + 80.0 * uniform(&mut s)).to_radians();
-        let len = 0.5 + 2.0 * uniform(&mut s);
+        let (x, y) = (s.next_f32() * sx, s.next_f32() * sy);
+        let az = s.next_f32() * std::f32::consts::TAU;
+        let el = (10.0 + 80.0 * s.next_f32()).to_radians();
+        let len = 0.5 + 2.0 * s.next_f32();
         out.extend([x, y, 1.5 * sz]);
         out.extend([
             el.cos() * az.cos() * len,

@@ -36,18 +36,6 @@ fn read(path: &Path) -> (Vec<usize>, Vec<f32>) {
     (a.shape, a.data)
 }
 
-/// Seeded uniform numbers in [0, 1): the renderer's own generator.
-struct Rng(displace_render::sampler::Rng);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Self(displace_render::sampler::Rng::new(seed, 0))
-    }
-    fn next(&mut self) -> f32 {
-        self.0.next_f32()
-    }
-}
-
 const HEADER: &str = r#"
 [image]
 width = 8
@@ -156,12 +144,12 @@ fn displaced_faces_agree_with_the_face_query() {
         d,
         &displaced_unit_quad("gen:studded?period=8", 0.1, [32, 32, 8]),
     );
-    let mut rng = Rng::new(7);
+    let mut rng = displace_core::random::SplitMix64::new(7);
     let rays: Vec<Vec<f32>> = (0..2000)
         .map(|_| {
             // From above the face towards a point inside it.
-            let (tx, ty) = (0.1 + 0.8 * rng.next(), 0.1 + 0.8 * rng.next());
-            let (ox, oy) = (rng.next() - 0.5, rng.next() - 0.5);
+            let (tx, ty) = (0.1 + 0.8 * rng.next_f32(), 0.1 + 0.8 * rng.next_f32());
+            let (ox, oy) = (rng.next_f32() - 0.5, rng.next_f32() - 0.5);
             let o = [tx + ox * 0.3, ty + oy * 0.3, 0.3];
             vec![o[0], o[1], o[2], tx - o[0], ty - o[1], -o[2]]
         })
@@ -244,12 +232,12 @@ radius = 0.1
 material = \"white\"
 "),
     );
-    let mut rng = Rng::new(11);
+    let mut rng = displace_core::random::SplitMix64::new(11);
     let rays: Vec<Vec<f32>> = (0..3000)
         .map(|_| {
-            let o = [rng.next(), rng.next(), 0.2 + rng.next()];
-            let t = [rng.next(), rng.next(), rng.next() * 0.5];
-            let t_max = 2.0 * rng.next() + 0.01;
+            let o = [rng.next_f32(), rng.next_f32(), 0.2 + rng.next_f32()];
+            let t = [rng.next_f32(), rng.next_f32(), rng.next_f32() * 0.5];
+            let t_max = 2.0 * rng.next_f32() + 0.01;
             vec![
                 o[0],
                 o[1],

@@ -17,29 +17,16 @@ use std::hint::black_box;
 
 const RAYS: usize = 10_000;
 
-/// SplitMix64: a seeded, dependency-free source of uniform numbers.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// Rays from above the shell towards uniformly random points of the base,
 /// at elevations from 10 degrees (grazing, the hard case for any marcher) to
 /// straight down, so every ray meets the surface.
 fn random_rays(aspect: [f32; 2], seed: u64) -> Vec<MapRay> {
-    let mut rng = Rng(seed);
+    let mut rng = displace_core::random::SplitMix64::new(seed);
     (0..RAYS)
         .map(|_| {
-            let target = Vec3::new(rng.next() * aspect[0], rng.next() * aspect[1], 0.0);
-            let elevation = (10.0f32 + 80.0 * rng.next()).to_radians();
-            let azimuth = std::f32::consts::TAU * rng.next();
+            let target = Vec3::new(rng.next_f32() * aspect[0], rng.next_f32() * aspect[1], 0.0);
+            let elevation = (10.0f32 + 80.0 * rng.next_f32()).to_radians();
+            let azimuth = std::f32::consts::TAU * rng.next_f32();
             let dir = Vec3::new(
                 elevation.cos() * azimuth.cos(),
                 elevation.cos() * azimuth.sin(),

@@ -37,6 +37,7 @@ pub mod heightmap;
 pub mod io;
 pub mod memory;
 pub mod normal_map;
+pub mod random;
 pub mod sphere_trace;
 pub mod techniques;
 

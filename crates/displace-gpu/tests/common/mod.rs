@@ -2,29 +2,27 @@
 
 #![allow(dead_code)]
 
+use displace_core::random::SplitMix64;
 use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightMap, MapRay};
 use glam::Vec3;
 
-/// SplitMix64: a small seeded generator, so every run sees the same cases.
-pub struct Rng(u64);
+/// The project's seeded generator ([`SplitMix64`]), so every run sees the
+/// same cases, with the draws the GPU tests need.
+pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Self(seed)
+        Self(SplitMix64::new(seed))
     }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [0, 1).
     pub fn f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f32()
+        self.0.range(lo, hi)
     }
     pub fn unit(&mut self) -> Vec3 {
         loop {
