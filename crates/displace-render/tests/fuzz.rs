@@ -2,7 +2,8 @@
 //! scenes, a small OBJ, PNG and EXR height maps and the npy, KTX2 and DDS
 //! maps of a small bake are mutated (bytes flipped, inserted, deleted,
 //! duplicated, truncated, numbers replaced by extreme ones) and fed back.
-//! Every parser must answer `Ok` or `Err`, never panic; a panic names the
+//! Every parser must answer `Ok` or `Err`, never panic, and the run's peak
+//! resident memory stays under a bound; a panic names the
 //! parser and the case and keeps its input under `target/fuzz-crashes` to
 //! reproduce. The seed is fixed, so a run is repeatable; `DISPLACE_FUZZ_CASES`
 //! sets the number of cases per corpus (default 1000) and `DISPLACE_FUZZ_SEED`
@@ -278,4 +279,28 @@ fn mutated_inputs_never_panic() {
 
     std::panic::set_hook(hook);
     assert!(crashes.is_empty(), "{}", crashes.join("\n"));
+    // Bounded memory: no mutated size got past the checks into a large
+    // allocation. The whole test process's high-water mark (every corpus,
+    // its bakes and the test harness) stays far below what a runaway size
+    // would take.
+    if let Some(peak) = peak_resident_bytes() {
+        assert!(
+            peak < MEMORY_BOUND,
+            "the fuzz run peaked at {} MiB of resident memory (bound {} MiB)",
+            peak >> 20,
+            MEMORY_BOUND >> 20
+        );
+    }
+}
+
+/// The bound on the fuzz run's resident memory: 256 MiB, where a run
+/// measured 8 MiB (a runaway size would take gigabytes).
+const MEMORY_BOUND: u64 = 256 << 20;
+
+/// `VmHWM` of this process (Linux), in bytes.
+fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
