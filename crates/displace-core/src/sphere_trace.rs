@@ -1,7 +1,11 @@
-//! Map-space ray tracing: Donnelly's sphere tracing of the distance map
-//! (GPU Gems 2 ch. 8, section 8.3, listing 8-2), an early-out variant (the
-//! chapter's future work, section 8.7), refinement to the exact hit
-//! (`shared/DESIGN.md`, "Hit refinement") and the exact reference.
+//! Map-space ray tracing as the GPU does it: Donnelly's sphere tracing of
+//! the trilinearly sampled distance map (GPU Gems 2 ch. 8, section 8.3,
+//! listing 8-2), an early-out variant (the chapter's future work, section
+//! 8.7), refinement to the exact hit on the bilinear patches over the short
+//! stretch the map cannot resolve, and the exact reference. The WGSL
+//! tracers mirror this loop fetch for fetch, and `displace compare` charges
+//! its fetches; the CPU renderer runs the same early-out method through
+//! [`crate::cell_trace`], which finds the same hits with fewer loads.
 //!
 //! Rays live in map space ([`crate::convention`]): lengths in shell depths,
 //! the shell of a face of `tiles` tiles is `[0, tiles.x * ax] x [0, tiles.y *
