@@ -18,6 +18,11 @@ const METHOD_SPHERE: u32 = 0u;
 const METHOD_SPHERE_FIXED: u32 = 1u;
 const METHOD_EXACT: u32 = 2u;
 
+// Self-shadowing modes (displace_gpu::Shadows).
+const SHADOWS_NONE: u32 = 0u;
+const SHADOWS_HARD: u32 = 1u;
+const SHADOWS_SOFT: u32 = 2u;
+
 // What a ray hit (displace_core::sphere_trace::HitKind, plus "nothing").
 const HIT_NONE: u32 = 0u;
 const HIT_SURFACE: u32 = 1u;

@@ -41,14 +41,14 @@ struct Frame {
 // a second trace towards the light; the soft variant also keeps the
 // smallest distance-to-travel ratio seen (the distance field's penumbra).
 fn shadow(p: vec3f, l: vec3f, dist: f32) -> f32 {
-    if (frame.shadows == 0u) {
+    if (frame.shadows == SHADOWS_NONE) {
         return 1.0;
     }
     let occluder = trace_map(p, l);
     if (occluder.kind != HIT_NONE && occluder.t < dist) {
         return 0.0;
     }
-    if (frame.shadows == 1u) {
+    if (frame.shadows == SHADOWS_HARD) {
         return 1.0;
     }
     let hi = vec3f(params.aspect.x * params.tiles.x, params.aspect.y * params.tiles.y, 1.0);

@@ -42,6 +42,21 @@ pub const BAND_FACTOR: f32 = displace_core::convention::TRACE_BAND_FACTOR;
 /// interpolation error so the decoded distance stays a lower bound.
 pub const FILTER_WEIGHT_BITS: u32 = 8;
 
+/// Self-shadowing modes of `shade.wgsl` ([`crate::Shadows`]).
+pub const SHADOWS_NONE: u32 = 0;
+pub const SHADOWS_HARD: u32 = 1;
+pub const SHADOWS_SOFT: u32 = 2;
+
+/// The shader's code for a shadow mode: the only way a [`crate::Shadows`]
+/// reaches the GPU.
+pub fn shadows_code(s: crate::Shadows) -> u32 {
+    match s {
+        crate::Shadows::None => SHADOWS_NONE,
+        crate::Shadows::Hard => SHADOWS_HARD,
+        crate::Shadows::Soft => SHADOWS_SOFT,
+    }
+}
+
 pub fn address_code(a: Address) -> u32 {
     match a {
         Address::Clamp => ADDRESS_CLAMP,

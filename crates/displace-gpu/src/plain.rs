@@ -160,6 +160,26 @@ pub(crate) const PLAIN_VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> =
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn plain_frame_matches_wgsl() {
+        use super::PlainFrame;
+        use crate::shaders::{assert_layout, offsets, plain_source};
+        assert_layout(
+            &plain_source(),
+            "PlainFrame",
+            std::mem::size_of::<PlainFrame>(),
+            offsets!(PlainFrame {
+                view_proj,
+                eye,
+                light,
+                ambient,
+                light_intensity,
+                falloff,
+                _pad
+            }),
+        );
+    }
+
     use super::*;
 
     fn area(m: &PlainMesh) -> f32 {

@@ -728,7 +728,7 @@ impl MapShading {
             face_b: v4(scene.bitangent, 0.0),
             face_n: v4(n, 0.0),
             inv_bump_depth: 1.0 / scene.depth,
-            shadows: scene.shadows as u32,
+            shadows: crate::convention::shadows_code(scene.shadows),
             penumbra_k: scene.penumbra_k,
             ambient: scene.ambient,
             specular: scene.specular,
@@ -1251,4 +1251,37 @@ pub(crate) fn texture_2d(
         );
     }
     texture.create_view(&Default::default())
+}
+
+#[cfg(test)]
+mod layout_tests {
+    #[test]
+    fn frame_uniform_matches_wgsl() {
+        use super::FrameUniform;
+        use crate::shaders::{assert_layout, offsets, raster_source, DistanceTexture};
+        assert_layout(
+            &raster_source(DistanceTexture::R8Linear),
+            "Frame",
+            std::mem::size_of::<FrameUniform>(),
+            offsets!(FrameUniform {
+                view_proj,
+                eye,
+                light,
+                face_origin,
+                face_t,
+                face_b,
+                face_n,
+                inv_bump_depth,
+                shadows,
+                penumbra_k,
+                ambient,
+                specular,
+                shininess,
+                light_intensity,
+                falloff,
+                uv_shift,
+                _pad
+            }),
+        );
+    }
 }

@@ -137,3 +137,41 @@ pub fn all_modules() -> Vec<(String, String)> {
     out.push(("present".into(), PRESENT.to_string()));
     out
 }
+
+/// Checks a `repr(C)` Rust mirror against the WGSL struct it feeds: the
+/// struct's size and every member's offset as naga lays the WGSL out
+/// (`rust` lists the WGSL member names with the Rust offsets, in order).
+/// Each mirror's module has a test that calls it, so a field added, moved
+/// or retyped on one side only fails the build's tests, not a frame.
+#[cfg(test)]
+pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&str, usize)]) {
+    let module = naga::front::wgsl::parse_str(src)
+        .unwrap_or_else(|e| panic!("{wgsl_name}: {}", e.emit_to_string(src)));
+    let (_, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(wgsl_name))
+        .unwrap_or_else(|| panic!("no struct {wgsl_name} in the WGSL"));
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        panic!("{wgsl_name} is not a struct")
+    };
+    assert_eq!(
+        *span as usize, size,
+        "{wgsl_name}: WGSL size against the Rust mirror's"
+    );
+    let wgsl: Vec<(&str, usize)> = members
+        .iter()
+        .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
+        .collect();
+    assert_eq!(wgsl, rust, "{wgsl_name}: member names and offsets");
+}
+
+/// `[(name, offset)]` of a Rust mirror's fields, for [`assert_layout`].
+#[cfg(test)]
+macro_rules! offsets {
+    ($t:ty { $($field:ident),* $(,)? }) => {
+        &[$((stringify!($field), std::mem::offset_of!($t, $field))),*]
+    };
+}
+#[cfg(test)]
+pub(crate) use offsets;

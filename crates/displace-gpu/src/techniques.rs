@@ -346,3 +346,40 @@ pub fn technique_costs(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod layout_tests {
+    #[test]
+    fn technique_records_match_wgsl() {
+        use super::{TechniqueHitOut, TechniqueParams};
+        use crate::shaders::{assert_layout, offsets, technique_compute_source, DistanceTexture};
+        let src = technique_compute_source(DistanceTexture::R32Load);
+        let pad = std::mem::offset_of!(TechniqueParams, _pad);
+        assert_layout(
+            &src,
+            "TechniqueParams",
+            std::mem::size_of::<TechniqueParams>(),
+            &[
+                (
+                    "technique",
+                    std::mem::offset_of!(TechniqueParams, technique),
+                ),
+                ("budget", std::mem::offset_of!(TechniqueParams, budget)),
+                ("_pad0", pad),
+                ("_pad1", pad + 4),
+            ],
+        );
+        assert_layout(
+            &src,
+            "TechniqueHitOut",
+            std::mem::size_of::<TechniqueHitOut>(),
+            offsets!(TechniqueHitOut {
+                position,
+                t,
+                uv,
+                fetches,
+                flags
+            }),
+        );
+    }
+}

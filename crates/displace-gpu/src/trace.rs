@@ -236,3 +236,38 @@ pub fn trace_rays(
     map.check_trace(&opts.trace)?;
     RayTracer::new(ctx, map, opts.texture)?.trace(ctx, rays, &opts.trace)
 }
+
+#[cfg(test)]
+mod layout_tests {
+    #[test]
+    fn ray_and_hit_records_match_wgsl() {
+        use super::{HitOut, RayIn};
+        use crate::shaders::{assert_layout, compute_trace_source, offsets, DistanceTexture};
+        let src = compute_trace_source(DistanceTexture::R32Load);
+        assert_layout(
+            &src,
+            "RayIn",
+            std::mem::size_of::<RayIn>(),
+            offsets!(RayIn {
+                origin,
+                _pad0,
+                dir,
+                _pad1
+            }),
+        );
+        assert_layout(
+            &src,
+            "HitOut",
+            std::mem::size_of::<HitOut>(),
+            offsets!(HitOut {
+                position,
+                t,
+                normal,
+                kind,
+                uv,
+                iterations,
+                flags
+            }),
+        );
+    }
+}

@@ -6,7 +6,7 @@ use displace_core::convention::{texel_centre, texel_lerp};
 use displace_core::{Address, Method};
 use displace_gpu::convention as rs;
 use displace_gpu::shaders::{all_modules, CONVENTION};
-use displace_gpu::MapParams;
+use displace_gpu::{MapParams, Shadows};
 use std::collections::BTreeMap;
 
 fn validate(name: &str, src: &str) -> naga::Module {
@@ -63,6 +63,9 @@ fn convention_constants_match_rust() {
             rs::method_code(Method::SphereFixed) as f64,
         ),
         ("METHOD_EXACT", rs::method_code(Method::Exact) as f64),
+        ("SHADOWS_NONE", rs::shadows_code(Shadows::None) as f64),
+        ("SHADOWS_HARD", rs::shadows_code(Shadows::Hard) as f64),
+        ("SHADOWS_SOFT", rs::shadows_code(Shadows::Soft) as f64),
         ("HIT_NONE", rs::HIT_NONE as f64),
         ("HIT_SURFACE", rs::HIT_SURFACE as f64),
         ("HIT_WALL", rs::HIT_WALL as f64),

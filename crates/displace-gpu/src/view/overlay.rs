@@ -318,36 +318,24 @@ impl Presenter {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-
     #[test]
-    fn uniform_layout_matches_wgsl() {
-        let module = naga::front::wgsl::parse_str(PRESENT).unwrap();
-        let ty = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("Present"))
-            .expect("struct Present")
-            .1;
-        let naga::TypeInner::Struct { members, span } = &ty.inner else {
-            panic!("Present is not a struct");
-        };
-        assert_eq!(*span as usize, std::mem::size_of::<PresentUniform>());
-        let rust = [
-            ("rect", std::mem::offset_of!(PresentUniform, rect)),
-            ("out_size", std::mem::offset_of!(PresentUniform, out_size)),
-            (
-                "encode_srgb",
-                std::mem::offset_of!(PresentUniform, encode_srgb),
-            ),
-            ("pad", std::mem::offset_of!(PresentUniform, pad)),
-        ];
-        assert_eq!(members.len(), rust.len());
-        for (m, (name, offset)) in members.iter().zip(rust) {
-            assert_eq!(m.name.as_deref(), Some(name));
-            assert_eq!(m.offset as usize, offset, "{name}");
-        }
+    fn present_uniform_matches_wgsl() {
+        use super::PresentUniform;
+        use crate::shaders::{assert_layout, offsets, PRESENT};
+        assert_layout(
+            PRESENT,
+            "Present",
+            std::mem::size_of::<PresentUniform>(),
+            offsets!(PresentUniform {
+                rect,
+                out_size,
+                encode_srgb,
+                pad
+            }),
+        );
     }
+
+    use super::*;
 
     #[test]
     fn text_is_drawn_on_a_translucent_panel() {
