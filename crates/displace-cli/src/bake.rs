@@ -10,9 +10,10 @@ use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
 use displace_core::io::atomic::Batch;
 use displace_core::io::height::{self, Channel, HeightOptions};
+use displace_core::io::stream::MapStream;
 use displace_core::io::{self as dio, MapFile};
 use displace_core::techniques::{ConeKind, ConeMap};
-use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap};
+use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap, NormalMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -263,6 +264,14 @@ pub fn run(args: BakeArgs) -> Result<()> {
     outputs.extend(args.cone.as_deref().map(|c| ("--cone", c)));
     check_distinct_outputs(&outputs)?;
     check_bake_memory(&args.height, &args.height_args, size, args.cone.is_some())?;
+    // Every output under its temporary name until all are written; the map's
+    // file is created first, so an unwritable destination fails before the
+    // work.
+    let batch = Batch::new();
+    let mut stream = MapStream::create(&args.output, format, size, extent)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    // The whole command is timed: loading, baking, encoding and writing.
+    let start = Instant::now();
     let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
 
     let bar = DelayedBar::new(format!("baking {}x{}x{}", size[0], size[1], size[2]));
@@ -272,23 +281,26 @@ pub fn run(args: BakeArgs) -> Result<()> {
         progress: Some(bar.callback()),
         cancel: Some(cancel_flag()),
     };
-    let start = Instant::now();
-    let baked = displace_core::bake(&height, &opts);
+    // A slice per thread: every core busy, and the least memory for that.
+    let slab = rayon::current_num_threads();
+    let baked = displace_core::bake_streamed(&height, &opts, slab, &mut stream);
     bar.finish();
-    let map = match baked {
+    match baked {
         Err(Error::Cancelled) => bail!("interrupted: nothing was written"),
+        Err(e @ (Error::Io { .. } | Error::Format { .. })) => {
+            return Err(e).with_context(|| format!("writing {}", args.output.display()))
+        }
         other => other.context("baking the distance map")?,
-    };
-    let seconds = start.elapsed().as_secs_f64();
-
-    // Every output under its temporary name until all are written.
-    let batch = Batch::new();
-    dio::write_distance_map(&args.output, &map.distance, extent, format)
+    }
+    stream
+        .finish()
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(n) = &args.normals {
-        height::write_normal_map_png(n, &map.normals)
+        let normals = NormalMap::from_height(&height, extent);
+        height::write_normal_map_png(n, &normals)
             .with_context(|| format!("writing {}", n.display()))?;
     }
+    let seconds = start.elapsed().as_secs_f64();
     let cones = match &args.cone {
         Some(c) => {
             let start = Instant::now();
