@@ -417,55 +417,49 @@ struct Columns {
 /// the surface over its footprint (via [`HeightMap::range`]'s argument: the
 /// extremes of a bilinear patch lie at the corners of the pieces the texel
 /// grid cuts the footprint into), and the height at its centre. The surface
-/// is evaluated once on the grid of all cuts, shared by neighbouring columns,
-/// and the extremes are taken along u, then along v.
+/// is evaluated on the grid of all cuts, one grid row at a time, and the
+/// extremes are taken along u, then along v. Rows of columns run in
+/// parallel, each evaluating only its own grid rows (a boundary row twice),
+/// so the memory is the output plus a grid row per thread: the whole grid of
+/// an 8192-texel map under a 2048-column one was 420 MB.
 fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Columns {
     let (us, uspan) = axis_cuts(w, height.width());
     let (vs, vspan) = axis_cuts(h, height.height());
-    let grid = sample_grid(height, &us, &vs);
-    let extremes = |values: &mut dyn Iterator<Item = (f32, f32)>| {
-        values.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
-            (lo.min(a), hi.max(b))
-        })
-    };
-    // Per row of the grid (one per cut v), the extremes over each column's
-    // u-span: `vs.len() x w`.
-    let (row_lo, row_hi): (Vec<f32>, Vec<f32>) = grid
-        .par_chunks(us.len())
-        .flat_map_iter(|row| {
-            uspan
-                .iter()
-                .map(move |&(u0, u1)| extremes(&mut row[u0..=u1].iter().map(|&x| (x, x))))
-        })
-        .unzip();
-    let (lo, hi) = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|j| {
-            let (v0, v1) = vspan[j];
-            let (row_lo, row_hi) = (&row_lo, &row_hi);
-            (0..w).map(move |i| {
-                extremes(&mut (v0..=v1).map(|b| (row_lo[b * w + i], row_hi[b * w + i])))
-            })
-        })
-        .unzip();
+    let along_u = along(height, &us);
+    let mut lo = vec![0.0f32; w * h];
+    let mut hi = vec![0.0f32; w * h];
+    lo.par_chunks_mut(w)
+        .zip(hi.par_chunks_mut(w))
+        .enumerate()
+        .for_each_init(
+            || vec![0.0f32; us.len()],
+            |grid_row, (j, (lo, hi))| {
+                lo.fill(f32::INFINITY);
+                hi.fill(f32::NEG_INFINITY);
+                let (v0, v1) = vspan[j];
+                for &v in &vs[v0..=v1] {
+                    sample_row(height, &along_u, v, grid_row);
+                    for ((l, h), &(u0, u1)) in lo.iter_mut().zip(hi.iter_mut()).zip(&uspan) {
+                        let (a, b) = grid_row[u0..=u1]
+                            .iter()
+                            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| {
+                                (lo.min(x), hi.max(x))
+                            });
+                        *l = l.min(a);
+                        *h = h.max(b);
+                    }
+                }
+            },
+        );
     let centres = |n: usize| (0..n).map(|i| texel_centre(i, n)).collect::<Vec<_>>();
     let centre = sample_grid(height, &centres(w), &centres(h));
     Columns { lo, hi, centre }
 }
 
-/// The surface at every point of the grid `us x vs` (row-major, one row per
-/// `v`), with exactly the arithmetic of [`HeightMap::sample`] and so the same
-/// values, but with the texel addressing and the weights along u worked out
-/// once per `u` rather than once per point.
-fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
-    let (tw, th, address, data) = (
-        height.width(),
-        height.height(),
-        height.address(),
-        height.data(),
-    );
-    let along_u: Vec<(usize, usize, f32)> = us
-        .iter()
+/// Texel addressing and weight along u for each of `us`.
+fn along(height: &HeightMap, us: &[f32]) -> Vec<(usize, usize, f32)> {
+    let (tw, address) = (height.width(), height.address());
+    us.iter()
         .map(|&u| {
             let (i, fx) = texel_lerp(u, tw);
             (
@@ -474,19 +468,39 @@ fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
                 fx,
             )
         })
-        .collect();
-    vs.par_iter()
-        .flat_map_iter(|&v| {
-            let (j, fy) = texel_lerp(v, th);
-            let r0 = &data[address.texel_index(j, th) * tw..][..tw];
-            let r1 = &data[address.texel_index(j + 1, th) * tw..][..tw];
-            along_u.iter().map(move |&(i0, i1, fx)| {
-                let a = r0[i0] + (r0[i1] - r0[i0]) * fx;
-                let b = r1[i0] + (r1[i1] - r1[i0]) * fx;
-                a + (b - a) * fy
-            })
-        })
         .collect()
+}
+
+/// The surface along one grid row `v` at the points `along_u` describes,
+/// with exactly the arithmetic of [`HeightMap::sample`].
+fn sample_row(height: &HeightMap, along_u: &[(usize, usize, f32)], v: f32, out: &mut [f32]) {
+    let (tw, th, address, data) = (
+        height.width(),
+        height.height(),
+        height.address(),
+        height.data(),
+    );
+    let (j, fy) = texel_lerp(v, th);
+    let r0 = &data[address.texel_index(j, th) * tw..][..tw];
+    let r1 = &data[address.texel_index(j + 1, th) * tw..][..tw];
+    for (o, &(i0, i1, fx)) in out.iter_mut().zip(along_u) {
+        let a = r0[i0] + (r0[i1] - r0[i0]) * fx;
+        let b = r1[i0] + (r1[i1] - r1[i0]) * fx;
+        *o = a + (b - a) * fy;
+    }
+}
+
+/// The surface at every point of the grid `us x vs` (row-major, one row per
+/// `v`), with exactly the arithmetic of [`HeightMap::sample`] and so the same
+/// values, but with the texel addressing and the weights along u worked out
+/// once per `u` rather than once per point.
+fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
+    let along_u = along(height, us);
+    let mut grid = vec![0.0f32; us.len() * vs.len()];
+    grid.par_chunks_mut(us.len().max(1))
+        .zip(vs.par_iter())
+        .for_each(|(row, &v)| sample_row(height, &along_u, v, row));
+    grid
 }
 
 #[cfg(test)]
