@@ -155,7 +155,16 @@ impl MapStream {
         self.write(&head)
     }
 
+    /// Encodes and writes `values` a depth slice at a time, so that the
+    /// buffers in flight are slices, not slabs.
     fn encode_and_write(&mut self, values: &[f32]) -> Result<()> {
+        let slice = (self.size[0] * self.size[1]).max(1);
+        values
+            .chunks(slice)
+            .try_for_each(|values| self.encode_slice(values))
+    }
+
+    fn encode_slice(&mut self, values: &[f32]) -> Result<()> {
         let mut bytes = self.out.buffer();
         let bpv = self.format.bytes_per_voxel();
         bytes.resize(values.len() * bpv, 0);
@@ -260,16 +269,20 @@ impl SlabSink for MapStream {
                 Ok(())
             }
             (MapFile::Ktx2, _) if !self.header_written => {
-                self.held.extend_from_slice(values);
                 let settled = self.lo.is_finite()
                     && R8Range::for_min(self.lo)
                         == R8Range::for_min(self.lo.min(slab.rest_lower_bound));
                 if settled {
+                    // Written straight from the slab: usually the first one
+                    // settles the range, and nothing is ever held.
                     self.write_ktx2_header()?;
                     let held = std::mem::take(&mut self.held);
                     self.encode_and_write(&held)?;
+                    self.encode_and_write(values)
+                } else {
+                    self.held.extend_from_slice(values);
+                    Ok(())
                 }
-                Ok(())
             }
             _ => self.encode_and_write(values),
         }
