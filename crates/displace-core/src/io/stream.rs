@@ -107,7 +107,7 @@ impl MapStream {
             if self.format == Format::R16F {
                 let level = std::mem::take(&mut self.level16);
                 self.write_ktx2_header()?;
-                self.write(&level)?;
+                self.send(level)?;
             } else if !self.header_written {
                 self.write_ktx2_header()?;
                 let held = std::mem::take(&mut self.held);
@@ -127,7 +127,9 @@ impl MapStream {
     /// the largest rounding): the very scalars [`super::ktx2::to_bytes`]
     /// finds through [`crate::DistanceMap::quantized`].
     fn write_ktx2_header(&mut self) -> Result<()> {
-        let layout = self.layout.expect("begun");
+        let layout = self.layout.ok_or_else(|| {
+            Error::InvalidSize("a slab was pushed before the stream was begun".into())
+        })?;
         // `DistanceMap::from_raw` then `data_underestimate`.
         let range = R8Range::for_min(self.lo);
         let data_underestimate = (layout.underestimate + range.quantum()) - range.quantum();
