@@ -244,6 +244,11 @@ impl SlabSink for MapStream {
                 self.write(&head)?;
                 self.header_written = true;
             }
+            // The held r16f level, allocated once: grown by doubling it
+            // would pass through twice its size.
+            MapFile::Ktx2 if self.format == Format::R16F => {
+                self.level16.reserve_exact(2 * w * h * d);
+            }
             MapFile::Ktx2 => {}
         }
         Ok(())
