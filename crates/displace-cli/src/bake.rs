@@ -10,11 +10,16 @@ use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
 use displace_core::io::atomic::Batch;
 use displace_core::io::height::{self, Channel, HeightOptions};
+use displace_core::io::stream::MapStream;
 use displace_core::io::{self as dio, MapFile};
 use displace_core::techniques::{ConeKind, ConeMap};
-use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap};
+use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap, NormalMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// `maxTextureDimension3D` of WebGPU's default limits: the largest map side
+/// `gpu-render` can upload on every adapter.
+pub const WEBGPU_MAX_3D: usize = 2048;
 
 /// The built-in height map baked when none is given.
 pub const DEFAULT_HEIGHT: &str = "gen:studded";
@@ -187,6 +192,15 @@ pub fn check_distinct_outputs(outputs: &[(&str, &Path)]) -> Result<()> {
     Ok(())
 }
 
+/// How a checked bake holds its map: whole in memory (`trace`), or
+/// streamed to a file with `slab` slices in flight and `held` bytes per
+/// voxel kept to the end (`bake`).
+#[derive(Clone, Copy, Debug)]
+pub enum BakeHolds {
+    Whole,
+    Streamed { slab: usize, held: u128 },
+}
+
 /// Refuses a bake whose estimated peak memory exceeds what the machine has
 /// available ([`displace_core::memory`]), before the height map is loaded.
 pub fn check_bake_memory(
@@ -194,6 +208,7 @@ pub fn check_bake_memory(
     args: &HeightArgs,
     size: [usize; 3],
     cones: bool,
+    holds: BakeHolds,
 ) -> Result<()> {
     let opts = HeightOptions {
         channel: args.channel,
@@ -207,7 +222,12 @@ pub fn check_bake_memory(
         .with_context(|| format!("loading height map `{source}`"))?;
     // One buffer too large says so first; then the whole job.
     HeightMap::check_size(w, h).with_context(|| format!("height map `{source}`"))?;
-    let bytes = displace_core::memory::bake_peak_bytes([w, h], size, cones);
+    let bytes = match holds {
+        BakeHolds::Whole => displace_core::memory::bake_peak_bytes([w, h], size, cones),
+        BakeHolds::Streamed { slab, held } => {
+            displace_core::memory::streamed_bake_peak_bytes([w, h], size, slab, held, cones)
+        }
+    };
     displace_core::memory::check(
         &format!(
             "baking the {w}x{h} height map into {}x{}x{} voxels{}",
@@ -262,7 +282,42 @@ pub fn run(args: BakeArgs) -> Result<()> {
     outputs.extend(args.normals.as_deref().map(|n| ("--normals", n)));
     outputs.extend(args.cone.as_deref().map(|c| ("--cone", c)));
     check_distinct_outputs(&outputs)?;
-    check_bake_memory(&args.height, &args.height_args, size, args.cone.is_some())?;
+    // A slice per thread: every core busy, and the least memory for that.
+    let slab = rayon::current_num_threads();
+    let held = if kind == MapFile::Ktx2 && format == Format::R16F {
+        2
+    } else {
+        0
+    };
+    check_bake_memory(
+        &args.height,
+        &args.height_args,
+        size,
+        args.cone.is_some(),
+        BakeHolds::Streamed { slab, held },
+    )?;
+    if size.iter().any(|&n| n > WEBGPU_MAX_3D) {
+        eprintln!(
+            "warning: a {}x{}x{} map exceeds {WEBGPU_MAX_3D} voxels per side, WebGPU's default \
+             3D texture limit: gpu-render and view refuse it on such devices. A map coarser \
+             than its height map stays conservative (the tracer refines on the full-resolution \
+             heights), so --size {}x{}x{} traces the same surface on any GPU",
+            size[0],
+            size[1],
+            size[2],
+            size[0].min(WEBGPU_MAX_3D),
+            size[1].min(WEBGPU_MAX_3D),
+            size[2].min(WEBGPU_MAX_3D),
+        );
+    }
+    // Every output under its temporary name until all are written; the map's
+    // file is created first, so an unwritable destination fails before the
+    // work.
+    let batch = Batch::new();
+    let mut stream = MapStream::create(&args.output, format, size, extent)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    // The whole command is timed: loading, baking, encoding and writing.
+    let start = Instant::now();
     let height = load_height(&args.height, &args.height_args, [size[0], size[1]])?;
 
     let bar = DelayedBar::new(format!("baking {}x{}x{}", size[0], size[1], size[2]));
@@ -272,23 +327,24 @@ pub fn run(args: BakeArgs) -> Result<()> {
         progress: Some(bar.callback()),
         cancel: Some(cancel_flag()),
     };
-    let start = Instant::now();
-    let baked = displace_core::bake(&height, &opts);
+    let baked = displace_core::bake_streamed(&height, &opts, slab, &mut stream);
     bar.finish();
-    let map = match baked {
+    match baked {
         Err(Error::Cancelled) => bail!("interrupted: nothing was written"),
+        Err(e @ (Error::Io { .. } | Error::Format { .. })) => {
+            return Err(e).with_context(|| format!("writing {}", args.output.display()))
+        }
         other => other.context("baking the distance map")?,
-    };
-    let seconds = start.elapsed().as_secs_f64();
-
-    // Every output under its temporary name until all are written.
-    let batch = Batch::new();
-    dio::write_distance_map(&args.output, &map.distance, extent, format)
+    }
+    stream
+        .finish()
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(n) = &args.normals {
-        height::write_normal_map_png(n, &map.normals)
+        let normals = NormalMap::from_height(&height, extent);
+        height::write_normal_map_png(n, &normals)
             .with_context(|| format!("writing {}", n.display()))?;
     }
+    let seconds = start.elapsed().as_secs_f64();
     let cones = match &args.cone {
         Some(c) => {
             let start = Instant::now();

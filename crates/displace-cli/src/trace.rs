@@ -226,7 +226,13 @@ pub fn run(args: TraceArgs) -> Result<()> {
         }
         None => {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
-            crate::bake::check_bake_memory(height_source, &args.height_args, size, false)?;
+            crate::bake::check_bake_memory(
+                height_source,
+                &args.height_args,
+                size,
+                false,
+                crate::bake::BakeHolds::Whole,
+            )?;
             let height = load_height(height_source, &args.height_args, [size[0], size[1]])?;
             let opts = displace_core::BakeOptions {
                 size,

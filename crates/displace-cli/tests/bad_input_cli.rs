@@ -413,6 +413,15 @@ fn messages_name_the_problem_once() {
     refuses(d, &args, &["h.txt", ".npy"], &[".ktx2", ".dds"]);
 }
 
+/// Sends `signal` (`-TERM`, `-HUP`) to `child`.
+fn send(signal: &str, child: &std::process::Child) {
+    let kill = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+}
+
 /// SIGTERM and SIGHUP stop a render as Ctrl-C does: a message, a non-zero
 /// exit, nothing written.
 #[test]
@@ -426,13 +435,42 @@ fn termination_signals_stop_cleanly() {
             .spawn()
             .unwrap();
         std::thread::sleep(Duration::from_millis(1500));
-        let kill = Command::new("kill")
-            .args([signal, &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        send(signal, &child);
         let o = child.wait_with_output().unwrap();
         failed(&o, &["interrupted"], &[]);
         assert!(files(dir.path()).is_empty(), "{signal}");
     }
+}
+
+/// A bake interrupted while it streams its map leaves neither the map nor
+/// its temporary file, and a bake whose directory does not exist fails
+/// before any work.
+#[test]
+fn an_interrupted_bake_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = cmd(dir.path())
+        .args(["bake", "gen:noise", "--height-size", "1024x1024"])
+        .args([
+            "--size",
+            "2048x2048x128",
+            "--extent",
+            "1,1,0.03",
+            "-o",
+            "big.ktx2",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    send("-TERM", &child);
+    let o = child.wait_with_output().unwrap();
+    failed(&o, &["interrupted"], &[]);
+    assert!(files(dir.path()).is_empty(), "{:?}", files(dir.path()));
+    let start = Instant::now();
+    let o = run(
+        &["bake", "--size", "2048x2048x128", "-o", "no/such/m.ktx2"],
+        dir.path(),
+    );
+    failed(&o, &["no/such", "does not exist"], &[]);
+    assert!(start.elapsed() < Duration::from_secs(2));
 }

@@ -145,83 +145,232 @@ pub fn check_iterations(iterations: u32) -> Result<()> {
 /// Cost: `O(W H D)` for the distance transform (two 1D passes of the lower
 /// envelope per depth slice, slices in parallel) plus the exact height range
 /// of every column footprint. Memory: the output plus one 32-column block per
-/// thread.
+/// thread. [`bake_streamed`] computes the same values a slab at a time, for
+/// writers that need not hold the whole volume.
 pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
-    let size = opts.size;
-    DistanceMap::check_size(size)?;
-    let extent = Extent::new(opts.extent.sx, opts.extent.sy, opts.extent.sz)?;
-    let [ax, ay] = extent.aspect();
-    let [w, h, d] = size;
-    let address = height.address();
-    let periodic = address == Address::Repeat;
-    let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
-    let cancelled = || {
-        opts.cancel
-            .as_ref()
-            .is_some_and(|c| c.load(Ordering::Relaxed))
-    };
-
-    let columns = column_ranges(height, w, h);
-    if cancelled() {
-        return Err(Error::Cancelled);
-    }
-
-    let r_xy = 0.5 * (hx * hx + hy * hy).sqrt();
-    let slack = 0.5 * (hx * hx + hy * hy + hz * hz).sqrt();
+    let plan = BakePlan::new(height, opts)?;
+    let [w, h, d] = plan.size;
     let done = AtomicUsize::new(0);
     let mut data = vec![0.0f32; w * h * d];
-    data.par_chunks_mut(w * h).enumerate().try_for_each_init(
-        SliceScratch::default,
-        |scratch, (k, slice)| {
-            if cancelled() {
-                return Err(Error::Cancelled);
-            }
-            let z = texel_centre(k, d);
-            let fill = |j: usize, row: &mut [f32]| {
-                let span = j * w..(j + 1) * w;
-                for ((g, &lo), &hi) in row
-                    .iter_mut()
-                    .zip(&columns.lo[span.clone()])
-                    .zip(&columns.hi[span])
-                {
-                    let dz = (lo - z).max(z - hi).max(0.0);
-                    *g = dz * dz;
-                }
-            };
-            let finish = |start: usize, run: &mut [f32]| {
-                for (v, &hc) in run.iter_mut().zip(&columns.centre[start..]) {
-                    let dist = v.sqrt();
-                    // Both sides computed, one kept: a select, not a branch
-                    // that mispredicts along the surface.
-                    let below = -(dist + r_xy).min(hc - z);
-                    let above = dist - r_xy;
-                    *v = (if z < hc { below } else { above }) - slack;
-                }
-            };
-            transform_2d_with(
-                slice,
-                w,
-                h,
-                [hx, hy],
-                [periodic, periodic],
-                scratch,
-                fill,
-                finish,
-            );
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if let Some(p) = &opts.progress {
-                p(n, d);
-            }
-            Ok(())
-        },
+    plan.slices(0, &mut data, opts, &done)?;
+    let distance = DistanceMap::from_raw(
+        plan.size,
+        plan.aspect,
+        plan.address,
+        data,
+        plan.underestimate(),
     )?;
-    let distance = DistanceMap::from_raw(size, [ax, ay], address, data, 2.0 * r_xy + 2.0 * slack)?;
     Ok(DisplacementMap {
-        normals: NormalMap::from_height(height, extent),
+        normals: NormalMap::from_height(height, plan.extent),
         height: height.clone(),
         distance,
-        extent,
+        extent: plan.extent,
     })
+}
+
+/// One slab of consecutive depth slices of a streamed bake, handed to the
+/// sink of [`bake_streamed`] in order of depth.
+#[derive(Debug)]
+pub struct Slab<'a> {
+    /// Depth index of the slab's first slice.
+    pub first: usize,
+    /// The slices' values (`[k][j][i]`, depth units), exactly as [`bake`]
+    /// computes them.
+    pub values: &'a [f32],
+    /// A lower bound on every value of the slices still to come (`+inf`
+    /// after the last slab), so that a writer whose header depends on the
+    /// volume's minimum (KTX2's r8 range) can settle it early instead of
+    /// holding the whole volume.
+    pub rest_lower_bound: f32,
+}
+
+/// What a streamed bake knows about its map before any slab is computed.
+#[derive(Clone, Copy, Debug)]
+pub struct BakeLayout {
+    pub size: [usize; 3],
+    pub aspect: [f32; 2],
+    pub address: Address,
+    pub extent: Extent,
+    /// The bound [`DistanceMap::from_raw`] takes, before any rounding.
+    pub underestimate: f32,
+}
+
+/// Where a streamed bake's slabs go ([`crate::io::stream::MapStream`]
+/// writes them to a file).
+pub trait SlabSink {
+    /// Called once, before the first slab, with what a writer needs for its
+    /// header.
+    fn begin(&mut self, layout: BakeLayout) -> Result<()>;
+    /// Called with each slab, in order of depth.
+    fn push(&mut self, slab: Slab<'_>) -> Result<()>;
+}
+
+/// Bakes the distance map of [`bake`] a slab of `slab_slices` depth slices
+/// at a time (each slab's slices in parallel) and hands each slab to `sink`
+/// in order, so that peak memory is the height map, its column ranges and
+/// one slab rather than the whole volume. The values are bit-identical to
+/// [`bake`]'s.
+pub fn bake_streamed(
+    height: &HeightMap,
+    opts: &BakeOptions,
+    slab_slices: usize,
+    sink: &mut impl SlabSink,
+) -> Result<()> {
+    let plan = BakePlan::new(height, opts)?;
+    sink.begin(BakeLayout {
+        size: plan.size,
+        aspect: plan.aspect,
+        address: plan.address,
+        extent: plan.extent,
+        underestimate: plan.underestimate(),
+    })?;
+    let [w, h, d] = plan.size;
+    let slab_slices = slab_slices.clamp(1, d);
+    // Suffix minima of the per-slice lower bounds.
+    let mut rest = vec![f32::INFINITY; d + 1];
+    for k in (0..d).rev() {
+        rest[k] = rest[k + 1].min(plan.slice_lower_bound(k));
+    }
+    let done = AtomicUsize::new(0);
+    let mut buf = vec![0.0f32; w * h * slab_slices];
+    for first in (0..d).step_by(slab_slices) {
+        let n = slab_slices.min(d - first);
+        let values = &mut buf[..w * h * n];
+        plan.slices(first, values, opts, &done)?;
+        sink.push(Slab {
+            first,
+            values,
+            rest_lower_bound: rest[first + n],
+        })?;
+    }
+    Ok(())
+}
+
+/// Everything the slices of one bake share: the checked size and extent,
+/// voxel spacing, and the column ranges of the height map.
+struct BakePlan {
+    size: [usize; 3],
+    extent: Extent,
+    aspect: [f32; 2],
+    address: Address,
+    spacing: [f32; 3],
+    columns: Columns,
+    /// Largest column-centre height: with it, [`Self::slice_lower_bound`].
+    centre_max: f32,
+    r_xy: f32,
+    slack: f32,
+}
+
+impl BakePlan {
+    fn new(height: &HeightMap, opts: &BakeOptions) -> Result<Self> {
+        let size = opts.size;
+        DistanceMap::check_size(size)?;
+        let extent = Extent::new(opts.extent.sx, opts.extent.sy, opts.extent.sz)?;
+        let [ax, ay] = extent.aspect();
+        let [w, h, d] = size;
+        let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
+        let columns = column_ranges(height, w, h);
+        if is_cancelled(opts) {
+            return Err(Error::Cancelled);
+        }
+        let centre_max = columns
+            .centre
+            .par_iter()
+            .copied()
+            .reduce(|| f32::NEG_INFINITY, f32::max);
+        Ok(Self {
+            size,
+            extent,
+            aspect: [ax, ay],
+            address: height.address(),
+            spacing: [hx, hy, hz],
+            columns,
+            centre_max,
+            r_xy: 0.5 * (hx * hx + hy * hy).sqrt(),
+            slack: 0.5 * (hx * hx + hy * hy + hz * hz).sqrt(),
+        })
+    }
+
+    fn underestimate(&self) -> f32 {
+        2.0 * self.r_xy + 2.0 * self.slack
+    }
+
+    /// A lower bound on every value of slice `k`, from the same `f32`
+    /// operations [`Self::slices`] uses (each monotone): under the surface a
+    /// value is at least `-(hc - z) - slack <= -(max hc - z) - slack`, above
+    /// it at least `-r_xy - slack`.
+    fn slice_lower_bound(&self, k: usize) -> f32 {
+        let z = texel_centre(k, self.size[2]);
+        let below = -(self.centre_max - z);
+        let above = 0.0 - self.r_xy;
+        below.min(above) - self.slack
+    }
+
+    /// Computes slices `first..` into `out` (whole slices), in parallel,
+    /// reporting each to `opts.progress` and counting them in `done`.
+    fn slices(
+        &self,
+        first: usize,
+        out: &mut [f32],
+        opts: &BakeOptions,
+        done: &AtomicUsize,
+    ) -> Result<()> {
+        let [w, h, d] = self.size;
+        let [hx, hy, _] = self.spacing;
+        let periodic = self.address == Address::Repeat;
+        let (columns, r_xy, slack) = (&self.columns, self.r_xy, self.slack);
+        out.par_chunks_mut(w * h).enumerate().try_for_each_init(
+            SliceScratch::default,
+            |scratch, (dk, slice)| {
+                if is_cancelled(opts) {
+                    return Err(Error::Cancelled);
+                }
+                let z = texel_centre(first + dk, d);
+                let fill = |j: usize, row: &mut [f32]| {
+                    let span = j * w..(j + 1) * w;
+                    for ((g, &lo), &hi) in row
+                        .iter_mut()
+                        .zip(&columns.lo[span.clone()])
+                        .zip(&columns.hi[span])
+                    {
+                        let dz = (lo - z).max(z - hi).max(0.0);
+                        *g = dz * dz;
+                    }
+                };
+                let finish = |start: usize, run: &mut [f32]| {
+                    for (v, &hc) in run.iter_mut().zip(&columns.centre[start..]) {
+                        let dist = v.sqrt();
+                        // Both sides computed, one kept: a select, not a branch
+                        // that mispredicts along the surface.
+                        let below = -(dist + r_xy).min(hc - z);
+                        let above = dist - r_xy;
+                        *v = (if z < hc { below } else { above }) - slack;
+                    }
+                };
+                transform_2d_with(
+                    slice,
+                    w,
+                    h,
+                    [hx, hy],
+                    [periodic, periodic],
+                    scratch,
+                    fill,
+                    finish,
+                );
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(p) = &opts.progress {
+                    p(n, d);
+                }
+                Ok(())
+            },
+        )
+    }
+}
+
+fn is_cancelled(opts: &BakeOptions) -> bool {
+    opts.cancel
+        .as_ref()
+        .is_some_and(|c| c.load(Ordering::Relaxed))
 }
 
 /// Cut points along one axis: the `n` column boundaries `i / n` merged with
@@ -268,55 +417,49 @@ struct Columns {
 /// the surface over its footprint (via [`HeightMap::range`]'s argument: the
 /// extremes of a bilinear patch lie at the corners of the pieces the texel
 /// grid cuts the footprint into), and the height at its centre. The surface
-/// is evaluated once on the grid of all cuts, shared by neighbouring columns,
-/// and the extremes are taken along u, then along v.
+/// is evaluated on the grid of all cuts, one grid row at a time, and the
+/// extremes are taken along u, then along v. Rows of columns run in
+/// parallel, each evaluating only its own grid rows (a boundary row twice),
+/// so the memory is the output plus a grid row per thread: the whole grid of
+/// an 8192-texel map under a 2048-column one was 420 MB.
 fn column_ranges(height: &HeightMap, w: usize, h: usize) -> Columns {
     let (us, uspan) = axis_cuts(w, height.width());
     let (vs, vspan) = axis_cuts(h, height.height());
-    let grid = sample_grid(height, &us, &vs);
-    let extremes = |values: &mut dyn Iterator<Item = (f32, f32)>| {
-        values.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (a, b)| {
-            (lo.min(a), hi.max(b))
-        })
-    };
-    // Per row of the grid (one per cut v), the extremes over each column's
-    // u-span: `vs.len() x w`.
-    let (row_lo, row_hi): (Vec<f32>, Vec<f32>) = grid
-        .par_chunks(us.len())
-        .flat_map_iter(|row| {
-            uspan
-                .iter()
-                .map(move |&(u0, u1)| extremes(&mut row[u0..=u1].iter().map(|&x| (x, x))))
-        })
-        .unzip();
-    let (lo, hi) = (0..h)
-        .into_par_iter()
-        .flat_map_iter(|j| {
-            let (v0, v1) = vspan[j];
-            let (row_lo, row_hi) = (&row_lo, &row_hi);
-            (0..w).map(move |i| {
-                extremes(&mut (v0..=v1).map(|b| (row_lo[b * w + i], row_hi[b * w + i])))
-            })
-        })
-        .unzip();
+    let along_u = along(height, &us);
+    let mut lo = vec![0.0f32; w * h];
+    let mut hi = vec![0.0f32; w * h];
+    lo.par_chunks_mut(w)
+        .zip(hi.par_chunks_mut(w))
+        .enumerate()
+        .for_each_init(
+            || vec![0.0f32; us.len()],
+            |grid_row, (j, (lo, hi))| {
+                lo.fill(f32::INFINITY);
+                hi.fill(f32::NEG_INFINITY);
+                let (v0, v1) = vspan[j];
+                for &v in &vs[v0..=v1] {
+                    sample_row(height, &along_u, v, grid_row);
+                    for ((l, h), &(u0, u1)) in lo.iter_mut().zip(hi.iter_mut()).zip(&uspan) {
+                        let (a, b) = grid_row[u0..=u1]
+                            .iter()
+                            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| {
+                                (lo.min(x), hi.max(x))
+                            });
+                        *l = l.min(a);
+                        *h = h.max(b);
+                    }
+                }
+            },
+        );
     let centres = |n: usize| (0..n).map(|i| texel_centre(i, n)).collect::<Vec<_>>();
     let centre = sample_grid(height, &centres(w), &centres(h));
     Columns { lo, hi, centre }
 }
 
-/// The surface at every point of the grid `us x vs` (row-major, one row per
-/// `v`), with exactly the arithmetic of [`HeightMap::sample`] and so the same
-/// values, but with the texel addressing and the weights along u worked out
-/// once per `u` rather than once per point.
-fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
-    let (tw, th, address, data) = (
-        height.width(),
-        height.height(),
-        height.address(),
-        height.data(),
-    );
-    let along_u: Vec<(usize, usize, f32)> = us
-        .iter()
+/// Texel addressing and weight along u for each of `us`.
+fn along(height: &HeightMap, us: &[f32]) -> Vec<(usize, usize, f32)> {
+    let (tw, address) = (height.width(), height.address());
+    us.iter()
         .map(|&u| {
             let (i, fx) = texel_lerp(u, tw);
             (
@@ -325,19 +468,39 @@ fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
                 fx,
             )
         })
-        .collect();
-    vs.par_iter()
-        .flat_map_iter(|&v| {
-            let (j, fy) = texel_lerp(v, th);
-            let r0 = &data[address.texel_index(j, th) * tw..][..tw];
-            let r1 = &data[address.texel_index(j + 1, th) * tw..][..tw];
-            along_u.iter().map(move |&(i0, i1, fx)| {
-                let a = r0[i0] + (r0[i1] - r0[i0]) * fx;
-                let b = r1[i0] + (r1[i1] - r1[i0]) * fx;
-                a + (b - a) * fy
-            })
-        })
         .collect()
+}
+
+/// The surface along one grid row `v` at the points `along_u` describes,
+/// with exactly the arithmetic of [`HeightMap::sample`].
+fn sample_row(height: &HeightMap, along_u: &[(usize, usize, f32)], v: f32, out: &mut [f32]) {
+    let (tw, th, address, data) = (
+        height.width(),
+        height.height(),
+        height.address(),
+        height.data(),
+    );
+    let (j, fy) = texel_lerp(v, th);
+    let r0 = &data[address.texel_index(j, th) * tw..][..tw];
+    let r1 = &data[address.texel_index(j + 1, th) * tw..][..tw];
+    for (o, &(i0, i1, fx)) in out.iter_mut().zip(along_u) {
+        let a = r0[i0] + (r0[i1] - r0[i0]) * fx;
+        let b = r1[i0] + (r1[i1] - r1[i0]) * fx;
+        *o = a + (b - a) * fy;
+    }
+}
+
+/// The surface at every point of the grid `us x vs` (row-major, one row per
+/// `v`), with exactly the arithmetic of [`HeightMap::sample`] and so the same
+/// values, but with the texel addressing and the weights along u worked out
+/// once per `u` rather than once per point.
+fn sample_grid(height: &HeightMap, us: &[f32], vs: &[f32]) -> Vec<f32> {
+    let along_u = along(height, us);
+    let mut grid = vec![0.0f32; us.len() * vs.len()];
+    grid.par_chunks_mut(us.len().max(1))
+        .zip(vs.par_iter())
+        .for_each(|(row, &v)| sample_row(height, &along_u, v, row));
+    grid
 }
 
 #[cfg(test)]

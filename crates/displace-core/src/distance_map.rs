@@ -98,7 +98,7 @@ impl R8Range {
     }
 
     /// The range for values whose minimum is `lo`.
-    fn for_min(lo: f32) -> Self {
+    pub(crate) fn for_min(lo: f32) -> Self {
         let min = if lo.is_finite() {
             (lo * 64.0).floor() / 64.0
         } else {

@@ -5,6 +5,7 @@
 
 use crate::convention::{check_allocation, texel_lerp, Address};
 use crate::{Error, Result};
+use rayon::prelude::*;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightMap {
@@ -31,10 +32,11 @@ impl HeightMap {
                 data.len()
             )));
         }
+        // In parallel: an 8192x8192 map is 67 M texels.
         if let Some((k, v)) = data
-            .iter()
+            .par_iter()
             .enumerate()
-            .find(|(_, v)| !v.is_finite() || **v < 0.0 || **v > 1.0)
+            .find_first(|(_, v)| !v.is_finite() || **v < 0.0 || **v > 1.0)
         {
             return Err(Error::InvalidHeightMap(format!(
                 "texel ({}, {}) is {v}: heights must be finite and in [0, 1]",

@@ -44,7 +44,9 @@ pub mod techniques;
 mod displacement;
 
 pub use convention::{Address, Extent};
-pub use displacement::{bake, check_iterations, BakeOptions, DisplacementMap};
+pub use displacement::{
+    bake, bake_streamed, check_iterations, BakeLayout, BakeOptions, DisplacementMap, Slab, SlabSink,
+};
 pub use distance_map::DistanceMap;
 pub use error::Error;
 pub use heightmap::HeightMap;

@@ -48,6 +48,38 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
         + columns * BAKE_BYTES_PER_COLUMN
 }
 
+/// Bytes per voxel of a slab in flight in a streamed bake
+/// ([`crate::bake_streamed`] into [`crate::io::stream::MapStream`]): the
+/// values (4) and up to three encoded buffers (being filled, queued, being
+/// written) of at most 4 bytes each.
+pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 16;
+
+/// Estimated peak bytes of a streamed bake: as [`bake_peak_bytes`] but
+/// with `slab_slices` slices in flight instead of the whole volume, plus
+/// `held_bytes_per_voxel` for what the writer must hold to the end (a
+/// KTX2 r16f level: 2; otherwise 0).
+pub fn streamed_bake_peak_bytes(
+    height: [usize; 2],
+    map: [usize; 3],
+    slab_slices: usize,
+    held_bytes_per_voxel: u128,
+    cones: bool,
+) -> u128 {
+    let texels = height[0] as u128 * height[1] as u128;
+    let columns = map[0] as u128 * map[1] as u128;
+    let voxels = columns * map[2] as u128;
+    let slab = columns * slab_slices.clamp(1, map[2].max(1)) as u128;
+    texels * BAKE_BYTES_PER_TEXEL
+        + if cones {
+            texels * CONE_BYTES_PER_TEXEL
+        } else {
+            0
+        }
+        + slab * STREAM_BYTES_PER_SLAB_VOXEL
+        + voxels * held_bytes_per_voxel
+        + columns * BAKE_BYTES_PER_COLUMN
+}
+
 /// The limit in force and where it comes from: [`LIMIT_ENV`] if set, else
 /// the available memory; `None` when neither is known (no `/proc`).
 pub fn limit() -> Result<Option<(u128, String)>> {

@@ -142,3 +142,53 @@ fn repeat_bakes_are_periodic() {
         }
     }
 }
+
+/// A map much coarser than its height map (issue 16: an 8K height map traced
+/// with a 2K map that fits GPU 3D-texture limits) still bounds the distance
+/// to the full-resolution surface: column ranges are exact over each
+/// column's footprint, however many texels it covers. Eight texels per
+/// column here, on sharp and noisy maps, clamped and tiling.
+#[test]
+fn a_coarse_map_is_conservative_against_the_full_resolution_surface() {
+    for kind in 0..3u8 {
+        for address in [Address::Clamp, Address::Repeat] {
+            let height = random_height(kind, 32, 24, 7 + kind as u64, address);
+            let map = bake(
+                &height,
+                &BakeOptions {
+                    size: [4, 3, 4],
+                    extent: Extent::new(1.0, 0.75, 0.2).unwrap(),
+                    ..BakeOptions::default()
+                },
+            )
+            .unwrap();
+            let aspect = map.aspect();
+            let tiles = if address == Address::Repeat {
+                [-1, 2, -1, 2]
+            } else {
+                [0, 1, 0, 1]
+            };
+            let r8 = map.distance.quantized(Format::R8).0;
+            let mut rng = Rng(99 + kind as u64);
+            for _ in 0..24 {
+                let p = DVec3::new(
+                    rng.next_f64() * aspect[0] as f64,
+                    rng.next_f64() * aspect[1] as f64,
+                    rng.next_f64(),
+                );
+                let truth = true_signed_distance(&height, aspect, p, tiles);
+                let pf = p.as_vec3();
+                for (what, v) in [
+                    ("stored", map.distance.sample(pf)),
+                    ("cell bound", map.distance.cell_bound(pf)),
+                    ("r8", r8.sample(pf)),
+                ] {
+                    assert!(
+                        v as f64 <= truth + 1e-4,
+                        "kind {kind} {address:?}: {what} {v} > true {truth} at {p:?}"
+                    );
+                }
+            }
+        }
+    }
+}

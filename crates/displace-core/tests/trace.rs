@@ -234,3 +234,56 @@ fn hits_on_the_shell_floor_are_found() {
         }
     }
 }
+
+/// With a map eight times coarser than its height map, the tracer still
+/// finds the exact hit on the full-resolution heights (it refines on them;
+/// the coarse map only bounds the steps).
+#[test]
+fn a_coarse_map_traces_the_full_resolution_surface() {
+    for kind in 0..3u8 {
+        let height = random_height(kind, 64, 64, 5 + kind as u64, Address::Clamp);
+        let map = bake(
+            &height,
+            &BakeOptions {
+                size: [8, 8, 4],
+                extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
+                ..BakeOptions::default()
+            },
+        )
+        .unwrap();
+        let aspect = map.aspect();
+        let mut rng = Rng(17 + kind as u64);
+        let mut hits = 0;
+        for _ in 0..200 {
+            let ray = random_ray(&mut rng, aspect);
+            let exact = map.trace(
+                &ray,
+                &TraceOptions {
+                    method: Method::Exact,
+                    ..TraceOptions::default()
+                },
+            );
+            let sphere = map.trace(
+                &ray,
+                &TraceOptions {
+                    method: Method::Sphere,
+                    ..TraceOptions::default()
+                },
+            );
+            match (exact, sphere) {
+                (Some(e), Some(s)) => {
+                    assert!(
+                        (e.t - s.t).abs() <= 1e-3,
+                        "kind {kind}: exact t {} sphere t {}",
+                        e.t,
+                        s.t
+                    );
+                    hits += 1;
+                }
+                (None, None) => {}
+                (e, s) => panic!("kind {kind}: exact {e:?} sphere {s:?} ray {ray:?}"),
+            }
+        }
+        assert!(hits >= 100, "kind {kind}: only {hits} of 200 rays hit");
+    }
+}

@@ -124,35 +124,76 @@ pub fn write_atomic<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
 {
-    let io_err = |source| Error::Io {
+    let mut file = AtomicFile::create(path)?;
+    write(file.writer()).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let (tmp_path, file) = create_temp(path).map_err(io_err)?;
-    let guard = RemoveOnDrop(Some(tmp_path.clone()));
-    let mut out = BufWriter::with_capacity(1 << 20, file);
-    write(&mut out).map_err(io_err)?;
-    let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
-    file.sync_all().map_err(io_err)?;
-    drop(file);
-    let staged = STAGED.with(|s| match s.borrow_mut().as_mut() {
-        Some(list) => {
-            // A second write of the same path in one batch replaces the first.
-            if let Some(k) = list.iter().position(|(_, d)| d == path) {
-                let (old, _) = list.remove(k);
-                let _ = std::fs::remove_file(old);
-            }
-            list.push((tmp_path.clone(), path.to_path_buf()));
-            true
-        }
-        None => false,
-    });
-    if !staged {
-        std::fs::rename(&tmp_path, path).map_err(io_err)?;
-        sync_parent(path);
+    })?;
+    file.commit()
+}
+
+/// A file written in pieces (a bake streaming its slabs) under a temporary
+/// name next to `path`, moved into place by [`AtomicFile::commit`] (or
+/// staged in the open [`Batch`]) and removed if dropped uncommitted, so an
+/// error or an interrupted bake leaves nothing behind. Created before the
+/// work starts, it also finds an unwritable destination before any is done.
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: RemoveOnDrop,
+    out: BufWriter<File>,
+}
+
+impl AtomicFile {
+    /// Creates the temporary file for `path`.
+    pub fn create(path: &Path) -> Result<Self> {
+        let (tmp_path, file) = create_temp(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            tmp: RemoveOnDrop(Some(tmp_path)),
+            out: BufWriter::with_capacity(1 << 20, file),
+        })
     }
-    guard.disarm();
-    Ok(())
+
+    /// Where the bytes go, in order.
+    pub fn writer(&mut self) -> &mut BufWriter<File> {
+        &mut self.out
+    }
+
+    /// Flushes and fsyncs the file, then renames it into place (or stages
+    /// it in the open [`Batch`]).
+    pub fn commit(self) -> Result<()> {
+        let Self { path, tmp, out } = self;
+        let path = path.as_path();
+        let io_err = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let tmp_path = tmp.0.clone().expect("armed until committed");
+        let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
+        file.sync_all().map_err(io_err)?;
+        drop(file);
+        let staged = STAGED.with(|s| match s.borrow_mut().as_mut() {
+            Some(list) => {
+                // A second write of the same path in one batch replaces the first.
+                if let Some(k) = list.iter().position(|(_, d)| d == path) {
+                    let (old, _) = list.remove(k);
+                    let _ = std::fs::remove_file(old);
+                }
+                list.push((tmp_path.clone(), path.to_path_buf()));
+                true
+            }
+            None => false,
+        });
+        if !staged {
+            std::fs::rename(&tmp_path, path).map_err(io_err)?;
+            sync_parent(path);
+        }
+        tmp.disarm();
+        Ok(())
+    }
 }
 
 /// Persists a rename; a failure here loses nothing already written.

@@ -41,10 +41,9 @@ fn dxgi(format: Format) -> DxgiFormat {
     }
 }
 
-/// Encodes `map` as the bytes of a DDS volume texture (DX10 header, one mip
-/// level), rounding values down to `format`.
-pub fn to_bytes(map: &DistanceMap, format: Format) -> std::result::Result<Vec<u8>, FormatError> {
-    let [w, h, d] = map.size();
+/// Refuses a volume a DDS header cannot describe.
+pub(crate) fn check_size(size: [usize; 3], format: Format) -> std::result::Result<(), FormatError> {
+    let [w, h, d] = size;
     let bytes = (w * h * d) as u128 * format.bytes_per_voxel() as u128;
     if bytes > u32::MAX as u128 || [w, h, d].iter().any(|&n| n > u32::MAX as usize) {
         return Err(FormatError::Unsupported(format!(
@@ -52,17 +51,27 @@ pub fn to_bytes(map: &DistanceMap, format: Format) -> std::result::Result<Vec<u8
             format.name()
         )));
     }
-    if format == Format::R8 {
-        let lo = map.data().iter().copied().fold(f32::INFINITY, f32::min);
-        if lo < DDS_R8_RANGE.min {
-            return Err(FormatError::Unsupported(format!(
-                "the map holds {lo} shell depths, below the fixed R8 range of DDS ({}..{}); \
-                 write r16f/r32f or a .ktx2 file (which records its own range)",
-                DDS_R8_RANGE.min, DDS_R8_RANGE.max
-            )));
-        }
+    Ok(())
+}
+
+/// Refuses an R8 map whose lowest value `lo` is below [`DDS_R8_RANGE`]:
+/// clamping it up would break conservativeness.
+pub(crate) fn check_r8_min(lo: f32) -> std::result::Result<(), FormatError> {
+    if lo < DDS_R8_RANGE.min {
+        return Err(FormatError::Unsupported(format!(
+            "the map holds {lo} shell depths, below the fixed R8 range of DDS ({}..{}); \
+             write r16f/r32f or a .ktx2 file (which records its own range)",
+            DDS_R8_RANGE.min, DDS_R8_RANGE.max
+        )));
     }
-    let mut dds = Dds::new_dxgi(NewDxgiParams {
+    Ok(())
+}
+
+/// The container for a `size` volume in `format` (its data zeroed, which
+/// costs no memory until written).
+fn new_dds(size: [usize; 3], format: Format) -> std::result::Result<Dds, FormatError> {
+    let [w, h, d] = size;
+    Dds::new_dxgi(NewDxgiParams {
         height: h as u32,
         width: w as u32,
         depth: Some(d as u32),
@@ -74,7 +83,34 @@ pub fn to_bytes(map: &DistanceMap, format: Format) -> std::result::Result<Vec<u8
         resource_dimension: D3D10ResourceDimension::Texture3D,
         alpha_mode: AlphaMode::Unknown,
     })
-    .map_err(|e| FormatError::Unsupported(format!("DDS: {e}")))?;
+    .map_err(|e| FormatError::Unsupported(format!("DDS: {e}")))
+}
+
+/// The bytes of a DDS file before its voxels (magic, header, DX10 header),
+/// exactly as [`to_bytes`] writes them: for the streamed writer.
+pub(crate) fn header(
+    size: [usize; 3],
+    format: Format,
+) -> std::result::Result<Vec<u8>, FormatError> {
+    check_size(size, format)?;
+    let mut dds = new_dds(size, format)?;
+    dds.data = Vec::new();
+    let mut bytes = Vec::with_capacity(148);
+    dds.write(&mut bytes)
+        .map_err(|e| FormatError::Invalid(format!("DDS: {e}")))?;
+    Ok(bytes)
+}
+
+/// Encodes `map` as the bytes of a DDS volume texture (DX10 header, one mip
+/// level), rounding values down to `format`.
+pub fn to_bytes(map: &DistanceMap, format: Format) -> std::result::Result<Vec<u8>, FormatError> {
+    let [w, h, d] = map.size();
+    check_size([w, h, d], format)?;
+    if format == Format::R8 {
+        let lo = map.data().iter().copied().fold(f32::INFINITY, f32::min);
+        check_r8_min(lo)?;
+    }
+    let mut dds = new_dds([w, h, d], format)?;
     let out = dds
         .get_mut_data(0)
         .map_err(|e| FormatError::Invalid(format!("DDS layout: {e}")))?;

@@ -167,27 +167,59 @@ fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     let img = DynamicImage::from_decoder(decoder)
         .map_err(|e| image_err(path, format!("cannot decode PNG: {e}")))?;
     let (w, h) = (w as usize, h as usize);
-    // Samples normalised to [0, 1] with their channel layout.
-    let (channels, grey, samples): (usize, bool, Vec<f32>) = match img {
-        DynamicImage::ImageLuma8(b) => (1, true, norm8(b.into_raw())),
-        DynamicImage::ImageLumaA8(b) => (2, true, norm8(b.into_raw())),
-        DynamicImage::ImageRgb8(b) => (3, false, norm8(b.into_raw())),
-        DynamicImage::ImageRgba8(b) => (4, false, norm8(b.into_raw())),
-        DynamicImage::ImageLuma16(b) => (1, true, norm16(b.into_raw())),
-        DynamicImage::ImageLumaA16(b) => (2, true, norm16(b.into_raw())),
-        DynamicImage::ImageRgb16(b) => (3, false, norm16(b.into_raw())),
-        DynamicImage::ImageRgba16(b) => (4, false, norm16(b.into_raw())),
+    // Straight from the decoded samples to one height per texel, in
+    // parallel, with no intermediate copy of every channel in `f32`: an
+    // 8192x8192 16-bit map costs its samples plus the heights.
+    let data = match img {
+        DynamicImage::ImageLuma8(b) => heights(path, &b.into_raw(), 1, true, opts.channel, 255.0),
+        DynamicImage::ImageLumaA8(b) => heights(path, &b.into_raw(), 2, true, opts.channel, 255.0),
+        DynamicImage::ImageRgb8(b) => heights(path, &b.into_raw(), 3, false, opts.channel, 255.0),
+        DynamicImage::ImageRgba8(b) => heights(path, &b.into_raw(), 4, false, opts.channel, 255.0),
+        DynamicImage::ImageLuma16(b) => {
+            heights(path, &b.into_raw(), 1, true, opts.channel, 65535.0)
+        }
+        DynamicImage::ImageLumaA16(b) => {
+            heights(path, &b.into_raw(), 2, true, opts.channel, 65535.0)
+        }
+        DynamicImage::ImageRgb16(b) => {
+            heights(path, &b.into_raw(), 3, false, opts.channel, 65535.0)
+        }
+        DynamicImage::ImageRgba16(b) => {
+            heights(path, &b.into_raw(), 4, false, opts.channel, 65535.0)
+        }
         other => {
             return Err(image_err(
                 path,
                 format!("unsupported PNG colour type {:?}", other.color()),
             ))
         }
-    };
+    }?;
+    finish(path, w, h, data, opts.address)
+}
+
+/// The heights of interleaved integer `samples` (`channels` per texel,
+/// `grey` when the colour channels are one grey value), normalised by
+/// `full` (the largest code): the chosen channel, or the grey value, or the
+/// Rec. 709 luma of the colour channels. Each sample is normalised exactly
+/// as before (`code as f32 / full`), so the heights are unchanged.
+fn heights<T: Copy + Into<f32> + Sync>(
+    path: &Path,
+    samples: &[T],
+    channels: usize,
+    grey: bool,
+    channel: Option<Channel>,
+    full: f32,
+) -> Result<Vec<f32>> {
+    use rayon::prelude::*;
     let has_alpha = channels == 2 || channels == 4;
-    let pick =
-        |c: usize| -> Vec<f32> { samples.iter().skip(c).step_by(channels).copied().collect() };
-    let data = match (opts.channel, grey) {
+    let norm = |c: T| -> f32 { c.into() / full };
+    let pick = |c: usize| -> Vec<f32> {
+        samples
+            .par_chunks_exact(channels)
+            .map(|p| norm(p[c]))
+            .collect()
+    };
+    Ok(match (channel, grey) {
         (Some(Channel::A), _) if !has_alpha => {
             return Err(image_err(path, "has no alpha channel (--channel a)"));
         }
@@ -196,19 +228,10 @@ fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         (_, true) => pick(0),
         (Some(c), false) => pick(c as usize),
         (None, false) => samples
-            .chunks_exact(channels)
-            .map(|p| (LUMA[0] * p[0] + LUMA[1] * p[1] + LUMA[2] * p[2]).min(1.0))
+            .par_chunks_exact(channels)
+            .map(|p| (LUMA[0] * norm(p[0]) + LUMA[1] * norm(p[1]) + LUMA[2] * norm(p[2])).min(1.0))
             .collect(),
-    };
-    finish(path, w, h, data, opts.address)
-}
-
-fn norm8(v: Vec<u8>) -> Vec<f32> {
-    v.into_iter().map(|c| c as f32 / 255.0).collect()
-}
-
-fn norm16(v: Vec<u16>) -> Vec<f32> {
-    v.into_iter().map(|c| c as f32 / 65535.0).collect()
+    })
 }
 
 fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
@@ -226,11 +249,13 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     let layer = image.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     HeightMap::check_size(w, h).map_err(|e| image_err(path, e))?;
-    let channels: Vec<(String, Vec<f32>)> = layer
+    // The channels as decoded (no `f32` copy of each: a channel is read
+    // where it lies, converted sample by sample as `values_as_f32` does).
+    let channels: Vec<(String, &FlatSamples)> = layer
         .channel_data
         .list
         .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .map(|c| (c.name.to_string(), &c.sample_data))
         .collect();
     // Channel names may carry a layer prefix (`height.R`).
     let find = |letter: &str| {
@@ -247,7 +272,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let used: Vec<(&(String, Vec<f32>), f32)> = match opts.channel {
+    let used: Vec<(&(String, &FlatSamples), f32)> = match opts.channel {
         Some(c) => {
             let ch = find(c.letter()).ok_or_else(|| {
                 image_err(
@@ -268,6 +293,8 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             )],
         },
     };
+    use rayon::prelude::*;
+    let at = |values: &FlatSamples, k: usize| values.value_by_flat_index(k).to_f32();
     for ((name, values), _) in &used {
         if values.len() != w * h {
             return Err(image_err(
@@ -275,24 +302,29 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
                 format!("channel {name} is subsampled, which is not supported"),
             ));
         }
-        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+        if let Some(k) = (0..w * h)
+            .into_par_iter()
+            .position_first(|k| !at(values, k).is_finite())
+        {
             return Err(image_err(
                 path,
                 format!(
                     "texel ({}, {}) of channel {name} is {}: heights must be finite",
                     k % w,
                     k / w,
-                    values[k]
+                    at(values, k)
                 ),
             ));
         }
     }
     let mut data = vec![0.0f32; w * h];
-    for ((_, values), weight) in &used {
-        for (d, v) in data.iter_mut().zip(values) {
-            *d += weight * v;
+    data.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for ((_, values), weight) in &used {
+            for (i, d) in row.iter_mut().enumerate() {
+                *d += weight * at(values, j * w + i);
+            }
         }
-    }
+    });
     if let Some(k) = data.iter().position(|v| !(0.0..=1.0).contains(v)) {
         let (lo, hi) = data
             .iter()

@@ -79,7 +79,8 @@ fn dfd(format: Format) -> Vec<u8> {
 
 /// The key/value pairs (sorted by key, as the spec requires) for `map`.
 fn key_values(
-    map: &DistanceMap,
+    address: Address,
+    underestimate: f32,
     extent: Extent,
     format: Format,
     range: Option<R8Range>,
@@ -92,7 +93,7 @@ fn key_values(
     };
     let mut kv = vec![
         ("KTXwriter".to_string(), format!("displace {}", env!("CARGO_PKG_VERSION"))),
-        ("displace.addressing".into(), map.address().name().into()),
+        ("displace.addressing".into(), address.name().into()),
         ("displace.aspect".into(), format!("{ax},{ay}")),
         (
             "displace.convention".into(),
@@ -104,7 +105,7 @@ fn key_values(
         ),
         ("displace.encoding".into(), encoding.into()),
         ("displace.extent".into(), format!("{},{},{}", extent.sx, extent.sy, extent.sz)),
-        ("displace.max_underestimate".into(), format!("{}", map.data_underestimate())),
+        ("displace.max_underestimate".into(), format!("{underestimate}")),
         ("displace.units".into(), "shell depths".into()),
     ];
     if let Some(r) = range {
@@ -125,6 +126,55 @@ fn kvd_bytes(kv: &[(String, String)]) -> Vec<u8> {
         out.push(0);
         out.resize(out.len().next_multiple_of(4), 0);
     }
+    out
+}
+
+/// Everything of a KTX2 file before its level data, with room reserved for
+/// that data: identifier, header, level index, descriptor and key/value data
+/// (`underestimate` and `range` as the rounded map states them), padded to
+/// where level 0 starts. Shared by [`to_bytes`] and the streamed writer of
+/// [`super::stream`], so both write the same bytes.
+pub(crate) fn header(
+    size: [usize; 3],
+    address: Address,
+    underestimate: f32,
+    extent: Extent,
+    format: Format,
+    range: Option<R8Range>,
+) -> Vec<u8> {
+    let [w, h, d] = size;
+    let (vk, type_size) = vk_format(format);
+    let dfd = dfd(format);
+    let kvd = kvd_bytes(&key_values(address, underestimate, extent, format, range));
+    let dfd_offset = HEADER_LEN + LEVEL_INDEX_LEN;
+    let kvd_offset = dfd_offset + dfd.len();
+    // Level data aligns to lcm(texel block size, 4) = 4 for these formats.
+    let level_offset = (kvd_offset + kvd.len()).next_multiple_of(4);
+    let level_len = w * h * d * format.bytes_per_voxel();
+
+    let mut out = Vec::with_capacity(level_offset);
+    out.extend_from_slice(&IDENTIFIER);
+    for v in [vk, type_size, w as u32, h as u32, d as u32, 0, 1, 1, 0] {
+        // vkFormat, typeSize, pixelWidth/Height/Depth, layerCount 0 (not an
+        // array), faceCount 1, levelCount 1, supercompressionScheme 0.
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [
+        dfd_offset as u32,
+        dfd.len() as u32,
+        kvd_offset as u32,
+        kvd.len() as u32,
+    ] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&0u64.to_le_bytes()); // sgdByteOffset
+    out.extend_from_slice(&0u64.to_le_bytes()); // sgdByteLength
+    for v in [level_offset as u64, level_len as u64, level_len as u64] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&dfd);
+    out.extend_from_slice(&kvd);
+    out.resize(level_offset, 0);
     out
 }
 
@@ -149,38 +199,15 @@ pub fn to_bytes(
         )));
     }
     let (q, range) = map.quantized(format);
-    let (vk, type_size) = vk_format(format);
-    let dfd = dfd(format);
-    let kvd = kvd_bytes(&key_values(&q, extent, format, range));
-    let dfd_offset = HEADER_LEN + LEVEL_INDEX_LEN;
-    let kvd_offset = dfd_offset + dfd.len();
-    // Level data aligns to lcm(texel block size, 4) = 4 for these formats.
-    let level_offset = (kvd_offset + kvd.len()).next_multiple_of(4);
-    let level_len = w * h * d * format.bytes_per_voxel();
-
-    let mut out = Vec::with_capacity(level_offset + level_len);
-    out.extend_from_slice(&IDENTIFIER);
-    for v in [vk, type_size, w as u32, h as u32, d as u32, 0, 1, 1, 0] {
-        // vkFormat, typeSize, pixelWidth/Height/Depth, layerCount 0 (not an
-        // array), faceCount 1, levelCount 1, supercompressionScheme 0.
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    for v in [
-        dfd_offset as u32,
-        dfd.len() as u32,
-        kvd_offset as u32,
-        kvd.len() as u32,
-    ] {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    out.extend_from_slice(&0u64.to_le_bytes()); // sgdByteOffset
-    out.extend_from_slice(&0u64.to_le_bytes()); // sgdByteLength
-    for v in [level_offset as u64, level_len as u64, level_len as u64] {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    out.extend_from_slice(&dfd);
-    out.extend_from_slice(&kvd);
-    out.resize(level_offset, 0);
+    let mut out = header(
+        [w, h, d],
+        map.address(),
+        q.data_underestimate(),
+        extent,
+        format,
+        range,
+    );
+    out.reserve(w * h * d * format.bytes_per_voxel());
     match (format, range) {
         // Encoded from the original values, as `quantized` does: re-encoding
         // an already decoded value could land one code lower.

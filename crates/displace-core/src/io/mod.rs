@@ -18,6 +18,7 @@ pub mod dds;
 pub mod height;
 pub mod ktx2;
 pub mod npy;
+pub mod stream;
 
 use crate::convention::MAX_ALLOCATION_BYTES;
 use crate::distance_map::Format;

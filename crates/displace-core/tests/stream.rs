@@ -1,0 +1,130 @@
+//! The streamed bake ([`bake_streamed`] into [`MapStream`]) writes the very
+//! bytes of the in-memory bake and [`write_distance_map`], for every file
+//! type, format and addressing, whatever the slab size; and a stream that is
+//! dropped or fails leaves no file.
+
+use displace_core::distance_map::Format;
+use displace_core::generators::generate;
+use displace_core::io::stream::MapStream;
+use displace_core::io::write_distance_map;
+use displace_core::{
+    bake, bake_streamed, Address, BakeLayout, BakeOptions, Extent, Slab, SlabSink,
+};
+use std::path::Path;
+
+fn streamed(
+    height: &displace_core::HeightMap,
+    opts: &BakeOptions,
+    path: &Path,
+    format: Format,
+    slab: usize,
+) {
+    let mut stream = MapStream::create(path, format, opts.size, opts.extent).unwrap();
+    bake_streamed(height, opts, slab, &mut stream).unwrap();
+    stream.finish().unwrap();
+}
+
+#[test]
+fn streamed_and_in_memory_bakes_write_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "gen:studded",
+            [40, 24, 9],
+            Extent {
+                sx: 1.0,
+                sy: 0.6,
+                sz: 0.05,
+            },
+        ),
+        (
+            "gen:noise",
+            [33, 17, 16],
+            Extent {
+                sx: 1.0,
+                sy: 1.0,
+                sz: 0.1,
+            },
+        ),
+        // Coarse and shallow: values far below the surface.
+        (
+            "gen:gaussian",
+            [8, 8, 4],
+            Extent {
+                sx: 1.0,
+                sy: 1.0,
+                sz: 0.4,
+            },
+        ),
+    ];
+    for (spec, size, extent) in cases {
+        for address in [Address::Clamp, Address::Repeat] {
+            let height = generate(spec, 48, 40, address).unwrap();
+            let opts = BakeOptions {
+                size,
+                extent,
+                ..Default::default()
+            };
+            let map = bake(&height, &opts).unwrap();
+            for (ext, formats) in [
+                ("ktx2", &[Format::R8, Format::R16F, Format::R32F][..]),
+                ("dds", &[Format::R8, Format::R16F, Format::R32F][..]),
+                ("npy", &[Format::R32F][..]),
+            ] {
+                for &format in formats {
+                    let want = dir.path().join(format!("want.{ext}"));
+                    write_distance_map(&want, &map.distance, extent, format).unwrap();
+                    let want = std::fs::read(&want).unwrap();
+                    for slab in [1, 2, 5, size[2]] {
+                        let got = dir.path().join(format!("got.{ext}"));
+                        streamed(&height, &opts, &got, format, slab);
+                        assert!(
+                            std::fs::read(&got).unwrap() == want,
+                            "{spec} {size:?} {address:?} .{ext} {} slab {slab}: bytes differ",
+                            format.name()
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn an_unfinished_or_failed_stream_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let height = generate("gen:studded", 32, 32, Address::Clamp).unwrap();
+    let opts = BakeOptions {
+        size: [16, 16, 8],
+        ..Default::default()
+    };
+    let path = dir.path().join("m.ktx2");
+    {
+        // A sink that fails at its second slab, as a write error or an
+        // interruption would: the stream is dropped unfinished.
+        struct FailingAt2(MapStream, usize);
+        impl SlabSink for FailingAt2 {
+            fn begin(&mut self, l: BakeLayout) -> displace_core::Result<()> {
+                self.0.begin(l)
+            }
+            fn push(&mut self, s: Slab<'_>) -> displace_core::Result<()> {
+                self.1 += 1;
+                if self.1 == 2 {
+                    return Err(displace_core::Error::Cancelled);
+                }
+                self.0.push(s)
+            }
+        }
+        let stream = MapStream::create(&path, Format::R8, opts.size, opts.extent).unwrap();
+        let r = bake_streamed(&height, &opts, 2, &mut FailingAt2(stream, 0));
+        assert!(matches!(r, Err(displace_core::Error::Cancelled)));
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+    // A missing directory fails when the stream is created, before any work.
+    let missing = dir.path().join("no/such/dir/m.ktx2");
+    let err = MapStream::create(&missing, Format::R8, opts.size, opts.extent)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("no/such/dir"), "{err}");
+}
