@@ -5,19 +5,10 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr};
+use cli_common::{displace, files, stderr};
 use displace_core::io::{dds, ktx2, npy};
 use displace_core::{Address, Extent};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn displace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_displace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run displace")
-}
 
 /// Runs a command that must fail: non-zero exit, `needles` in the message
 /// (case-insensitive), and the directory holding exactly `before`.

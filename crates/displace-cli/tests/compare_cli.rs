@@ -2,16 +2,9 @@
 //! and one row per map, elevation, technique and budget with sane values;
 //! plots and grid are valid PNGs; bad input fails cleanly.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod cli_common;
 
-fn displace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_displace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run displace")
-}
+use cli_common::displace;
 
 const COLUMNS: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray,gpu_ns_per_ray";
 

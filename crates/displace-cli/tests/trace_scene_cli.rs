@@ -4,25 +4,15 @@
 //! reference), any-hit queries against the first hits on random rays, and
 //! bad rays refused with the problem named and nothing written.
 
+mod cli_common;
+
+use cli_common::{displace, stderr};
 use displace_core::io::npy;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn displace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_displace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run displace")
-}
 
 fn ok(args: &[&str], dir: &Path) {
     let o = displace(args, dir);
-    assert!(
-        o.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "{args:?} failed: {}", stderr(&o));
 }
 
 fn write_rays(path: &Path, rows: &[Vec<f32>]) {
@@ -340,7 +330,7 @@ material = \"white\"
             ],
             d,
         );
-        let msg = String::from_utf8_lossy(&o.stderr).to_lowercase();
+        let msg = stderr(&o).to_lowercase();
         assert!(!o.status.success(), "{name} accepted");
         assert!(msg.contains(needle) && msg.contains(name), "{name}: {msg}");
         assert!(!msg.contains("panicked"), "{msg}");
@@ -363,5 +353,5 @@ material = \"white\"
         d,
     );
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--scene"));
+    assert!(stderr(&o).contains("--scene"));
 }

@@ -1,9 +1,19 @@
-//! What several CLI test files share: reading a run's stderr, listing what
-//! a run left in its directory, and the smallest scene `render` draws.
+//! What several CLI test files share: running the binary, reading a run's
+//! stderr, listing what a run left in its directory, and the smallest scene
+//! `render` draws.
 #![allow(dead_code)]
 
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output};
+
+/// Runs `displace ARGS` in `dir` and returns what it did.
+pub fn displace(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_displace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run displace")
+}
 
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
