@@ -12,9 +12,10 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use displace_core::{generators, Address};
 use displace_render::bvh::Bvh;
+use displace_render::camera::Camera;
 use displace_render::geometry::Ray;
 use displace_render::shapes::Triangle;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use glam034 as g34;
 use obvhs::ray::RayHit;
 use std::hint::black_box;
@@ -40,23 +41,20 @@ fn mesh() -> Vec<Triangle> {
     tris
 }
 
-/// Pinhole camera rays 45 degrees down onto the centre of the square.
+/// Pinhole camera rays (the renderer's own camera) 45 degrees down onto
+/// the centre of the square, 20 degree field of view.
 fn rays() -> Vec<Ray> {
     let centre = Vec3::new(0.5, 0.5, 0.0);
     let s = 0.5f32.sqrt();
     let pos = centre + 1.2 * Vec3::new(0.0, -s, s);
-    let fwd = (centre - pos).normalize();
-    let right = fwd.cross(Vec3::Z).normalize();
-    let up = right.cross(fwd);
-    let t = 10f32.to_radians().tan();
+    let camera = Camera::new(pos, centre, Vec3::Z, 20.0, 1.0, 0.0, None).expect("camera");
     (0..RAYS * RAYS)
         .map(|k| {
-            let fx = ((k % RAYS) as f32 + 0.5) / RAYS as f32;
-            let fy = ((k / RAYS) as f32 + 0.5) / RAYS as f32;
-            Ray::new(
-                pos,
-                fwd + (2.0 * fx - 1.0) * t * right + (1.0 - 2.0 * fy) * t * up,
-            )
+            let film = Vec2::new(
+                ((k % RAYS) as f32 + 0.5) / RAYS as f32,
+                ((k / RAYS) as f32 + 0.5) / RAYS as f32,
+            );
+            camera.ray(film, Vec2::splat(0.5))
         })
         .collect()
 }
