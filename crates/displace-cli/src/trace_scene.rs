@@ -61,8 +61,8 @@ pub fn blocked(scene: &Scene, r: &[f32; 7]) -> f32 {
 
 /// Loads `scene`, traces every ray of `rays` and writes `output`.
 pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool) -> Result<()> {
-    let rays = read_rays_with_length(rays)?;
     crate::bake::check_npy_output(output)?;
+    let rays = read_rays_with_length(rays)?;
     let opts = SceneOptions {
         cache_dir: if cache {
             displace_render::default_cache_dir()

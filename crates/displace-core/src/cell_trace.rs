@@ -25,7 +25,7 @@
 
 use crate::convention::{floor_i64, TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
 use crate::exact::{patch_hit, SurfaceHit, Walk};
-use crate::sphere_trace::{clip, shading_normal, surface_hit, wall_hit, MapHit, MapRay};
+use crate::sphere_trace::{clip, surface_hit, wall_hit, MapHit, MapRay};
 use crate::sphere_trace::{Method, TraceOptions};
 use crate::{DistanceMap, HeightMap};
 use glam::Vec3;
@@ -101,8 +101,10 @@ fn run<const ANY: bool>(
         return found(wall_hit(ray, aspect, &clip, clip.t_in, 0));
     }
     let walk = |t0: f32, t1: f32| walk::<ANY>(height, aspect, ray, t0, t1);
-    // The walk's outcome as this trace's: `Some` ends the trace.
-    let settle = |w: Walk, t: f32, iterations: u32| -> Option<Outcome> {
+    // A hit of the walk ends the trace (this walk reports only hits and
+    // misses: a ray under its first patch is that patch's root at the
+    // walk's start).
+    let settle = |w: Walk, iterations: u32| -> Option<Outcome> {
         match w {
             Walk::Hit(h) => Some(found(surface_hit(
                 ray,
@@ -112,15 +114,7 @@ fn run<const ANY: bool>(
                 iterations + h.cells,
                 true,
             ))),
-            Walk::StartsInside { cells } => Some(found(surface_hit(
-                ray,
-                aspect,
-                t,
-                shading_normal(height, aspect, at(t)),
-                iterations + cells,
-                true,
-            ))),
-            Walk::Miss { .. } => None,
+            Walk::StartsInside { .. } | Walk::Miss { .. } => None,
         }
     };
     let voxel = distance.voxel_size();
@@ -135,7 +129,7 @@ fn run<const ANY: bool>(
     while t <= clip.t_out {
         if steps >= max_steps {
             // Out of steps: finish exactly, which is always right.
-            return settle(walk(t, clip.t_out), t, iterations).unwrap_or(Outcome::Miss);
+            return settle(walk(t, clip.t_out), iterations).unwrap_or(Outcome::Miss);
         }
         let s = distance.cell_bound(at(t));
         steps += 1;
@@ -146,7 +140,7 @@ fn run<const ANY: bool>(
         }
         let t1 = (t + band).min(clip.t_out);
         let w = walk(t, t1);
-        if let Some(out) = settle(w, t, iterations) {
+        if let Some(out) = settle(w, iterations) {
             return out;
         }
         if let Walk::Miss { cells } = w {

@@ -347,7 +347,7 @@ pub(crate) fn wall_hit(
 
 /// Normal of the bilinear surface at map-space point `p` (used where a hit
 /// has no patch of its own: an unconverged fixed-step hit).
-pub(crate) fn shading_normal(height: &HeightMap, aspect: [f32; 2], p: Vec3) -> Vec3 {
+fn shading_normal(height: &HeightMap, aspect: [f32; 2], p: Vec3) -> Vec3 {
     let g = height.gradient(p.x / aspect[0], p.y / aspect[1]);
     Vec3::new(-g[0] / aspect[0], -g[1] / aspect[1], 1.0).normalize()
 }
