@@ -140,14 +140,21 @@ pub(crate) struct Constants {
     aspect: [f32; 2],
     tau: f32,
     band: f32,
+    /// Height cells per map unit across and down ([`Grid`]).
+    cells: [f64; 2],
 }
 
 impl Constants {
-    fn new(distance: &DistanceMap) -> Self {
+    fn new(height: &HeightMap, distance: &DistanceMap) -> Self {
         let voxel = distance.voxel_size();
         let tau = TRACE_STOP_VOXELS * voxel.min_element();
+        let aspect = distance.aspect();
         Constants {
-            aspect: distance.aspect(),
+            aspect,
+            cells: [
+                height.width() as f64 / aspect[0] as f64,
+                height.height() as f64 / aspect[1] as f64,
+            ],
             tau,
             // The values read are unrounded: their bound is the data's,
             // without the 8-bit codes' quantum.
@@ -202,7 +209,7 @@ impl Lane {
             ray: *ray,
             t_out: clip.t_out,
             max_steps: opts.iterations.max(1),
-            grid: Grid::new(height, aspect, ray),
+            grid: Grid::new(c.cells, ray),
             t: clip.t_in,
             steps: 0,
             walked: 0,
@@ -330,7 +337,7 @@ fn run<const ANY: bool>(
     ray: &MapRay,
     opts: &TraceOptions,
 ) -> Outcome {
-    let c = Constants::new(distance);
+    let c = Constants::new(height, distance);
     let mut lane = match Lane::begin(height, &c, ray, opts, ANY) {
         Ok(lane) => lane,
         Err(out) => return out,
@@ -355,7 +362,8 @@ fn run<const ANY: bool>(
 /// units (texel centres at integers, cell `c` spanning `[c, c + 1]`, as the
 /// reference has them) and the ray's per-axis stepping through it, worked
 /// out once per ray rather than once per walk (a shadow ray leaving the
-/// surface walks several bands; the divisions were a fifth of a walk).
+/// surface walks several bands; the divisions were a fifth of a walk), the
+/// cell scale once per map ([`Constants`]).
 struct Grid {
     o: Vec3,
     d: Vec3,
@@ -411,9 +419,7 @@ impl Axis {
 }
 
 impl Grid {
-    fn new(height: &HeightMap, aspect: [f32; 2], ray: &MapRay) -> Self {
-        let sx = height.width() as f64 / aspect[0] as f64;
-        let sy = height.height() as f64 / aspect[1] as f64;
+    fn new([sx, sy]: [f64; 2], ray: &MapRay) -> Self {
         let (o, d) = (ray.origin, ray.dir);
         Grid {
             o,

@@ -35,7 +35,7 @@ pub(super) fn run_all<const ANY: bool>(
     mut emit: impl FnMut(usize, Outcome),
 ) {
     debug_assert_eq!(rays.len(), opts.len());
-    let c = Constants::new(distance);
+    let c = Constants::new(height, distance);
     let vector = vector_kernel() && eligible(height, distance);
     let mut k = 0;
     while k < rays.len() {
@@ -369,6 +369,7 @@ mod avx2 {
         let mut t1 = [0.0f32; LANES];
         let mut margin = [0.0f32; LANES];
         let mut oz = [0.0f32; LANES];
+        let mut axes = [[0.0f32; LANES]; 4];
         let mut dz = [0.0f32; LANES];
         for l in lanes_of(live) {
             let lane = lanes[l].as_ref().expect("a live lane");
@@ -400,6 +401,10 @@ mod avx2 {
             t1[l] = end;
             margin[l] = 1e-4 * (1.0 + end.abs());
             oz[l] = g.o.z;
+            axes[0][l] = g.x.o;
+            axes[1][l] = g.x.d;
+            axes[2][l] = g.y.o;
+            axes[3][l] = g.y.d;
             dz[l] = g.d.z;
         }
         let load = |v: &[f32; LANES]| _mm256_loadu_ps(v.as_ptr());
@@ -419,6 +424,20 @@ mod avx2 {
         let one_i = _mm256_set1_epi32(1);
         let wv = _mm256_set1_epi32(w);
         let data = height.data();
+        let (xo_v, xd_v, yo_v, yd_v) = (
+            load(&axes[0]),
+            load(&axes[1]),
+            load(&axes[2]),
+            load(&axes[3]),
+        );
+        // What single precision may miss of the ray's height over a patch:
+        // its cell coordinates are rounded at the scale of the map's width
+        // and height (a few ulps each), and each corner difference carries
+        // that error into the height.
+        let slack = _mm256_set1_ps(8.0 * f32::EPSILON * (w + h + 2) as f32);
+        let abs = |v: __m256| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
         let mut cells = [0u32; LANES];
         // Cells walked per lane: each live lane's all-ones mask (-1)
         // subtracted once a cell.
@@ -457,7 +476,58 @@ mod avx2 {
                 ended |= blocked;
             }
             let near = _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(z_low, margin_v), highest);
-            let solve = live & !ended & bits(near);
+            let mut solve = live & !ended & bits(near);
+            if solve != 0 {
+                // The patch's quadratic along the stretch, in single
+                // precision (`exact::patch_hit`'s in double): a cell where
+                // the ray stays above the patch by more than the rounding
+                // of either is not solved. The solve would find no root
+                // there, so the hits are unchanged; most cells the ray
+                // comes down to but passes over end here, without the
+                // double-precision solve.
+                let mul = _mm256_mul_ps;
+                let (add, sub) = (_mm256_add_ps, _mm256_sub_ps);
+                let px = sub(add(xo_v, mul(xd_v, ta_v)), _mm256_cvtepi32_ps(ci_v));
+                let py = sub(add(yo_v, mul(yd_v, ta_v)), _mm256_cvtepi32_ps(cj_v));
+                let a = sub(h10, h00);
+                let b = sub(h01, h00);
+                let c = add(sub(sub(h00, h10), h01), h11);
+                let z0 = add(oz_v, mul(dz_v, ta_v));
+                let k0 = sub(
+                    sub(sub(sub(z0, h00), mul(a, px)), mul(b, py)),
+                    mul(c, mul(px, py)),
+                );
+                let k1 = sub(
+                    sub(sub(dz_v, mul(a, xd_v)), mul(b, yd_v)),
+                    mul(c, add(mul(px, yd_v), mul(xd_v, py))),
+                );
+                let k2 = sub(zero, mul(c, mul(xd_v, yd_v)));
+                let len = sub(tb_v, ta_v);
+                let k_end = add(k0, mul(len, add(k1, mul(len, k2))));
+                let m = add(
+                    margin_v,
+                    mul(slack, add(add(abs(a), abs(b)), add(abs(c), one))),
+                );
+                let gt = |x: __m256, y: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(x, y);
+                let ends_clear = _mm256_and_ps(gt(k0, m), gt(k_end, m));
+                // Convex with its vertex inside the stretch: clear only if
+                // the vertex too stays above the margin.
+                let neg_k1 = sub(zero, k1);
+                let two_k2 = add(k2, k2);
+                let vertex_inside = _mm256_and_ps(
+                    _mm256_and_ps(gt(k2, zero), gt(neg_k1, zero)),
+                    gt(mul(two_k2, len), neg_k1),
+                );
+                let vertex_clear = gt(mul(add(two_k2, two_k2), sub(k0, m)), mul(k1, k1));
+                let clear = _mm256_and_ps(
+                    ends_clear,
+                    _mm256_or_ps(
+                        _mm256_andnot_ps(vertex_inside, _mm256_castsi256_ps(_mm256_set1_epi32(-1))),
+                        vertex_clear,
+                    ),
+                );
+                solve &= !bits(clear);
+            }
             let last_cell = _mm256_cmp_ps::<_CMP_GE_OQ>(tb_v, t1_v);
             let at_end = live & !ended & bits(last_cell);
             if solve | at_end != 0 {
