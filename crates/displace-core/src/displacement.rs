@@ -138,6 +138,13 @@ impl DisplacementMap {
     pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
         self.normals.sample(uv.x, uv.y)
     }
+
+    /// [`Self::shading_normal`] not yet renormalised (its direction, at a
+    /// length within rounding of the blend of unit normals), for a renderer
+    /// that carries it into the world and normalises there.
+    pub fn shading_direction(&self, uv: Vec2) -> Vec3 {
+        self.normals.blend(uv.x, uv.y)
+    }
 }
 
 /// Refuses a step count outside `1..=MAX_TRACE_ITERATIONS`, which

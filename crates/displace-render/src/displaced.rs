@@ -212,7 +212,7 @@ impl DisplacedFace {
         if !(s > 0.0 && s.is_finite()) {
             return None;
         }
-        let dir = d / s;
+        let dir = d * (1.0 / s);
         let mut opts = self.trace;
         opts.t_min = t_min * s;
         opts.t_max = t_max * s;
@@ -258,7 +258,8 @@ impl DisplacedFace {
                         }
                         Address::Clamp => hit.uv,
                     };
-                    self.map.shading_normal(st)
+                    // Normalised once, in the world.
+                    self.map.shading_direction(st)
                 }
             };
             (self.normal_to_world * n_map).normalize()
