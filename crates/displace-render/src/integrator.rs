@@ -32,7 +32,7 @@ pub fn radiance(
 ) -> Vec3 {
     match scene.intersect(ray, 0.0, f32::INFINITY) {
         Some(hit) => shade(scene, ray, &hit, depth, sample, rng),
-        None => scene.background,
+        None => scene.environment.radiance(ray.dir),
     }
 }
 
@@ -104,6 +104,7 @@ fn shade(
         }
     }
     let mat = &scene.materials[hit.material as usize];
+    l += mat.emission;
     let wo = -ray.dir;
     let (ng, ns, p) = facing(scene, ray, hit);
     let albedo = mat.albedo(hit.uv, hit.tint);

@@ -6,6 +6,7 @@
 use crate::error::{Error, Result};
 use crate::geometry::Ray;
 use crate::integrator::{radiance, PixelSample};
+use crate::path::Integrator;
 use crate::sampler::{jittered, Rng};
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
@@ -243,16 +244,19 @@ fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for s in 0..scene.spp {
         let (ray, mut rng) = camera_sample(scene, x, y, s);
-        sum += radiance(
-            scene,
-            &ray,
-            0,
-            Some(PixelSample {
-                index: s,
-                count: scene.spp,
-            }),
-            &mut rng,
-        );
+        sum += match scene.integrator {
+            Integrator::Whitted => radiance(
+                scene,
+                &ray,
+                0,
+                Some(PixelSample {
+                    index: s,
+                    count: scene.spp,
+                }),
+                &mut rng,
+            ),
+            Integrator::Path => crate::path::radiance(scene, &ray, &mut rng),
+        };
     }
     sum / scene.spp as f32
 }
