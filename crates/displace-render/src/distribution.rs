@@ -128,12 +128,13 @@ impl Distribution2D {
     /// `weights.len()` must be `width * height`.
     pub fn new(weights: &[f32], width: usize, height: usize) -> Self {
         assert_eq!(weights.len(), width * height);
-        let rows: Vec<Distribution1D> = weights
-            .chunks(width)
-            .map(Distribution1D::new)
-            .collect();
-        let marginal =
-            Distribution1D::new(&rows.iter().map(Distribution1D::integral).collect::<Vec<_>>());
+        let rows: Vec<Distribution1D> = weights.chunks(width).map(Distribution1D::new).collect();
+        let marginal = Distribution1D::new(
+            &rows
+                .iter()
+                .map(Distribution1D::integral)
+                .collect::<Vec<_>>(),
+        );
         Self { rows, marginal }
     }
 

@@ -163,7 +163,10 @@ impl Emitters {
                     q.area(),
                 ),
                 Shape::Triangle { tri, .. } => (
-                    Emitter::Triangle { tri: *tri, radiance },
+                    Emitter::Triangle {
+                        tri: *tri,
+                        radiance,
+                    },
                     0.5 * tri.e1.cross(tri.e2).length(),
                 ),
                 Shape::Sphere(s) => (
@@ -246,11 +249,17 @@ impl Emitters {
                 radiance,
                 two_sided,
                 visible,
-            } => area_sample(quad.point(u), quad.normal, quad.area(), *radiance, *two_sided)
-                .map(|s| EmitterSample {
-                    hittable: *visible,
-                    ..s
-                }),
+            } => area_sample(
+                quad.point(u),
+                quad.normal,
+                quad.area(),
+                *radiance,
+                *two_sided,
+            )
+            .map(|s| EmitterSample {
+                hittable: *visible,
+                ..s
+            }),
             Emitter::Triangle { tri, radiance } => {
                 // Uniform barycentrics (pbrt-v4 section 6.5.4, square-root map).
                 let s = u.x.sqrt();
@@ -265,13 +274,7 @@ impl Emitters {
                 let phi = 2.0 * PI * u.y;
                 let n = Vec3::new(r * phi.cos(), r * phi.sin(), z);
                 let area = 4.0 * PI * sphere.radius * sphere.radius;
-                area_sample(
-                    sphere.center + sphere.radius * n,
-                    n,
-                    area,
-                    *radiance,
-                    true,
-                )
+                area_sample(sphere.center + sphere.radius * n, n, area, *radiance, true)
             }
             Emitter::Environment => {
                 let s = env.sample(u)?;

@@ -252,10 +252,16 @@ mod tests {
     #[test]
     fn directions_and_coordinates_round_trip() {
         for k in 0..200 {
-            let uv = Vec2::new((k as f32 * 0.618_034).fract(), 0.01 + 0.98 * (k as f32 / 200.0));
+            let uv = Vec2::new(
+                (k as f32 * 0.618_034).fract(),
+                0.01 + 0.98 * (k as f32 / 200.0),
+            );
             let (d, _) = uv_direction(uv);
             let back = direction_uv(d);
-            assert!((back - uv).abs().max_element() < 1e-4, "{uv} -> {d} -> {back}");
+            assert!(
+                (back - uv).abs().max_element() < 1e-4,
+                "{uv} -> {d} -> {back}"
+            );
         }
         assert!(direction_uv(Vec3::Y).y < 1e-6);
     }
@@ -281,7 +287,9 @@ mod tests {
         // estimate's standard error is under 0.5% here).
         let mut sum = 0.0f64;
         for _ in 0..n {
-            let s = Environment::Constant(Vec3::ONE).sample(rng.next_2d()).unwrap();
+            let s = Environment::Constant(Vec3::ONE)
+                .sample(rng.next_2d())
+                .unwrap();
             sum += (env.pdf(s.wi) * 4.0 * PI) as f64;
         }
         let mean = sum / n as f64;

@@ -9,14 +9,14 @@ use crate::builtin_mesh;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::displaced::{DisplacedFace, FaceFrame};
-use crate::error::{Error, Result};
-use crate::geometry::Aabb;
 use crate::emitters::Emitters;
 use crate::environment::{Environment, EnvironmentMap};
+use crate::error::{Error, Result};
+use crate::geometry::Aabb;
 use crate::light::Light;
-use crate::path::Sampling;
 use crate::material::Material;
 use crate::mesh::MeshTriangle;
+use crate::path::Sampling;
 use crate::shapes::{box_faces, Quad, Sphere, Triangle};
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
@@ -511,14 +511,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
     } else {
         (world.max - world.min).length()
     };
-    let emitters = Emitters::new(
-        &lights,
-        &fill,
-        &prims,
-        &materials,
-        &environment,
-        0.5 * diag,
-    );
+    let emitters = Emitters::new(&lights, &fill, &prims, &materials, &environment, 0.5 * diag);
     Ok(Scene {
         camera,
         width,
