@@ -123,7 +123,10 @@ fn bad_input_is_refused_with_nothing_written() {
     refuses(
         GOOD,
         &["--integrator", "bogus"],
-        &["--integrator", "unknown integrator `bogus` (known: whitted, path)"],
+        &[
+            "--integrator",
+            "unknown integrator `bogus` (known: whitted, path)",
+        ],
     );
     refuses(
         &GOOD.replace("spp = 1", "spp = 1\nintegrator = \"bogus\""),
@@ -179,7 +182,11 @@ fn integrator_flag_chooses_the_path_tracer() {
             dir.path(),
         );
         assert!(o.status.success(), "{}", stderr(&o));
-        assert!(stderr(&o).contains(&format!("at 2 spp ({name})")), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("at 2 spp ({name})")),
+            "{}",
+            stderr(&o)
+        );
         assert!(dir.path().join(&out).exists());
     }
 }

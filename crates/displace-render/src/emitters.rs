@@ -93,7 +93,7 @@ fn power_weight(c: Vec3) -> f32 {
 fn towards(from: Vec3, point: Vec3, n: Vec3) -> Option<(Vec3, f32, f32)> {
     let d = point - from;
     let r2 = d.length_squared();
-    if !(r2 > 0.0) {
+    if !(r2.is_finite() && r2 > 0.0) {
         return None;
     }
     let wi = d / r2.sqrt();
