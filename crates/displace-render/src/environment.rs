@@ -43,40 +43,20 @@ impl EnvironmentMap {
     /// that are negative or not finite (radiance is neither), each error
     /// naming the file.
     pub fn load(path: &Path) -> Result<Self> {
-        use displace_core::io::{check_input, MAX_IMAGE_FILE_BYTES};
-        check_input(path, "environment map", MAX_IMAGE_FILE_BYTES)?;
+        let rgb = crate::texture::read_rgb32f(
+            path,
+            "environment map",
+            std::mem::size_of::<Vec3>() as u128 * 3,
+            Some((
+                image::ImageFormat::OpenExr,
+                "not an OpenEXR file: an environment map is linear HDR radiance (.exr)",
+            )),
+        )?;
         let err = |message: String| Error::Image {
             path: path.to_path_buf(),
             message,
         };
-        let reader = image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| err(e.to_string()))?;
-        if reader.format() != Some(image::ImageFormat::OpenExr) {
-            return Err(err(
-                "not an OpenEXR file: an environment map is linear HDR radiance (.exr)".into(),
-            ));
-        }
-        let (w, h) = reader
-            .into_dimensions()
-            .map_err(|e| err(format!("malformed OpenEXR: {e}")))?;
-        displace_core::convention::check_allocation(
-            "environment map",
-            &format!("{w}x{h}"),
-            w as u128 * h as u128,
-            std::mem::size_of::<Vec3>() as u128 * 3,
-        )
-        .map_err(|e| err(e.to_string()))?;
-        let img = image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| err(e.to_string()))?
-            .decode()
-            .map_err(|e| err(format!("malformed OpenEXR: {e}")))?;
-        let rgb = img.to_rgb32f();
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-        if w == 0 || h == 0 {
-            return Err(err("empty image".into()));
-        }
         let mut texels = Vec::with_capacity(w * h);
         for (i, p) in rgb.pixels().enumerate() {
             let c = Vec3::new(p[0], p[1], p[2]);
