@@ -2,13 +2,13 @@
 # Renders every scene under scenes/ into docs/gallery/ (PNG) and prints a
 # Markdown table of render times for the README; then each Cornell box again
 # with the path tracer (`--integrator path`, PATH_SPP samples per pixel,
-# default 256) into docs/gallery/path/, and a table of both side by side.
+# default 128) into docs/gallery/path/, and a table of both side by side.
 # Usage:
 #   bash scripts/render_gallery.sh [SIZE]      (default 384x384)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size="${1:-384x384}"
-path_spp="${PATH_SPP:-256}"
+path_spp="${PATH_SPP:-128}"
 cargo build --release --bin displace -q
 exe="${CARGO_TARGET_DIR:-target}/release/displace"
 mkdir -p docs/gallery/path
