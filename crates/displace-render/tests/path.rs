@@ -156,6 +156,35 @@ fn furnace_converges_to_emission_over_one_minus_albedo() {
     }
 }
 
+/// The furnace of `phong` and `glossy` boxes: their directional albedo
+/// falls from its straight-on value `a` (the colours' sum, see
+/// `white_furnace_albedo_of_every_material`) towards grazing angles, so a
+/// furnace of them lies between `Le` (no reflection) and `Le / (1 - a)`
+/// (every bounce at `a`); above that bound a material would return more
+/// than it receives. Measured: 1.25 (`phong`, whose highlight lobe loses
+/// most off the normal) and 2.29 (`glossy`) against the bound 2.5.
+#[test]
+fn phong_and_glossy_furnaces_gain_no_energy() {
+    let base = Path::new(".");
+    let le = 0.5f64;
+    for (material, a) in [
+        (
+            "type = \"phong\"\ncolor = [0.3, 0.3, 0.3]\nspecular = [0.5, 0.5, 0.5]\nshininess = 20",
+            0.8,
+        ),
+        (
+            "type = \"glossy\"\ncolor = [0.6, 0.6, 0.6]\nroughness = 0.4\ndiffuse = [0.2, 0.2, 0.2]",
+            0.8,
+        ),
+    ] {
+        let text = furnace(&format!("{material}\nemission = [{le}, {le}, {le}]"));
+        let (_, m, se) = converged(&text, 128, base);
+        let bound = le / (1.0 - a);
+        assert!(0.01 * bound >= 3.5 * se, "{material}: too noisy: {se}");
+        assert!(m <= bound * 1.01 && m > 1.5 * le, "{material}: {m}, at most {bound}");
+    }
+}
+
 /// The furnace with a studded displaced floor: paths bounce off and under
 /// the studs (whose emission only BSDF sampling finds) and the box stays a
 /// furnace. Shading normals that differ from the geometric ones can only
