@@ -24,8 +24,7 @@
 use crate::bsdf::Bsdf;
 use crate::error::Error;
 use crate::geometry::Ray;
-use crate::integrator::{facing, shadow_query};
-use crate::light::Light;
+use crate::integrator::{emitted, facing, shadow_query};
 use crate::sampler::Rng;
 use crate::scene::{Interaction, Scene};
 use glam::Vec3;
@@ -144,20 +143,6 @@ fn hit_weight(scene: &Scene, prev: Option<Bounce>, light_pdf: f32) -> f32 {
             }
         }
     }
-}
-
-/// Radiance an emitter sends back along `ray` from `hit` on primitive
-/// `prim`: a front-facing area light's, plus the material's emission.
-fn emitted(scene: &Scene, ray: &Ray, hit: &Interaction) -> Vec3 {
-    let mut le = scene.materials[hit.material as usize].emission;
-    if let Some(e) = hit.emitter {
-        if let Light::Area { quad, radiance } = &scene.lights[e as usize] {
-            if quad.normal.dot(ray.dir) < 0.0 {
-                le += *radiance;
-            }
-        }
-    }
-    le
 }
 
 /// Radiance arriving along the camera ray `ray` (linear RGB), drawing its

@@ -1,6 +1,7 @@
 //! Scenes: parsed from TOML ([`spec`]), validated and built ([`build`]) into
 //! primitives under one BVH, with materials, lights and a camera.
 
+pub mod batch;
 mod build;
 pub mod spec;
 mod world;
