@@ -24,6 +24,11 @@ pub struct RenderArgs {
     /// Samples per pixel (overrides the scene).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Light transport (overrides the scene's `integrator`): whitted (the
+    /// seed's ray tracer) or path (path tracing with multiple importance
+    /// sampling).
+    #[arg(long)]
+    pub integrator: Option<String>,
     /// Image size WxH (overrides the scene).
     #[arg(long)]
     pub size: Option<String>,
@@ -70,6 +75,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--method")?;
+    let integrator: Option<displace_render::Integrator> = args
+        .integrator
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .context("--integrator")?;
     crate::bake::check_output_dir(&args.output)?;
     let pool = crate::bench_bake::pool(args.threads)?;
 
@@ -77,6 +88,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         spp: args.spp,
         size,
         method,
+        integrator,
         cache_dir: if args.no_cache {
             None
         } else {
@@ -147,10 +159,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
             p.display().to_string()
         });
     eprintln!(
-        "{name}: {}x{} at {} spp, {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
+        "{name}: {}x{} at {} spp ({}), {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
         rendered.image.width,
         rendered.image.height,
         scene.spp(),
+        scene.integrator().name(),
         scene.primitive_count(),
         pool.current_num_threads(),
         setup.as_secs_f64(),

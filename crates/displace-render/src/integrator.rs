@@ -32,7 +32,7 @@ pub fn radiance(
 ) -> Vec3 {
     match scene.intersect(ray, 0.0, f32::INFINITY) {
         Some(hit) => shade(scene, ray, &hit, depth, sample, rng),
-        None => scene.background,
+        None => scene.environment.radiance(ray.dir),
     }
 }
 
@@ -115,16 +115,19 @@ fn shade(
     l + at.reflected(scene, ray, depth, rng)
 }
 
-/// What a visible area light's own quad sends back along `ray`.
-fn emitted(scene: &Scene, ray: &Ray, hit: &Interaction) -> Vec3 {
+/// What a hit sends back along `ray` by itself: a visible area light's
+/// quad from its front, plus its material's `emission` (both sides). Shared
+/// with the path integrator.
+pub(crate) fn emitted(scene: &Scene, ray: &Ray, hit: &Interaction) -> Vec3 {
+    let mut le = scene.materials[hit.material as usize].emission;
     if let Some(e) = hit.emitter {
         if let Light::Area { quad, radiance } = &scene.lights[e as usize] {
             if quad.normal.dot(ray.dir) < 0.0 {
-                return *radiance;
+                le += *radiance;
             }
         }
     }
-    Vec3::ZERO
+    le
 }
 
 /// A hit as shading sees it: its material and albedo, the normals turned
@@ -231,7 +234,7 @@ pub fn radiance_deferred(
     let first = terms.len();
     let Some(hit) = hit else {
         return Deferred {
-            emitted: scene.background,
+            emitted: scene.environment.radiance(ray.dir),
             reflected: Vec3::ZERO,
             lit: false,
             first,

@@ -6,6 +6,7 @@
 use crate::error::{Error, Result};
 use crate::geometry::Ray;
 use crate::integrator::{radiance_deferred, Deferred, PixelSample, Term};
+use crate::path::Integrator;
 use crate::sampler::{jittered, Rng};
 use crate::scene::batch::{Batch, Detail};
 use crate::scene::Interaction;
@@ -268,6 +269,9 @@ const SAMPLES_PER_BATCH: u32 = 64;
 /// too and summed as [`crate::integrator::radiance`] sums them: the same image as tracing
 /// each sample on its own.
 fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
+    if scene.integrator == Integrator::Path {
+        return path_pixel(scene, x, y);
+    }
     let mut sum = Vec3::ZERO;
     let mut s0 = 0;
     while s0 < scene.spp {
@@ -324,6 +328,18 @@ fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
             sum += d.finish(scene, &sc.terms, &sc.blocked);
         }
         s0 = s1;
+    }
+    sum / scene.spp as f32
+}
+
+/// The mean of the pixel's samples under the path integrator
+/// ([`crate::path`]), each sample's path traced on its own from the same
+/// camera ray and generator as the Whitted integrator's.
+fn path_pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    for s in 0..scene.spp {
+        let (ray, mut rng) = camera_sample(scene, x, y, s);
+        sum += crate::path::radiance(scene, &ray, &mut rng);
     }
     sum / scene.spp as f32
 }

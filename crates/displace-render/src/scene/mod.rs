@@ -12,9 +12,12 @@ pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriA
 use crate::bake_cache::CacheStats;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
+use crate::emitters::Emitters;
+use crate::environment::Environment;
 use crate::error::{Error, Result};
 use crate::light::Light;
 use crate::material::Material;
+use crate::path::{Integrator, Sampling};
 use displace_core::Method;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -33,6 +36,8 @@ pub struct SceneOptions {
     pub method: Option<Method>,
     /// Where bakes are cached on disk; `None` keeps them in memory only.
     pub cache_dir: Option<PathBuf>,
+    /// Overrides `image.integrator` (`--integrator`).
+    pub integrator: Option<Integrator>,
 }
 
 pub struct Scene {
@@ -44,6 +49,12 @@ pub struct Scene {
     pub(crate) seed: u64,
     pub(crate) shadow_samples: u32,
     pub(crate) background: Vec3,
+    /// What escaping rays see: `Constant(background)` or the map.
+    pub(crate) environment: Environment,
+    pub(crate) integrator: Integrator,
+    pub(crate) sampling: Sampling,
+    /// The path integrator's lights.
+    pub(crate) emitters: Emitters,
     pub(crate) prims: Vec<Primitive>,
     pub(crate) attrs: Vec<TriAttr>,
     pub(crate) bvh: Bvh,
@@ -137,6 +148,22 @@ impl Scene {
     }
     pub fn background(&self) -> Vec3 {
         self.background
+    }
+    /// What escaping rays see (the constant background or the map).
+    pub fn environment(&self) -> &Environment {
+        &self.environment
+    }
+    /// The light transport algorithm [`crate::render`] runs.
+    pub fn integrator(&self) -> Integrator {
+        self.integrator
+    }
+    /// The path integrator's estimators of direct light.
+    pub fn sampling(&self) -> Sampling {
+        self.sampling
+    }
+    /// Bounce limit (`image.max_depth`).
+    pub fn max_depth(&self) -> u32 {
+        self.max_depth
     }
     /// The scene's meshes and triangles with their vertex data, for
     /// rasterisers ([`SceneMesh`]).
