@@ -137,6 +137,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     if args.scale == 0 {
         bail!("--scale must be at least 1");
     }
+    check_memory(&args)?;
     let height = load_height(&args.height, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let scale = args.scale as u64;
     let count = (height.width() as u64 * scale + 2) * (height.height() as u64 * scale + 2);
@@ -169,6 +170,35 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         grid.triangles(),
         args.output.display()
     );
+    Ok(())
+}
+
+/// Bytes the command holds at its peak per height texel: the heights
+/// (`f32`) and the normal map built from them (`Vec3`); the mesh itself is
+/// streamed to the file, vertex by vertex.
+const BYTES_PER_TEXEL: u128 = 4 + 12;
+
+/// Refuses a height map whose heights and normals would not fit in memory
+/// ([`displace_core::memory`]), from the file's header alone, before
+/// anything is decoded.
+fn check_memory(args: &ExportMeshArgs) -> Result<()> {
+    let a = &args.height_args;
+    let size = match &a.height_size {
+        Some(s) => displace_core::convention::parse_size::<2>(s)
+            .with_context(|| format!("--height-size {s}"))?,
+        None => DEFAULT_HEIGHT_SIZE,
+    };
+    let opts = displace_core::io::height::HeightOptions {
+        channel: a.channel,
+        size,
+        address: a.address,
+    };
+    let [w, h] = displace_core::io::height::dimensions(&args.height, &opts)
+        .with_context(|| format!("loading height map `{}`", args.height))?;
+    displace_core::memory::check(
+        &format!("export-mesh of a {w}x{h} height map"),
+        w as u128 * h as u128 * BYTES_PER_TEXEL,
+    )?;
     Ok(())
 }
 

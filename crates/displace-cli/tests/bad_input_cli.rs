@@ -242,6 +242,24 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     );
     assert!(msg.contains("46000x46000"), "{msg}");
     assert!(start.elapsed() < Duration::from_secs(10));
+    // `export-mesh` holds the heights and their normals (16 bytes a texel,
+    // 34 GB here): refused as fast, before the generator runs.
+    let start = Instant::now();
+    let msg = refused(
+        "16G",
+        &[
+            "export-mesh",
+            "gen:flat",
+            "--height-size",
+            "46000x46000",
+            "--extent",
+            "1,1,0.1",
+            "-o",
+            "m.ply",
+        ],
+    );
+    assert!(msg.contains("export-mesh of a 46000x46000"), "{msg}");
+    assert!(start.elapsed() < Duration::from_secs(10));
     // A small bake under a smaller limit; then allowed.
     let small = ["bake", "gen:gaussian", "--size", "64x64x8", "-o", "m.npy"];
     refused("100K", &small);
