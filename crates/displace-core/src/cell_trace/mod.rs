@@ -311,7 +311,7 @@ impl Lane {
             Next::Step => None,
             Next::Done(out) => Some(out),
             Next::Walk { t1, last } => {
-                let w = walk::<ANY>(height, &self.grid, self.t, t1);
+                let w = walk::<ANY>(height, &self.grid, c.cells, self.t, t1);
                 self.walked::<ANY>(c, w, t1, last)
             }
         }
@@ -367,12 +367,6 @@ fn run<const ANY: bool>(
 struct Grid {
     o: Vec3,
     d: Vec3,
-    od: glam::DVec3,
-    dd: glam::DVec3,
-    /// Cells per map unit across and down, in double for the solve and in
-    /// single for the stepping.
-    sx: f64,
-    sy: f64,
     x: Axis,
     y: Axis,
 }
@@ -424,10 +418,6 @@ impl Grid {
         Grid {
             o,
             d,
-            od: o.as_dvec3(),
-            dd: d.as_dvec3(),
-            sx,
-            sy,
             x: Axis::new(o.x, d.x, sx as f32),
             y: Axis::new(o.y, d.y, sy as f32),
         }
@@ -452,7 +442,13 @@ impl Grid {
 ///   is blocked without a solve (the returned hit then carries a point of
 ///   that stretch and no normal).
 #[inline]
-fn walk<const ANY: bool>(height: &HeightMap, g: &Grid, t0: f32, t1: f32) -> Walk {
+fn walk<const ANY: bool>(
+    height: &HeightMap,
+    g: &Grid,
+    [sx, sy]: [f64; 2],
+    t0: f32,
+    t1: f32,
+) -> Walk {
     if t1 < t0 {
         return Walk::Miss { cells: 0 };
     }
@@ -477,9 +473,10 @@ fn walk<const ANY: bool>(height: &HeightMap, g: &Grid, t0: f32, t1: f32) -> Walk
             });
         }
         if z_low - margin <= max(max(h00, h10), max(h01, h11)) {
-            if let Some((t, normal)) = patch_hit(
-                corners, ci, cj, g.od, g.dd, g.sx, g.sy, ta as f64, tb as f64,
-            ) {
+            let (od, dd) = (g.o.as_dvec3(), g.d.as_dvec3());
+            if let Some((t, normal)) =
+                patch_hit(corners, ci, cj, od, dd, sx, sy, ta as f64, tb as f64)
+            {
                 return Walk::Hit(SurfaceHit { t, normal, cells });
             }
         }
