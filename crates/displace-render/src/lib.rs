@@ -32,6 +32,7 @@ mod heights;
 pub mod integrator;
 pub mod light;
 pub mod material;
+pub mod merge;
 pub mod mesh;
 pub mod output;
 pub mod probe;
@@ -40,6 +41,8 @@ pub mod sampler;
 pub mod scene;
 pub mod shapes;
 pub mod texture;
+pub mod tile_file;
+pub mod tiling;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};

@@ -2,6 +2,7 @@
 //! primitives under one BVH, with materials, lights and a camera.
 
 mod build;
+mod content;
 pub mod spec;
 mod world;
 
@@ -52,6 +53,9 @@ pub struct Scene {
     pub(crate) epsilon: f32,
     pub(crate) meshes: Vec<SceneMesh>,
     cache_stats: CacheStats,
+    /// The files the scene read besides itself (for [`Scene::content_hash`]).
+    sources: Vec<PathBuf>,
+    content_hash: u64,
 }
 
 impl Scene {
@@ -102,7 +106,9 @@ impl Scene {
                 message: e.message().trim().to_string(),
             }
         })?;
-        build::build(spec, name, base, opts)
+        let mut scene = build::build(spec, name, base, opts)?;
+        scene.content_hash = content::content_hash(text, &scene.sources, opts)?;
+        Ok(scene)
     }
 
     pub fn width(&self) -> u32 {
@@ -119,6 +125,17 @@ impl Scene {
     }
     pub fn cache_stats(&self) -> CacheStats {
         self.cache_stats
+    }
+    /// A hash of everything the image depends on: the scene text, the bytes
+    /// of every file it reads, and the overrides it was built with. Tiles of
+    /// one render carry it, so that a merge can refuse tiles of another.
+    pub fn content_hash(&self) -> u64 {
+        self.content_hash
+    }
+    /// The files the scene read besides the scene file itself (height maps,
+    /// textures, meshes), as resolved against the scene's directory.
+    pub fn sources(&self) -> &[PathBuf] {
+        &self.sources
     }
     /// The built primitives, for other renderers of the same scene (the GPU
     /// path of `displace gpu-render`).
