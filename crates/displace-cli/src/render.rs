@@ -1,11 +1,14 @@
 //! `displace render`: ray trace a scene file (or the built-in studded Cornell
 //! box) to PNG/EXR, with optional AOVs. Ctrl-C (or SIGTERM, SIGHUP) stops
 //! the render and writes nothing; the outputs are written to temporary
-//! names and renamed into place together at the end.
+//! names and renamed into place together at the end. `--tile I/N` renders
+//! one farm tile to an EXR tile file for `displace merge`.
 
 use anyhow::{bail, Context, Result};
 use displace_core::io::atomic::Batch;
 use displace_render::output::{aov_paths, write_aov, write_image, ImageFile};
+use displace_render::tile_file::{write_tile, TileMeta};
+use displace_render::tiling::{tile_rect, TileArg, TileIndex};
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -33,6 +36,11 @@ pub struct RenderArgs {
     /// Render only the region x,y,w,h of the full image.
     #[arg(long)]
     pub crop: Option<String>,
+    /// Render farm tile I of N (bands of whole rows of 16-pixel render
+    /// tiles, counted from 0) to an EXR tile file for `displace merge`;
+    /// `auto/N` takes I from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
+    #[arg(long, conflicts_with_all = ["crop", "aov"])]
+    pub tile: Option<String>,
     /// AOVs to write next to the output, comma separated: depth, normal, uv,
     /// position, iterations (each as OUT.NAME.npy and OUT.NAME.png).
     #[arg(long, value_delimiter = ',')]
@@ -70,6 +78,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--method")?;
+    let tile = args
+        .tile
+        .as_deref()
+        .map(|t| resolve_tile(t, &args.output))
+        .transpose()?;
     crate::bake::check_output_dir(&args.output)?;
     let pool = crate::bench_bake::pool(args.threads)?;
 
@@ -90,6 +103,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     })?;
     let setup = start.elapsed();
     let stats = scene.cache_stats();
+    for w in scene.warnings() {
+        eprintln!("warning: {w}");
+    }
+    let tile_meta = tile
+        .map(|t| -> Result<TileMeta> {
+            Ok(TileMeta {
+                content_hash: scene.content_hash(),
+                full_size: [scene.width(), scene.height()],
+                rect: tile_rect(scene.width(), scene.height(), t)
+                    .with_context(|| format!("--tile {t}"))?,
+                tile: t,
+            })
+        })
+        .transpose()?;
+    let crop = tile_meta.map(|m| m.rect).or(crop);
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -135,7 +163,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
     // The image and its AOVs land together or not at all.
     let batch = Batch::new();
-    write_image(&args.output, &rendered.image)?;
+    match &tile_meta {
+        Some(meta) => write_tile(&args.output, meta, &rendered.image)?,
+        None => write_image(&args.output, &rendered.image)?,
+    }
     for a in &rendered.aovs {
         write_aov(&args.output, a)?;
     }
@@ -146,6 +177,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map_or("built-in default scene".to_string(), |p| {
             p.display().to_string()
         });
+    if let Some(m) = &tile_meta {
+        eprintln!(
+            "tile {} of a {}x{} image: rows {}..{}, content hash {:016x}",
+            m.tile,
+            m.full_size[0],
+            m.full_size[1],
+            m.rect.y,
+            m.rect.y + m.rect.height,
+            m.content_hash
+        );
+    }
     eprintln!(
         "{name}: {}x{} at {} spp, {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
         rendered.image.width,
@@ -170,4 +212,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--tile I/N` or `auto/N` (the index from the scheduler), checked with
+/// its output before any work: a tile is an EXR tile file.
+fn resolve_tile(arg: &str, output: &std::path::Path) -> Result<TileIndex> {
+    if ImageFile::from_path(output)? != ImageFile::Exr {
+        bail!(
+            "--tile {arg}: output {} must be .exr (a tile is linear float with its metadata; `displace merge` writes the PNG)",
+            output.display()
+        );
+    }
+    Ok(match arg.parse::<TileArg>()? {
+        TileArg::Fixed(t) => t,
+        TileArg::Auto { count } => {
+            let index = crate::farm_env::task_index(&format!("--tile {arg}"))?;
+            TileIndex::new(index, count).with_context(|| format!("--tile {arg}"))?
+        }
+    })
 }

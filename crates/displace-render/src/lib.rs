@@ -22,6 +22,7 @@
 //! ```
 
 pub mod bake_cache;
+pub mod bake_lock;
 pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;

@@ -78,7 +78,12 @@ pub fn write_tile(path: &Path, meta: &TileMeta, image: &Image) -> Result<()> {
     let layer = exr::prelude::Layer::new(
         (r.width as usize, r.height as usize),
         attributes,
-        Encoding::FAST_LOSSLESS,
+        // Blocks in order, not as the threads finish them: the same tile
+        // is the same bytes on every run.
+        Encoding {
+            line_order: exr::meta::attribute::LineOrder::Increasing,
+            ..Encoding::FAST_LOSSLESS
+        },
         channels,
     );
     let mut exr = ExrImage::from_layer(layer);
@@ -86,12 +91,15 @@ pub fn write_tile(path: &Path, meta: &TileMeta, image: &Image) -> Result<()> {
         (0, 0),
         (meta.full_size[0] as usize, meta.full_size[1] as usize),
     );
-    let other = &mut exr.attributes.other;
-    other.insert(
+    // One custom attribute per map: the writer walks each map in hash
+    // order, which changes from process to process, and a tile must be
+    // the same bytes on every run. The hash is the whole render's, the
+    // index this layer's.
+    exr.attributes.other.insert(
         Text::from(HASH_ATTRIBUTE),
         AttributeValue::Text(Text::from(format!("{:016x}", meta.content_hash).as_str())),
     );
-    other.insert(
+    exr.layer_data.attributes.other.insert(
         Text::from(TILE_ATTRIBUTE),
         AttributeValue::Text(Text::from(meta.tile.to_string().as_str())),
     );

@@ -499,6 +499,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         cache_stats: cx.cache.stats(),
         sources: cx.sources,
         content_hash: 0,
+        warnings: cx.cache.warnings(),
     })
 }
 

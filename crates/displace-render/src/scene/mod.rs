@@ -56,6 +56,8 @@ pub struct Scene {
     /// The files the scene read besides itself (for [`Scene::content_hash`]).
     sources: Vec<PathBuf>,
     content_hash: u64,
+    /// What went wrong without stopping the build (the bake cache).
+    warnings: Vec<String>,
 }
 
 impl Scene {
@@ -131,6 +133,12 @@ impl Scene {
     /// one render carry it, so that a merge can refuse tiles of another.
     pub fn content_hash(&self) -> u64 {
         self.content_hash
+    }
+    /// Problems met while building that did not stop it (a bake cache that
+    /// could not be written, so bakes were kept in memory), for the caller
+    /// to show.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
     }
     /// The files the scene read besides the scene file itself (height maps,
     /// textures, meshes), as resolved against the scene's directory.
