@@ -28,9 +28,9 @@ pub fn task_index_from(flag: &str, var: impl Fn(&str) -> Option<String>) -> Resu
             bail!("{flag}: {name} = `{value}` is not a task index (a whole number from 0)");
         };
         match found {
-            Some((other, i)) if i != index => bail!(
-                "{flag}: {other} = {i} and {name} = {index} disagree; set one of them"
-            ),
+            Some((other, i)) if i != index => {
+                bail!("{flag}: {other} = {i} and {name} = {index} disagree; set one of them")
+            }
             Some(_) => {}
             None => found = Some((name, index)),
         }
@@ -52,13 +52,23 @@ mod tests {
     use super::*;
 
     fn with<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
-        move |n| vars.iter().find(|(k, _)| *k == n).map(|(_, v)| v.to_string())
+        move |n| {
+            vars.iter()
+                .find(|(k, _)| *k == n)
+                .map(|(_, v)| v.to_string())
+        }
     }
 
     #[test]
     fn either_variable_gives_the_index_and_none_is_refused() {
-        assert_eq!(task_index_from("--tile", with(&[("SLURM_ARRAY_TASK_ID", "3")])).unwrap(), 3);
-        assert_eq!(task_index_from("--tile", with(&[("JOB_COMPLETION_INDEX", "5")])).unwrap(), 5);
+        assert_eq!(
+            task_index_from("--tile", with(&[("SLURM_ARRAY_TASK_ID", "3")])).unwrap(),
+            3
+        );
+        assert_eq!(
+            task_index_from("--tile", with(&[("JOB_COMPLETION_INDEX", "5")])).unwrap(),
+            5
+        );
         assert_eq!(
             task_index_from(
                 "--tile",
@@ -67,8 +77,13 @@ mod tests {
             .unwrap(),
             2
         );
-        let none = task_index_from("--tile auto/8", with(&[])).unwrap_err().to_string();
-        assert!(none.contains("SLURM_ARRAY_TASK_ID") && none.contains("JOB_COMPLETION_INDEX"), "{none}");
+        let none = task_index_from("--tile auto/8", with(&[]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            none.contains("SLURM_ARRAY_TASK_ID") && none.contains("JOB_COMPLETION_INDEX"),
+            "{none}"
+        );
         let both = task_index_from(
             "--tile",
             with(&[("SLURM_ARRAY_TASK_ID", "1"), ("JOB_COMPLETION_INDEX", "2")]),

@@ -10,6 +10,7 @@ mod bench_trace;
 mod compare;
 mod export_mesh;
 mod farm_env;
+mod frames;
 mod gpu;
 mod merge;
 mod progress;

@@ -52,9 +52,30 @@ pub struct RenderArgs {
     /// Do not read or write the on-disk bake cache.
     #[arg(long)]
     pub no_cache: bool,
+    /// The frame of the scene's [animation] to render, or `auto` (from
+    /// SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX: one frame per task). A
+    /// `%04d` in the output name is replaced by the frame number.
+    #[arg(long, conflicts_with = "frames")]
+    pub frame: Option<String>,
+    /// Render frames A..B (B not included) of the scene's [animation], one
+    /// after the other, to OUT_%04d.png (the frame number replaces a
+    /// `%04d` in the output name, or is appended to its stem).
+    #[arg(long, conflicts_with_all = ["tile", "crop"])]
+    pub frames: Option<String>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// What every frame of one `render` command shares, checked up front.
+struct Plan {
+    size: Option<[u32; 2]>,
+    crop: Option<Crop>,
+    aovs: Vec<Aov>,
+    method: Option<displace_core::Method>,
+    tile: Option<TileIndex>,
+    pool: rayon::ThreadPool,
+    cancel: Arc<AtomicBool>,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -83,10 +104,68 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .as_deref()
         .map(|t| resolve_tile(t, &args.output))
         .transpose()?;
-    crate::bake::check_output_dir(&args.output)?;
+    if args.frame.as_deref().map(str::trim) == Some("auto")
+        && args
+            .tile
+            .as_deref()
+            .is_some_and(|t| t.trim().starts_with("auto"))
+    {
+        bail!("--frame auto with --tile auto/N: both would take the one task index; give one of them explicitly");
+    }
+    let jobs = crate::frames::jobs(args.frame.as_deref(), args.frames.as_deref(), &args.output)?;
+    for (_, output) in &jobs {
+        crate::bake::check_output_dir(output)?;
+    }
+    if let (Some(range), Some((Some(last), _))) = (&args.frames, jobs.last()) {
+        let count = Scene::animation_frames(args.scene.as_deref())?;
+        let count =
+            count.with_context(|| format!("--frames {range}: the scene has no [animation]"))?;
+        if *last >= count {
+            bail!("--frames {range}: the animation has {count} frames (0..{count})");
+        }
+    }
     let pool = crate::bench_bake::pool(args.threads)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        // Ignore failure: another subcommand may own the handler in tests.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let plan = Plan {
+        size,
+        crop,
+        aovs,
+        method,
+        tile,
+        pool,
+        cancel,
+    };
+    for (frame, output) in &jobs {
+        render_one(&args, &plan, *frame, output)?;
+    }
+    Ok(())
+}
 
+/// Renders one image (one frame, or the whole of a still scene) to
+/// `output`.
+fn render_one(
+    args: &RenderArgs,
+    plan: &Plan,
+    frame: Option<u32>,
+    output: &std::path::Path,
+) -> Result<()> {
+    let Plan {
+        size,
+        crop,
+        aovs,
+        method,
+        tile,
+        pool,
+        cancel,
+    } = plan;
+    let (size, crop, aovs, method, tile) = (*size, *crop, aovs.clone(), *method, *tile);
     let opts = SceneOptions {
+        frame,
         spp: args.spp,
         size,
         method,
@@ -119,12 +198,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .transpose()?;
     let crop = tile_meta.map(|m| m.rect).or(crop);
 
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        // Ignore failure: another subcommand may own the handler in tests.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
     let bar = if args.quiet {
         ProgressBar::hidden()
     } else {
@@ -150,7 +223,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                 crop,
                 aovs,
                 progress: Some(&progress),
-                cancel: Some(&cancel),
+                cancel: Some(cancel.as_ref()),
             },
         )
     });
@@ -164,11 +237,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // The image and its AOVs land together or not at all.
     let batch = Batch::new();
     match &tile_meta {
-        Some(meta) => write_tile(&args.output, meta, &rendered.image)?,
-        None => write_image(&args.output, &rendered.image)?,
+        Some(meta) => write_tile(output, meta, &rendered.image)?,
+        None => write_image(output, &rendered.image)?,
     }
     for a in &rendered.aovs {
-        write_aov(&args.output, a)?;
+        write_aov(output, a)?;
     }
     batch.commit().context("moving the outputs into place")?;
     let name = args
@@ -177,6 +250,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map_or("built-in default scene".to_string(), |p| {
             p.display().to_string()
         });
+    let name = match frame {
+        Some(f) => format!("{name} frame {f}"),
+        None => name,
+    };
     if let Some(m) = &tile_meta {
         eprintln!(
             "tile {} of a {}x{} image: rows {}..{}, content hash {:016x}",
@@ -200,10 +277,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         stats.loaded,
         stats.shared,
         render_time.as_secs_f64(),
-        args.output.display()
+        output.display()
     );
     for a in &rendered.aovs {
-        let (npy, png) = aov_paths(&args.output, a.aov);
+        let (npy, png) = aov_paths(output, a.aov);
         eprintln!(
             "  {}: {} and {}",
             a.aov.name(),

@@ -97,9 +97,13 @@ fn an_unwritable_cache_bakes_in_memory_and_a_read_only_one_is_read() {
 
     // A cache directory that cannot be created (its parent is a file).
     std::fs::write(d.join("file"), b"x").unwrap();
-    let err = ok(render(d, &d.join("file/cache"), "mem.png").output().unwrap());
+    let err = ok(render(d, &d.join("file/cache"), "mem.png")
+        .output()
+        .unwrap());
     assert!(
-        err.contains("warning: bake cache") && err.contains("not writable") && err.contains("baking in memory"),
+        err.contains("warning: bake cache")
+            && err.contains("not writable")
+            && err.contains("baking in memory"),
         "{err}"
     );
     assert!(err.contains("bakes: 1 computed"), "{err}");
@@ -109,7 +113,10 @@ fn an_unwritable_cache_bakes_in_memory_and_a_read_only_one_is_read() {
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&cache, std::fs::Permissions::from_mode(0o555)).unwrap();
     let err = ok(render(d, &cache, "ro.png").output().unwrap());
-    assert!(err.contains("0 computed, 1 from cache") && !err.contains("warning"), "{err}");
+    assert!(
+        err.contains("0 computed, 1 from cache") && !err.contains("warning"),
+        "{err}"
+    );
     assert!(std::fs::read(d.join("ro.png")).unwrap() == reference);
 
     // An empty read-only directory: baked in memory with a warning (root

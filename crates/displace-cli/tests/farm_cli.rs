@@ -99,8 +99,16 @@ fn four_and_seven_tiles_merge_byte_identical_to_one_render() {
             let mut args = vec!["merge", "-o", &out];
             args.extend(tiles.iter().map(String::as_str));
             let o = ok(run(&args, d, &[]));
-            assert!(stderr(&o).contains(&format!("merged {n} tiles")), "{}", stderr(&o));
-            let single = if out.ends_with("png") { "one.png" } else { "one.exr" };
+            assert!(
+                stderr(&o).contains(&format!("merged {n} tiles")),
+                "{}",
+                stderr(&o)
+            );
+            let single = if out.ends_with("png") {
+                "one.png"
+            } else {
+                "one.exr"
+            };
             assert!(
                 bytes(d, &out) == bytes(d, single),
                 "{out} differs from {single}"
@@ -144,7 +152,11 @@ fn merge_names_missing_duplicate_foreign_and_truncated_tiles() {
     let cut = bytes(d, "t3.exr");
     std::fs::write(d.join("cut3.exr"), &cut[..cut.len() - 100]).unwrap();
 
-    refused(d, &["t0.exr", "t1.exr", "t2.exr"], &["tile 3/4 (rows 80..112) is missing"]);
+    refused(
+        d,
+        &["t0.exr", "t1.exr", "t2.exr"],
+        &["tile 3/4 (rows 80..112) is missing"],
+    );
     refused(
         d,
         &["t0.exr", "t1.exr", "t2.exr", "t3.exr", "t1.exr"],
@@ -174,14 +186,20 @@ fn merge_names_missing_duplicate_foreign_and_truncated_tiles() {
     refused(
         d,
         &["t0.exr", "t1.exr", "t2.exr", "cut3.exr"],
-        &["cut3.exr", "not a complete OpenEXR tile", "tile 3/4 (rows 80..112) is missing"],
+        &[
+            "cut3.exr",
+            "not a complete OpenEXR tile",
+            "tile 3/4 (rows 80..112) is missing",
+        ],
     );
     // A plain render is not a tile.
     ok(run(&["render", "-q", "s.toml", "-o", "plain.exr"], d, &[]));
     refused(d, &["plain.exr"], &["plain.exr: not a displace tile"]);
     // All four good tiles still merge.
     ok(run(
-        &["merge", "-o", "out.png", "t3.exr", "t2.exr", "t1.exr", "t0.exr"],
+        &[
+            "merge", "-o", "out.png", "t3.exr", "t2.exr", "t1.exr", "t0.exr",
+        ],
         d,
         &[],
     ));
@@ -193,14 +211,20 @@ fn auto_tiles_take_the_scheduler_index_and_never_guess() {
     let d = dir.path();
     ok(tile(d, "s.toml", 2, 4, "fixed.exr", &[]));
     for var in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
-        let args = ["render", "-q", "s.toml", "--tile", "auto/4", "-o", "auto.exr"];
+        let args = [
+            "render", "-q", "s.toml", "--tile", "auto/4", "-o", "auto.exr",
+        ];
         ok(run(&args, d, &[(var, "2")]));
         assert!(bytes(d, "auto.exr") == bytes(d, "fixed.exr"), "{var}");
     }
     let refuses = |args: &[&str], env: &[(&str, &str)], expect: &str| {
         let before = files(d);
         let o = run(args, d, env);
-        assert!(!o.status.success() && stderr(&o).contains(expect), "{args:?}: {}", stderr(&o));
+        assert!(
+            !o.status.success() && stderr(&o).contains(expect),
+            "{args:?}: {}",
+            stderr(&o)
+        );
         assert_eq!(files(d), before);
     };
     let auto = ["render", "-q", "s.toml", "--tile", "auto/4", "-o", "x.exr"];
@@ -211,12 +235,19 @@ fn auto_tiles_take_the_scheduler_index_and_never_guess() {
         &[("SLURM_ARRAY_TASK_ID", "1"), ("JOB_COMPLETION_INDEX", "2")],
         "disagree",
     );
-    let fixed = |t: &'static str, out: &'static str| ["render", "-q", "s.toml", "--tile", t, "-o", out];
+    let fixed =
+        |t: &'static str, out: &'static str| ["render", "-q", "s.toml", "--tile", t, "-o", out];
     refuses(&fixed("1/4", "x.png"), &[], "must be .exr");
-    refuses(&fixed("7/8", "x.exr"), &[], "7 rows of 16-pixel render tiles, so 1 to 7");
+    refuses(
+        &fixed("7/8", "x.exr"),
+        &[],
+        "7 rows of 16-pixel render tiles, so 1 to 7",
+    );
     refuses(&fixed("1", "x.exr"), &[], "expected I/N");
     refuses(
-        &["render", "-q", "s.toml", "--tile", "0/4", "--crop", "0,0,4,4", "-o", "x.exr"],
+        &[
+            "render", "-q", "s.toml", "--tile", "0/4", "--crop", "0,0,4,4", "-o", "x.exr",
+        ],
         &[],
         "--crop",
     );

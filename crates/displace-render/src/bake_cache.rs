@@ -139,7 +139,12 @@ impl BakeCache {
 
 impl BakeCache {
     /// Bakes in memory.
-    fn bake(&self, height: &HeightMap, size: [usize; 3], extent: Extent) -> Result<DisplacementMap> {
+    fn bake(
+        &self,
+        height: &HeightMap,
+        size: [usize; 3],
+        extent: Extent,
+    ) -> Result<DisplacementMap> {
         let m = bake(
             height,
             &BakeOptions {
@@ -191,7 +196,10 @@ impl BakeCache {
                     let m = self.bake(height, size, extent)?;
                     // A cache that cannot be written only costs time next run.
                     if let Err(e) = write_map(path, &m.distance) {
-                        self.warn(format!("bake cache entry {}: not written: {e}", path.display()));
+                        self.warn(format!(
+                            "bake cache entry {}: not written: {e}",
+                            path.display()
+                        ));
                     }
                     return Ok(m);
                 }
@@ -382,7 +390,9 @@ mod tests {
         assert_eq!(maps.iter().map(|(s, _)| s.baked).sum::<usize>(), 1);
         assert_eq!(maps.iter().map(|(s, _)| s.loaded).sum::<usize>(), 3);
         assert!(maps.iter().all(|(_, m)| m.distance == maps[0].1.distance));
-        let left: Vec<_> = std::fs::read_dir(dir.path().join("cache")).unwrap().collect();
+        let left: Vec<_> = std::fs::read_dir(dir.path().join("cache"))
+            .unwrap()
+            .collect();
         assert_eq!(left.len(), 1, "{left:?}");
     }
 

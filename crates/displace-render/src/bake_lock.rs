@@ -121,8 +121,10 @@ fn is_stale(path: &Path) -> bool {
     };
     let text = std::fs::read_to_string(path).unwrap_or_default();
     let mut words = text.split_whitespace();
-    if let (Some(h), Some(pid)) = (words.next(), words.next().and_then(|p| p.parse::<u32>().ok()))
-    {
+    if let (Some(h), Some(pid)) = (
+        words.next(),
+        words.next().and_then(|p| p.parse::<u32>().ok()),
+    ) {
         if h == host() && Path::new("/proc/self").exists() {
             return !Path::new("/proc").join(pid.to_string()).exists();
         }

@@ -274,9 +274,18 @@ mod tests {
         let text = e.to_string();
         assert_eq!(e.problems.len(), 6, "{text}");
         assert!(text.contains("tile 0/3 is given twice"), "{text}");
-        assert!(text.contains("t1of3.exr: a tile of another render: content hash 0000000000000009"), "{text}");
-        assert!(text.contains("t1of3.exr: tile 1/3 covers 0,32,4x16"), "{text}");
-        assert!(text.contains("t0of4.exr: a tile of another render: one of 4 tiles"), "{text}");
+        assert!(
+            text.contains("t1of3.exr: a tile of another render: content hash 0000000000000009"),
+            "{text}"
+        );
+        assert!(
+            text.contains("t1of3.exr: tile 1/3 covers 0,32,4x16"),
+            "{text}"
+        );
+        assert!(
+            text.contains("t0of4.exr: a tile of another render: one of 4 tiles"),
+            "{text}"
+        );
         assert!(text.contains("tile 1/3 (rows 16..32) is missing"), "{text}");
         assert!(text.contains("tile 2/3 (rows 32..64) is missing"), "{text}");
         assert_eq!(merge(vec![]).unwrap_err().problems, vec![Problem::NoTiles]);

@@ -12,8 +12,8 @@ use crate::tiling::TileIndex;
 use displace_core::io::atomic::write_atomic;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
 use exr::prelude::{
-    Encoding, Image as ExrImage, LayerAttributes, ReadChannels, ReadLayers, SpecificChannels,
-    Vec2, WritableImage,
+    Encoding, Image as ExrImage, LayerAttributes, ReadChannels, ReadLayers, SpecificChannels, Vec2,
+    WritableImage,
 };
 use glam::Vec3;
 use std::path::Path;
@@ -145,8 +145,8 @@ pub fn read_tile(path: &Path) -> Result<TileImage> {
             format!("not a complete OpenEXR tile (cut short or damaged?): {e}"),
         )
     };
-    let meta = exr::meta::MetaData::read_from_buffered(bytes.as_slice(), true)
-        .map_err(unreadable)?;
+    let meta =
+        exr::meta::MetaData::read_from_buffered(bytes.as_slice(), true).map_err(unreadable)?;
     let [header] = meta.headers.as_slice() else {
         return Err(bad(path, "a tile has exactly one layer"));
     };
@@ -183,10 +183,7 @@ pub fn read_tile(path: &Path) -> Result<TileImage> {
         .from_buffered(std::io::Cursor::new(&bytes))
         .map_err(unreadable)?;
 
-    let attrs = [
-        &image.attributes.other,
-        &image.layer_data.attributes.other,
-    ];
+    let attrs = [&image.attributes.other, &image.layer_data.attributes.other];
     let hash_text = text_attribute(attrs, HASH_ATTRIBUTE, path)?;
     let content_hash = u64::from_str_radix(&hash_text, 16)
         .ok()
@@ -288,7 +285,10 @@ mod tests {
         let back = read_tile(&p).unwrap();
         assert_eq!(back.meta, meta);
         let bits = |v: &[Vec3]| -> Vec<u32> {
-            v.iter().flat_map(|p| p.to_array()).map(f32::to_bits).collect()
+            v.iter()
+                .flat_map(|p| p.to_array())
+                .map(f32::to_bits)
+                .collect()
         };
         assert_eq!(bits(&back.pixels), bits(&img.pixels));
     }

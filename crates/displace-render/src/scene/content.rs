@@ -44,11 +44,13 @@ pub(crate) fn content_hash(text: &str, sources: &[PathBuf], opts: &SceneOptions)
     words.push(files.len() as u64);
     words.extend(files);
     words.extend(option(opts.spp.map(u64::from)));
-    words.extend(option(opts.size.map(|[w, h]| (u64::from(w) << 32) | u64::from(h))));
     words.extend(option(
-        opts.method
-            .map(|m| bytes_hash(format!("{m:?}").as_bytes())),
+        opts.size.map(|[w, h]| (u64::from(w) << 32) | u64::from(h)),
     ));
+    words.extend(option(
+        opts.method.map(|m| bytes_hash(format!("{m:?}").as_bytes())),
+    ));
+    words.extend(option(opts.frame.map(u64::from)));
     Ok(hash_iter(words))
 }
 
@@ -77,6 +79,10 @@ mod tests {
             },
             SceneOptions {
                 method: Some(displace_core::Method::Exact),
+                ..SceneOptions::default()
+            },
+            SceneOptions {
+                frame: Some(0),
                 ..SceneOptions::default()
             },
         ] {
