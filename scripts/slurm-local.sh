@@ -13,7 +13,8 @@
 # Needs root (munged and slurmd run as root, as SLURM.md describes).
 # DISPLACE names the binary (default: target/release/displace if built,
 # else `displace` on PATH); DISPLACE_ARGS adds render options;
-# SLURM_LOCAL_TIMEOUT bounds the wait (seconds, default 900).
+# SLURM_LOCAL_TIMEOUT bounds the wait (seconds, default 900);
+# SLURM_LOCAL_LOGS=DIR keeps the daemons' and the jobs' logs there.
 set -euo pipefail
 if [ $# -ne 3 ]; then
   echo "usage: $0 SCENE N OUT" >&2
@@ -46,6 +47,9 @@ stop() {
     for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
     kill -9 "$pid" 2>/dev/null || true
   done
+  if [ -n "${SLURM_LOCAL_LOGS:-}" ]; then
+    mkdir -p "$SLURM_LOCAL_LOGS" && cp "$tmp"/*.log "$tmp"/*.out "$SLURM_LOCAL_LOGS"/ 2>/dev/null || true
+  fi
   if [ $rc -ne 0 ]; then
     for log in "$tmp"/*.log "$tmp"/task_*.out "$tmp"/merge.out; do
       [ -f "$log" ] && { echo "--- $log"; tail -n 20 "$log"; }

@@ -154,21 +154,12 @@ fn render_one(
     frame: Option<u32>,
     output: &std::path::Path,
 ) -> Result<()> {
-    let Plan {
-        size,
-        crop,
-        aovs,
-        method,
-        tile,
-        pool,
-        cancel,
-    } = plan;
-    let (size, crop, aovs, method, tile) = (*size, *crop, aovs.clone(), *method, *tile);
+    let (pool, cancel) = (&plan.pool, &plan.cancel);
     let opts = SceneOptions {
         frame,
         spp: args.spp,
-        size,
-        method,
+        size: plan.size,
+        method: plan.method,
         cache_dir: if args.no_cache {
             None
         } else {
@@ -185,7 +176,8 @@ fn render_one(
     for w in scene.warnings() {
         eprintln!("warning: {w}");
     }
-    let tile_meta = tile
+    let tile_meta = plan
+        .tile
         .map(|t| -> Result<TileMeta> {
             Ok(TileMeta {
                 content_hash: scene.content_hash(),
@@ -196,7 +188,7 @@ fn render_one(
             })
         })
         .transpose()?;
-    let crop = tile_meta.map(|m| m.rect).or(crop);
+    let crop = tile_meta.map(|m| m.rect).or(plan.crop);
 
     let bar = if args.quiet {
         ProgressBar::hidden()
@@ -221,7 +213,7 @@ fn render_one(
             &scene,
             &RenderOptions {
                 crop,
-                aovs,
+                aovs: plan.aovs.clone(),
                 progress: Some(&progress),
                 cancel: Some(cancel.as_ref()),
             },

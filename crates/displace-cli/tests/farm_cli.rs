@@ -7,64 +7,18 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr};
+use cli_common::{displace_env as run, files, floor_scene, ok, stderr};
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// A displaced floor under an area light (soft shadows draw random
-/// numbers), 32 x 112 pixels: 7 rows of render tiles.
-const SCENE: &str = r#"
-[image]
-width = 32
-height = 112
-spp = 2
-shadow_samples = 2
-seed = 7
-[camera]
-position = [0, 1.6, -2.2]
-look_at = [0, 0, 0]
-vfov = 50
-[materials.floor]
-type = "lambert"
-color = [0.7, 0.6, 0.5]
-[[lights]]
-type = "area"
-origin = [-0.3, 2, -0.3]
-edge_u = [0.6, 0, 0]
-edge_v = [0, 0, 0.6]
-radiance = [6, 6, 6]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-material = "floor"
-displacement = { height = "gen:studded", height_size = [32, 32], depth = 0.1, map_size = [32, 32, 8] }
-"#;
-
-/// `displace ARGS` in `dir` with its own cache and no scheduler variables
-/// but those in `env`.
-fn run(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_displace"));
-    c.args(args)
-        .current_dir(dir)
-        .env("DISPLACE_CACHE", dir.join("cache"))
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX");
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output().expect("run displace")
-}
-
-fn ok(o: Output) -> Output {
-    assert!(o.status.success(), "{}", stderr(&o));
-    o
+/// The scene: 32 x 112 pixels, 7 rows of render tiles.
+fn scene() -> String {
+    floor_scene(32, 112, 7, "gen:studded")
 }
 
 fn scene_dir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("s.toml"), SCENE).unwrap();
+    std::fs::write(dir.path().join("s.toml"), scene()).unwrap();
     dir
 }
 
@@ -145,7 +99,7 @@ fn merge_names_missing_duplicate_foreign_and_truncated_tiles() {
         ok(tile(d, "s.toml", i, 4, &format!("t{i}.exr"), &[]));
     }
     // The same scene with another seed, and with an override.
-    std::fs::write(d.join("seed.toml"), SCENE.replace("seed = 7", "seed = 8")).unwrap();
+    std::fs::write(d.join("seed.toml"), scene().replace("seed = 7", "seed = 8")).unwrap();
     ok(tile(d, "seed.toml", 2, 4, "seed2.exr", &[]));
     ok(tile(d, "s.toml", 2, 4, "spp2.exr", &["--spp", "3"]));
     ok(tile(d, "s.toml", 2, 7, "of7.exr", &[]));

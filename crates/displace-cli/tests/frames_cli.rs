@@ -6,32 +6,17 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr};
+use cli_common::{displace_env as run, files, ok, stderr, SPHERE_SCENE};
 use std::path::Path;
-use std::process::{Command, Output};
 
-/// A lit sphere with a camera path and a moving point light.
-const STILL: &str = r#"
-[image]
-width = 16
-height = 16
-spp = 2
-[camera]
-position = [0, 1, -3]
-look_at = [0, 0, 0]
-[materials.m]
-type = "lambert"
-color = [0.5, 0.5, 0.5]
-[[lights]]
-type = "point"
-position = [0, 3, -1]
-intensity = [5, 5, 5]
-[[shapes]]
-type = "sphere"
-center = [0, 0, 0]
-radius = 1
-material = "m"
-"#;
+/// A lit sphere (16 x 16 at 2 spp) with a camera path and a moving point
+/// light.
+fn still() -> String {
+    SPHERE_SCENE.replace(
+        "width = 8\nheight = 8\nspp = 1",
+        "width = 16\nheight = 16\nspp = 2",
+    )
+}
 
 const ANIMATION: &str = r#"
 [animation]
@@ -50,23 +35,6 @@ light_path = [
 ]
 "#;
 
-fn run(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_displace"));
-    c.args(args)
-        .current_dir(dir)
-        .env("DISPLACE_CACHE", dir.join("cache"))
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX");
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output().expect("run displace")
-}
-
-fn ok(o: Output) {
-    assert!(o.status.success(), "{}", stderr(&o));
-}
-
 fn read(d: &Path, f: &str) -> Vec<u8> {
     std::fs::read(d.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"))
 }
@@ -75,7 +43,7 @@ fn read(d: &Path, f: &str) -> Vec<u8> {
 fn frames_equal_single_frames_and_keys_are_hit_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    std::fs::write(d.join("a.toml"), format!("{STILL}{ANIMATION}")).unwrap();
+    std::fs::write(d.join("a.toml"), format!("{}{ANIMATION}", still())).unwrap();
     ok(run(
         &[
             "render", "-q", "a.toml", "--frames", "0..6", "-o", "out.png",
@@ -105,7 +73,7 @@ fn frames_equal_single_frames_and_keys_are_hit_exactly() {
         "nothing moved"
     );
     // Frame 2 is the still scene with key 2's camera and light.
-    let key2 = STILL
+    let key2 = still()
         .replace("position = [0, 1, -3]", "position = [1.3, 0.7, -2.6]")
         .replace("look_at = [0, 0, 0]", "look_at = [0.1, 0.2, 0]")
         .replace("position = [0, 3, -1]", "position = [1.5, 2.5, -1.5]");
@@ -141,7 +109,7 @@ fn bad_animations_and_frames_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cases: &[(&str, &[&str], &str)] = &[
-        (STILL, &["--frame", "0"], "no [animation]"),
+        (&still(), &["--frame", "0"], "no [animation]"),
         (ANIMATION, &["--frame", "6"], "has 6 frames"),
         (ANIMATION, &["--frames", "4..9"], "has 6 frames"),
         (
@@ -195,7 +163,7 @@ fn bad_animations_and_frames_are_refused_by_name() {
         let text = if anim.contains("[image]") {
             anim.to_string()
         } else {
-            format!("{STILL}{anim}")
+            format!("{}{anim}", still())
         };
         std::fs::write(d.join("s.toml"), text).unwrap();
         let before = files(d);

@@ -10,40 +10,9 @@
 
 mod cli_common;
 
-use cli_common::stderr;
+use cli_common::{floor_scene, stderr};
 use std::path::Path;
 use std::process::Command;
-
-/// A displaced floor under an area light, 24 x 128 pixels: 8 rows of
-/// render tiles, one per task.
-const SCENE: &str = r#"
-[image]
-width = 24
-height = 128
-spp = 2
-shadow_samples = 2
-seed = 3
-[camera]
-position = [0, 1.6, -2.2]
-look_at = [0, 0, 0]
-vfov = 55
-[materials.floor]
-type = "lambert"
-color = [0.7, 0.6, 0.5]
-[[lights]]
-type = "area"
-origin = [-0.3, 2, -0.3]
-edge_u = [0.6, 0, 0]
-edge_v = [0, 0, 0.6]
-radiance = [6, 6, 6]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-material = "floor"
-displacement = { height = "gen:gaussian", height_size = [32, 32], depth = 0.1, map_size = [32, 32, 8] }
-"#;
 
 /// Why Slurm cannot run here, if it cannot.
 fn missing() -> Option<String> {
@@ -72,7 +41,8 @@ fn an_eight_task_slurm_array_merges_to_the_single_render() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    std::fs::write(d.join("s.toml"), SCENE).unwrap();
+    // 8 rows of render tiles, one per task.
+    std::fs::write(d.join("s.toml"), floor_scene(24, 128, 3, "gen:gaussian")).unwrap();
     let bin = env!("CARGO_BIN_EXE_displace");
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let one = Command::new(bin)

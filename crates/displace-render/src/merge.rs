@@ -74,11 +74,14 @@ fn rect_text(r: &Crop) -> String {
     format!("{},{},{}x{}", r.x, r.y, r.width, r.height)
 }
 
+/// What tiles of one render share: content hash, image size, tile count.
+type RenderKey = (u64, [u32; 2], u32);
+
 /// The render most tiles agree on (ties go to the first file given): the
 /// others are foreign to it.
-fn reference(tiles: &[(PathBuf, TileImage)]) -> (u64, [u32; 2], u32) {
+fn reference(tiles: &[(PathBuf, TileImage)]) -> RenderKey {
     let key = |m: &TileMeta| (m.content_hash, m.full_size, m.tile.count);
-    let mut votes: Vec<((u64, [u32; 2], u32), usize)> = Vec::new();
+    let mut votes: Vec<(RenderKey, usize)> = Vec::new();
     for (_, t) in tiles {
         let k = key(&t.meta);
         match votes.iter_mut().find(|(v, _)| *v == k) {
@@ -95,7 +98,7 @@ fn reference(tiles: &[(PathBuf, TileImage)]) -> (u64, [u32; 2], u32) {
 }
 
 /// Why `meta` is not of the render `want`, if it is not.
-fn foreign(meta: &TileMeta, want: (u64, [u32; 2], u32)) -> Option<String> {
+fn foreign(meta: &TileMeta, want: RenderKey) -> Option<String> {
     let (hash, [w, h], count) = want;
     let mut why = Vec::new();
     if meta.content_hash != hash {

@@ -153,12 +153,14 @@ impl Animation {
         let interpolation = match a.interpolation.as_str() {
             "linear" => Interpolation::Linear,
             "catmull-rom" => Interpolation::CatmullRom,
-            other => return Err(err(
-                name,
-                format!(
+            other => {
+                return Err(err(
+                    name,
+                    format!(
                     "animation.interpolation = \"{other}\": expected \"linear\" or \"catmull-rom\""
                 ),
-            )),
+                ))
+            }
         };
         let keys = |f: fn(&super::spec::CameraKeySpec) -> Option<V3>| {
             a.camera
