@@ -64,7 +64,9 @@ mod tests {
         let file = dir.path().join("h.png");
         std::fs::write(&file, b"one").unwrap();
         let base = SceneOptions::default();
-        let h = |text: &str, o: &SceneOptions| content_hash(text, &[file.clone()], o).unwrap();
+        let h = |text: &str, o: &SceneOptions| {
+            content_hash(text, std::slice::from_ref(&file), o).unwrap()
+        };
         let a = h("seed = 1", &base);
         assert_eq!(a, h("seed = 1", &base), "not deterministic");
         assert_ne!(a, h("seed = 2", &base));
