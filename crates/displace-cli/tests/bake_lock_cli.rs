@@ -7,35 +7,20 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr};
+use cli_common::{files, floor_scene, stderr};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
-/// One displaced quad whose bake takes long enough (a 128x128x32 map) for
-/// the four renders to meet on it; a tiny image.
-const SCENE: &str = r#"
-[image]
-width = 16
-height = 16
-spp = 1
-[camera]
-position = [0, 1.5, -2]
-look_at = [0, 0, 0]
-[materials.m]
-type = "lambert"
-color = [0.6, 0.6, 0.6]
-[[lights]]
-type = "point"
-position = [0, 3, -1]
-intensity = [8, 8, 8]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-material = "m"
-displacement = { height = "gen:noise?seed=5", height_size = [128, 128], depth = 0.1, map_size = [128, 128, 32] }
-"#;
+/// A floor whose bake takes long enough (a 128x128x32 map) for the four
+/// renders to meet on it; a tiny image.
+fn scene() -> String {
+    floor_scene(
+        16,
+        16,
+        0,
+        r#"height = "gen:noise?seed=5", height_size = [128, 128], depth = 0.1, map_size = [128, 128, 32]"#,
+    )
+}
 
 fn render(dir: &Path, cache: &Path, out: &str) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_displace"));
@@ -49,7 +34,7 @@ fn render(dir: &Path, cache: &Path, out: &str) -> Command {
 
 fn scene_dir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("s.toml"), SCENE).unwrap();
+    std::fs::write(dir.path().join("s.toml"), scene()).unwrap();
     dir
 }
 

@@ -7,13 +7,13 @@
 
 mod cli_common;
 
-use cli_common::{displace_env as run, files, floor_scene, ok, stderr};
+use cli_common::{displace_env as run, files, floor_scene, ok, small_bake, stderr};
 use std::path::Path;
 use std::process::Output;
 
 /// The scene: 32 x 112 pixels, 7 rows of render tiles.
 fn scene() -> String {
-    floor_scene(32, 112, 7, "gen:studded")
+    floor_scene(32, 112, 7, &small_bake("gen:studded"))
 }
 
 fn scene_dir() -> tempfile::TempDir {

@@ -68,15 +68,22 @@ pub fn displace_env(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
     c.output().expect("run displace")
 }
 
+/// A small bake of `height` (32 x 32 texels, 32 x 32 x 8 voxels) for
+/// [`floor_scene`].
+pub fn small_bake(height: &str) -> String {
+    format!(r#"height = "{height}", height_size = [32, 32], depth = 0.1, map_size = [32, 32, 8]"#)
+}
+
 /// Asserts that a run succeeded (its stderr as the message) and returns it.
 pub fn ok(o: Output) -> Output {
     assert!(o.status.success(), "{}", stderr(&o));
     o
 }
 
-/// A displaced floor (height source `height`) under an area light, whose
-/// soft shadows draw random numbers: `width` x `height_px` pixels at 2 spp.
-pub fn floor_scene(width: u32, height_px: u32, seed: u64, height: &str) -> String {
+/// A displaced floor under an area light, whose soft shadows draw random
+/// numbers: `width` x `height_px` pixels at 2 spp; `displacement` is the
+/// body of the floor's displacement table.
+pub fn floor_scene(width: u32, height_px: u32, seed: u64, displacement: &str) -> String {
     format!(
         r#"
 [image]
@@ -104,7 +111,7 @@ origin = [-1, 0, -1]
 edge_u = [2, 0, 0]
 edge_v = [0, 0, 2]
 material = "floor"
-displacement = {{ height = "{height}", height_size = [32, 32], depth = 0.1, map_size = [32, 32, 8] }}
+displacement = {{ {displacement} }}
 "#
     )
 }
