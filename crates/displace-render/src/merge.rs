@@ -46,6 +46,10 @@ pub enum Problem {
         first_row: u32,
         end_row: u32,
     },
+    /// Tiles that claim a grid no image has (more tiles than its rows of
+    /// render tiles).
+    #[error("the tiles claim a grid that does not exist: {0}")]
+    Grid(String),
     /// Nothing to merge.
     #[error("no tiles were given")]
     NoTiles,
@@ -136,7 +140,7 @@ pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
         Ok(g) => g,
         Err(e) => {
             return Err(MergeError {
-                problems: vec![Problem::Unreadable(e.to_string())],
+                problems: vec![Problem::Grid(e.to_string())],
             })
         }
     };

@@ -254,8 +254,8 @@ pub fn at_frame(mut spec: SceneSpec, frame: Option<u32>, name: &Path) -> Result<
     Ok(spec)
 }
 
-/// The frame count of the animation in scene text `text`, if it has one
-/// (for `--frames` without an end).
+/// The frame count of the parsed scene's animation, if it has one, checked
+/// (`--frames` is held to it before any frame is rendered).
 pub fn frame_count(spec: &SceneSpec, name: &Path) -> Result<Option<u32>> {
     spec.animation
         .as_ref()
@@ -293,14 +293,20 @@ mod tests {
 
     #[test]
     fn between_keys_linear_is_straight_and_catmull_rom_is_smooth() {
+        // Frame 1 is a third of the way from key 0 (frame 0) to key 1 (frame 3).
         let lin = path3(Interpolation::Linear);
+        let (p0, p1) = ([0.1f32, 0.2, 0.3], [1.7f32, -0.3, 2.9]);
         let a = lin.at(1);
         for c in 0..3 {
-            let want = 0.1f32.mul_add(0.0, 0.0)
-                + [0.1, 0.2, 0.3][c]
-                + ([1.7, -0.3, 2.9][c] - [0.1, 0.2, 0.3][c]) / 3.0;
+            let want = p0[c] + (p1[c] - p0[c]) / 3.0;
             assert!((a[c] - want).abs() < 1e-6, "{a:?}");
         }
+        // Catmull-Rom leaves the straight line between keys that turn.
+        let curved = path3(Interpolation::CatmullRom).at(1);
+        assert!(
+            (0..3).any(|c| (curved[c] - a[c]).abs() > 1e-3),
+            "{curved:?}"
+        );
         // Catmull-Rom on evenly spaced collinear keys is the straight line.
         let cr = Path3 {
             keys: (0..5)
