@@ -27,6 +27,11 @@ pub struct RenderArgs {
     /// Samples per pixel (overrides the scene).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Light transport (overrides the scene's `integrator`): whitted (the
+    /// seed's ray tracer) or path (path tracing with multiple importance
+    /// sampling).
+    #[arg(long)]
+    pub integrator: Option<String>,
     /// Image size WxH (overrides the scene).
     #[arg(long)]
     pub size: Option<String>,
@@ -73,6 +78,7 @@ struct Plan {
     crop: Option<Crop>,
     aovs: Vec<Aov>,
     method: Option<displace_core::Method>,
+    integrator: Option<displace_render::Integrator>,
     tile: Option<TileIndex>,
     pool: rayon::ThreadPool,
     cancel: Arc<AtomicBool>,
@@ -99,6 +105,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--method")?;
+    let integrator: Option<displace_render::Integrator> = args
+        .integrator
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .context("--integrator")?;
     let tile = args
         .tile
         .as_deref()
@@ -136,6 +148,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         crop,
         aovs,
         method,
+        integrator,
         tile,
         pool,
         cancel,
@@ -160,6 +173,7 @@ fn render_one(
         spp: args.spp,
         size: plan.size,
         method: plan.method,
+        integrator: plan.integrator,
         cache_dir: if args.no_cache {
             None
         } else {
@@ -258,10 +272,11 @@ fn render_one(
         );
     }
     eprintln!(
-        "{name}: {}x{} at {} spp, {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
+        "{name}: {}x{} at {} spp ({}), {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
         rendered.image.width,
         rendered.image.height,
         scene.spp(),
+        scene.integrator().name(),
         scene.primitive_count(),
         pool.current_num_threads(),
         setup.as_secs_f64(),

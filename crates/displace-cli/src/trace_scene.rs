@@ -17,6 +17,7 @@
 use crate::trace::read_rays_with_length;
 use anyhow::{Context, Result};
 use displace_render::geometry::Ray;
+use displace_render::scene::batch::{Batch, Detail};
 use displace_render::{Scene, SceneOptions};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -28,12 +29,57 @@ const MISS: f32 = -1.0;
 /// What a hit on a visible area light's quad reports in the shape column.
 const LIGHT: f32 = -2.0;
 
-/// The first hit of one world ray: `[t, x, y, z, nx, ny, nz, shape]`.
-pub fn first_hit(scene: &Scene, r: &[f32; 7]) -> [f32; 8] {
+/// Rays per batch query: enough for the packets of each face to fill.
+const BATCH: usize = 64;
+
+/// One world ray of a rays file: the unit ray and its length limit in world
+/// units (the file's `t_max` is in units of the direction's length).
+fn world_ray(r: &[f32; 7]) -> (Ray, f32, f32) {
     let dir = Vec3::new(r[3], r[4], r[5]);
     let len = dir.length();
-    let ray = Ray::new(Vec3::new(r[0], r[1], r[2]), dir);
-    match scene.intersect_primitive(&ray, 0.0, r[6] * len) {
+    (Ray::new(Vec3::new(r[0], r[1], r[2]), dir), r[6] * len, len)
+}
+
+/// The first hits of a batch of world rays, each `[t, x, y, z, nx, ny,
+/// nz, shape]`, into `out` (8 values a ray).
+pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
+    let (mut world, mut limits, mut lens) = (Vec::new(), Vec::new(), Vec::new());
+    for r in rays {
+        let (ray, t_max, len) = world_ray(r);
+        world.push(ray);
+        limits.push(t_max);
+        lens.push(len);
+    }
+    let mut hits = Vec::with_capacity(rays.len());
+    scene.intersect_many(&world, 0.0, &limits, Detail::Geometry, batch, &mut hits);
+    for ((o, hit), len) in out.chunks_mut(8).zip(hits).zip(lens) {
+        o.copy_from_slice(&row(scene, hit, len));
+    }
+}
+
+/// Whether anything blocks each of a batch of world rays within `(0,
+/// t_max)`: 1 or 0 each, into `out`.
+pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
+    let (mut world, mut limits) = (Vec::new(), Vec::new());
+    for r in rays {
+        let (ray, t_max, _) = world_ray(r);
+        world.push(ray);
+        limits.push(t_max);
+    }
+    let mut blocked = Vec::with_capacity(rays.len());
+    scene.occluded_many(&world, 0.0, &limits, batch, &mut blocked);
+    for (o, b) in out.iter_mut().zip(blocked) {
+        *o = f32::from(u8::from(b));
+    }
+}
+
+/// A hit as a row of the hits file.
+fn row(
+    scene: &Scene,
+    hit: Option<(u32, displace_render::scene::Interaction)>,
+    len: f32,
+) -> [f32; 8] {
+    match hit {
         Some((prim, hit)) => {
             let (p, n) = (hit.position, hit.geometric_normal);
             let shape = scene.shape_of(prim).map_or(LIGHT, |k| k as f32);
@@ -50,13 +96,6 @@ pub fn first_hit(scene: &Scene, r: &[f32; 7]) -> [f32; 8] {
             MISS,
         ],
     }
-}
-
-/// Whether anything blocks one world ray within `(0, t_max)`: 1 or 0.
-pub fn blocked(scene: &Scene, r: &[f32; 7]) -> f32 {
-    let dir = Vec3::new(r[3], r[4], r[5]);
-    let ray = Ray::new(Vec3::new(r[0], r[1], r[2]), dir);
-    f32::from(u8::from(scene.occluded(&ray, 0.0, r[6] * dir.length())))
 }
 
 /// Loads `scene`, traces every ray of `rays` and writes `output`.
@@ -84,14 +123,17 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     let columns = if any_hit { 1 } else { 8 };
     let mut flat = vec![f32::NAN; rays.len() * columns];
     let start = Instant::now();
+    // Batches of rays in file order, each traced eight at a time through
+    // the displaced faces; a ray's answer is the one-ray query's whatever
+    // its batch, so the output does not depend on the thread count.
     if any_hit {
-        flat.par_iter_mut()
-            .zip(&rays)
-            .for_each(|(o, r)| *o = blocked(&scene, r));
+        flat.par_chunks_mut(BATCH)
+            .zip(rays.par_chunks(BATCH))
+            .for_each_init(Batch::default, |b, (o, r)| blocked_many(&scene, r, b, o));
     } else {
-        flat.par_chunks_mut(8)
-            .zip(&rays)
-            .for_each(|(o, r)| o.copy_from_slice(&first_hit(&scene, r)));
+        flat.par_chunks_mut(8 * BATCH)
+            .zip(rays.par_chunks(BATCH))
+            .for_each_init(Batch::default, |b, (o, r)| first_hits(&scene, r, b, o));
     }
     let seconds = start.elapsed().as_secs_f64();
     let found = if any_hit {

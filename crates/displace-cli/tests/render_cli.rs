@@ -120,6 +120,32 @@ fn bad_input_is_refused_with_nothing_written() {
     refuses(GOOD, &["--size", "0x4"], &["--size"]);
     refuses(GOOD, &["--crop", "4,4,10,10"], &["crop"]);
     refuses(GOOD, &["--aov", "depth,colour"], &["colour"]);
+    refuses(
+        GOOD,
+        &["--integrator", "bogus"],
+        &[
+            "--integrator",
+            "unknown integrator `bogus` (known: whitted, path)",
+        ],
+    );
+    refuses(
+        &GOOD.replace("spp = 1", "spp = 1\nintegrator = \"bogus\""),
+        &[],
+        &["s.toml", "image.integrator", "bogus"],
+    );
+    refuses(
+        &GOOD.replace("spp = 1", "spp = 1\nenvironment = \"sky.exr\""),
+        &[],
+        &["s.toml", "image.environment", "sky.exr"],
+    );
+    refuses(
+        &GOOD.replace(
+            "color = [0.5, 0.5, 0.5]",
+            "color = [0.5, 0.5, 0.5]\nemission = [1, nan, 1]",
+        ),
+        &[],
+        &["materials.m.emission", "finite"],
+    );
     let dir = tempfile::tempdir().unwrap();
     let o = displace(&["render", "-q", "-o", "out.jpg"], dir.path());
     assert!(
@@ -131,6 +157,38 @@ fn bad_input_is_refused_with_nothing_written() {
     let dir = tempfile::tempdir().unwrap();
     let o = displace(&["render", "-q", "nope.toml"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("nope.toml"));
+}
+
+/// `--integrator path` renders the scene with the path tracer (and says
+/// so), `--integrator whitted` as before.
+#[test]
+fn integrator_flag_chooses_the_path_tracer() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("s.toml"), GOOD).unwrap();
+    for name in ["path", "whitted"] {
+        let out = format!("{name}.png");
+        let o = displace(
+            &[
+                "render",
+                "-q",
+                "s.toml",
+                "--integrator",
+                name,
+                "--spp",
+                "2",
+                "-o",
+                &out,
+            ],
+            dir.path(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("at 2 spp ({name})")),
+            "{}",
+            stderr(&o)
+        );
+        assert!(dir.path().join(&out).exists());
+    }
 }
 
 /// Ctrl-C stops the render cleanly: non-zero exit, nothing written.

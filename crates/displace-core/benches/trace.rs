@@ -5,8 +5,12 @@
 //! steps, every patch of the band solved), any-hit queries over the same
 //! rays (`any-hit`), and the exact reference, each on 10k seeded random rays
 //! per iteration against 256x256x16 maps of `studded`, `gaussian` and
-//! `noise`. The mean iterations per ray of each case are printed once before
-//! it is timed.
+//! `noise`; the CPU tracer one ray at a time against eight at a time
+//! (`sphere-packet`, `any-hit-packet`: `trace_many` / `occluded_many`, AVX2
+//! where present) on those random rays and on coherent camera rays
+//! (`camera`, `camera-packet`: a 100x100 pinhole grid 45 degrees down onto
+//! the face). The mean iterations per ray of each case are printed once
+//! before it is timed.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use displace_core::{
@@ -34,6 +38,28 @@ fn random_rays(aspect: [f32; 2], seed: u64) -> Vec<MapRay> {
             );
             // Start just above the shell (z = 1.05).
             MapRay::new(target - dir * (1.05 / elevation.sin()), dir)
+        })
+        .collect()
+}
+
+/// A pinhole camera 45 degrees above the face centre, a 20 degree field of
+/// view: neighbouring rays meet neighbouring cells, as a render's do.
+fn camera_rays(aspect: [f32; 2]) -> Vec<MapRay> {
+    let side = (RAYS as f32).sqrt() as usize;
+    let centre = Vec3::new(aspect[0] * 0.5, aspect[1] * 0.5, 0.0);
+    let pos = centre + Vec3::new(0.0, -1.0, 1.0) * (aspect[0] * 0.85);
+    let fwd = (centre - pos).normalize();
+    let right = fwd.cross(Vec3::Z).normalize();
+    let up = right.cross(fwd);
+    let t = 10.0f32.to_radians().tan();
+    (0..side * side)
+        .map(|k| {
+            let fx = ((k % side) as f32 + 0.5) / side as f32;
+            let fy = ((k / side) as f32 + 0.5) / side as f32;
+            MapRay::new(
+                pos,
+                fwd + (2.0 * fx - 1.0) * t * right + (1.0 - 2.0 * fy) * t * up,
+            )
         })
         .collect()
 }
@@ -105,6 +131,46 @@ fn trace_rays(c: &mut Criterion) {
                     .count()
             })
         });
+        // One ray at a time against eight at a time, on the same rays.
+        let all = vec![opts; rays.len()];
+        let mut hits = vec![None; rays.len()];
+        let mut blocked = vec![false; rays.len()];
+        group.bench_with_input(BenchmarkId::new("sphere-packet", name), &rays, |b, rays| {
+            b.iter(|| {
+                map.trace_many(black_box(rays), &all, &mut hits);
+                hits.iter().flatten().count()
+            })
+        });
+        group.bench_with_input(
+            BenchmarkId::new("any-hit-packet", name),
+            &rays,
+            |b, rays| {
+                b.iter(|| {
+                    map.occluded_many(black_box(rays), &all, &mut blocked);
+                    blocked.iter().filter(|&&b| b).count()
+                })
+            },
+        );
+        let camera = camera_rays(map.aspect());
+        let all = vec![opts; camera.len()];
+        let mut hits = vec![None; camera.len()];
+        group.bench_with_input(BenchmarkId::new("camera", name), &camera, |b, rays| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| map.trace(black_box(r), &opts).is_some())
+                    .count()
+            })
+        });
+        group.bench_with_input(
+            BenchmarkId::new("camera-packet", name),
+            &camera,
+            |b, rays| {
+                b.iter(|| {
+                    map.trace_many(black_box(rays), &all, &mut hits);
+                    hits.iter().flatten().count()
+                })
+            },
+        );
     }
     group.finish();
 }

@@ -6,7 +6,10 @@
 //! ([`DisplacementMap::trace_counted`]) and the CPU's throughput tracer
 //! ([`DisplacementMap::trace`]), and the mean cost per ray. A profiling aid:
 //!
-//!     cargo run --release -p displace-core --example trace_profile [RAYS_PER_SIDE]
+//!     cargo run --release -p displace-core --example trace_profile [RAYS_PER_SIDE] [cell|one|many]
+//!
+//! (`cell`: the CPU tracer one ray and eight at a time, no trilinear loop;
+//! `one`: one ray at a time only; `many`: eight at a time only.)
 
 use displace_core::{
     bake, generators, Address, BakeOptions, DisplacementMap, Extent, MapRay, TraceOptions,
@@ -70,13 +73,32 @@ fn main() {
             }
             (rays.len() as f64 / best / 1e6, stats)
         };
-        let only_cell = std::env::args().nth(2).as_deref() == Some("cell");
+        let mode = std::env::args().nth(2).unwrap_or_default();
+        let only_cell = mode == "cell" || mode == "many" || mode == "one";
         let (old, (h0, i0)) = if only_cell {
             (0.0, (0, 0))
         } else {
             time(&|r| map.trace_counted(r, &opts).0.map(|h| h.iterations))
         };
-        let (new, (h1, i1)) = time(&|r| map.trace(r, &opts).map(|h| h.iterations));
+        let (new, (h1, i1)) = if mode == "many" {
+            (0.0, (0, 0))
+        } else {
+            time(&|r| map.trace(r, &opts).map(|h| h.iterations))
+        };
+        // Eight at a time (`trace_many`), the same hits.
+        let all_opts = vec![opts; rays.len()];
+        let mut hits = vec![None; rays.len()];
+        let mut best = f64::INFINITY;
+        for _ in 0..if mode == "one" { 0 } else { 3 } {
+            let start = Instant::now();
+            map.trace_many(&rays, &all_opts, &mut hits);
+            best = best.min(start.elapsed().as_secs_f64());
+        }
+        let many = rays.len() as f64 / best / 1e6;
+        println!(
+            "{name}: packets of eight {many:.2} Mrays/s ({} hits)",
+            hits.iter().flatten().count()
+        );
         println!(
             "{name}: trilinear {old:.2} Mrays/s ({h0} hits, {:.1} fetches/hit), cell {new:.2} Mrays/s ({h1} hits, {:.1} fetches/hit)",
             i0 as f64 / h0.max(1) as f64,

@@ -84,6 +84,19 @@ impl DisplacementMap {
         crate::cell_trace::occluded(&self.height, &self.distance, ray, opts)
     }
 
+    /// [`Self::trace`] for many rays, each with its own options: `out[i]`
+    /// is exactly `self.trace(&rays[i], &opts[i])`, found eight rays at a
+    /// time where the CPU has AVX2 ([`crate::cell_trace::trace_many`]).
+    pub fn trace_many(&self, rays: &[MapRay], opts: &[TraceOptions], out: &mut [Option<MapHit>]) {
+        crate::cell_trace::trace_many(&self.height, &self.distance, rays, opts, out)
+    }
+
+    /// [`Self::occluded`] for many rays, eight at a time where the CPU
+    /// allows: `out[i]` is exactly `self.occluded(&rays[i], &opts[i])`.
+    pub fn occluded_many(&self, rays: &[MapRay], opts: &[TraceOptions], out: &mut [bool]) {
+        crate::cell_trace::occluded_many(&self.height, &self.distance, rays, opts, out)
+    }
+
     /// The first hit as the GPU tracer finds it (trilinear steps, Donnelly
     /// section 8.3), with its fetch count (distance samples plus patches
     /// walked), which misses report too: what `displace compare` charges
@@ -124,6 +137,13 @@ impl DisplacementMap {
     /// Shading normal at texture coordinate `uv` (tiles), map space.
     pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
         self.normals.sample(uv.x, uv.y)
+    }
+
+    /// [`Self::shading_normal`] not yet renormalised (its direction, at a
+    /// length within rounding of the blend of unit normals), for a renderer
+    /// that carries it into the world and normalises there.
+    pub fn shading_direction(&self, uv: Vec2) -> Vec3 {
+        self.normals.blend(uv.x, uv.y)
     }
 }
 

@@ -370,6 +370,12 @@ impl DistanceMap {
     pub fn address(&self) -> Address {
         self.address
     }
+    /// Voxels per map-space unit along each axis: what
+    /// [`Self::cell_bound`] scales a point by (the packet tracer repeats
+    /// that arithmetic in vector lanes).
+    pub(crate) fn cell_scale(&self) -> [f32; 3] {
+        self.cell_scale
+    }
     pub fn data(&self) -> &[f32] {
         &self.data
     }

@@ -162,7 +162,10 @@ pub(crate) fn patch_hit(
     let fy = (py + qy * s).clamp(0.0, 1.0);
     let dhdx = (a + c * fy) * sx;
     let dhdy = (b + c * fx) * sy;
-    let n = DVec3::new(-dhdx, -dhdy, 1.0).normalize().as_vec3();
+    // The root needs double precision; its normal, returned in single, is
+    // normalised in single (a double square root and division cost more
+    // than the rest of a hit's solve).
+    let n = Vec3::new(-dhdx as f32, -dhdy as f32, 1.0).normalize();
     Some((ta + s, n))
 }
 
@@ -178,6 +181,19 @@ fn smallest_root(k0: f64, k1: f64, k2: f64, lo: f64, hi: f64) -> Option<f64> {
     // square root).
     if k1 >= 0.0 && k2 >= 0.0 && k0 > k1 * (-lo).max(0.0) {
         return None;
+    }
+    // Positive at both ends of the interval and nowhere below zero between
+    // them: a concave quadratic (k2 <= 0) has its minimum at an end, a
+    // convex one either at an end or at its vertex, where it is negative
+    // only with a positive discriminant. Decided without the square root
+    // or a division: the common case of a ray passing just over a patch.
+    let f = |x: f64| k0 + x * (k1 + x * k2);
+    if f(hi) > 0.0 && f(lo) > 0.0 {
+        // Vertex -k1 / (2 k2) inside [lo, hi], for k2 > 0.
+        let inside = k2 > 0.0 && -k1 > 2.0 * k2 * lo && -k1 < 2.0 * k2 * hi;
+        if !inside || k1 * k1 - 4.0 * k2 * k0 < 0.0 {
+            return None;
+        }
     }
     let scale = k0.abs().max(k1.abs()).max(k2.abs());
     if k2.abs() <= 1e-12 * scale {

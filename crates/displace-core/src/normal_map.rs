@@ -70,10 +70,18 @@ impl NormalMap {
     /// renormalised. Every stored normal has `z > 0`, so the blend never
     /// vanishes.
     pub fn sample(&self, u: f32, v: f32) -> Vec3 {
+        self.blend(u, v).normalize()
+    }
+
+    /// [`Self::sample`] before its renormalisation: for a caller that
+    /// transforms the normal and normalises the result anyway (a linear map
+    /// commutes with the scale), one square root and division fewer.
+    #[inline]
+    pub fn blend(&self, u: f32, v: f32) -> Vec3 {
         let (i, fx) = texel_lerp(u, self.width);
         let (j, fy) = texel_lerp(v, self.height);
         let [n00, n10, n01, n11] = self.cell(i, j);
-        n00.lerp(n10, fx).lerp(n01.lerp(n11, fx), fy).normalize()
+        n00.lerp(n10, fx).lerp(n01.lerp(n11, fx), fy)
     }
 
     /// The four normals around cell `(ci, cj)` (`n00, n10, n01, n11`, as

@@ -52,6 +52,33 @@ pub struct DisplacedFace {
     pub normal_map: Option<Arc<Texture>>,
 }
 
+/// A world ray carried into a face's map space ([`DisplacedFace::map_query`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MapQuery {
+    pub ray: MapRay,
+    /// `t_map = scale t_world`.
+    pub scale: f32,
+    /// The trace options clipped to the world range (and a triangle's
+    /// prism).
+    pub opts: TraceOptions,
+    /// Outward normal of the prism side the ray enters through.
+    pub entry: Option<Vec3>,
+}
+
+impl MapQuery {
+    /// The world distance and map-space hit of a trace of this query: a
+    /// wall hit takes the normal of the prism side it entered through.
+    #[inline]
+    pub fn finish(&self, mut hit: MapHit) -> (f32, MapHit) {
+        if hit.kind == HitKind::Wall {
+            if let Some(n) = self.entry {
+                hit.normal = n;
+            }
+        }
+        (hit.t / self.scale, hit)
+    }
+}
+
 /// What the renderer needs of a displaced hit, in world space.
 #[derive(Clone, Copy, Debug)]
 pub struct DisplacedHit {
@@ -139,14 +166,23 @@ impl DisplacedFace {
     /// and the map-space hit.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, MapHit)> {
-        let (map_ray, s, opts, entry) = self.to_map_ray(ray, t_min, t_max)?;
-        let mut hit = self.map.trace(&map_ray, &opts)?;
-        if hit.kind == HitKind::Wall {
-            if let Some(n) = entry {
-                hit.normal = n;
-            }
-        }
-        Some((hit.t / s, hit))
+        let query = self.map_query(ray, t_min, t_max)?;
+        let hit = self.map.trace(&query.ray, &query.opts)?;
+        Some(query.finish(hit))
+    }
+
+    /// `ray` in map space, as [`Self::intersect`] and [`Self::occludes`]
+    /// trace it; batch queries ([`crate::scene::batch`]) gather these and
+    /// trace them together.
+    #[inline]
+    pub fn map_query(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<MapQuery> {
+        let (ray, scale, opts, entry) = self.to_map_ray(ray, t_min, t_max)?;
+        Some(MapQuery {
+            ray,
+            scale,
+            opts,
+            entry,
+        })
     }
 
     /// Whether the face's displaced solid blocks `ray` within `[t_min,
@@ -176,7 +212,7 @@ impl DisplacedFace {
         if !(s > 0.0 && s.is_finite()) {
             return None;
         }
-        let dir = d / s;
+        let dir = d * (1.0 / s);
         let mut opts = self.trace;
         opts.t_min = t_min * s;
         opts.t_max = t_max * s;
@@ -188,6 +224,20 @@ impl DisplacedFace {
             entry = n;
         }
         Some((MapRay { origin, dir }, s, opts, entry))
+    }
+
+    /// [`Self::resolve`] without the shading normal (the geometric normal
+    /// stands in for it): where a hit is, not how it is lit.
+    pub fn resolve_geometry(&self, hit: &MapHit) -> DisplacedHit {
+        let geometric_normal = (self.normal_to_world * hit.normal).normalize();
+        DisplacedHit {
+            position: self.origin + self.to_world * hit.position,
+            geometric_normal,
+            shading_normal: geometric_normal,
+            uv: hit.uv + self.uv_offset,
+            iterations: hit.iterations,
+            wall: hit.kind == HitKind::Wall,
+        }
     }
 
     /// The world-space description of a map-space hit.
@@ -208,7 +258,8 @@ impl DisplacedFace {
                         }
                         Address::Clamp => hit.uv,
                     };
-                    self.map.shading_normal(st)
+                    // Normalised once, in the world.
+                    self.map.shading_direction(st)
                 }
             };
             (self.normal_to_world * n_map).normalize()

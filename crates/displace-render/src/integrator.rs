@@ -32,7 +32,7 @@ pub fn radiance(
 ) -> Vec3 {
     match scene.intersect(ray, 0.0, f32::INFINITY) {
         Some(hit) => shade(scene, ray, &hit, depth, sample, rng),
-        None => scene.background,
+        None => scene.environment.radiance(ray.dir),
     }
 }
 
@@ -95,46 +95,199 @@ fn shade(
     sample: Option<PixelSample>,
     rng: &mut Rng,
 ) -> Vec3 {
-    let mut l = Vec3::ZERO;
-    if let Some(e) = hit.emitter {
-        if let Light::Area { quad, radiance } = &scene.lights[e as usize] {
-            if quad.normal.dot(ray.dir) < 0.0 {
-                l += *radiance;
-            }
-        }
-    }
-    let mat = &scene.materials[hit.material as usize];
-    let wo = -ray.dir;
-    let (ng, ns, p) = facing(scene, ray, hit);
-    let albedo = mat.albedo(hit.uv, hit.tint);
-    if albedo != Vec3::ZERO || mat.specular != Vec3::ZERO {
+    let mut l = emitted(scene, ray, hit);
+    let at = Surface::new(scene, ray, hit);
+    if at.lit() {
         for light in &scene.lights {
             let n = light.samples(scene.shadow_samples);
             let mut sum = Vec3::ZERO;
-            let (first, strata) = match sample {
-                Some(ps) => (ps.index * n, ps.count * n),
-                None => (0, n),
-            };
             for i in 0..n {
-                let Some(s) = light.sample(hit.position, first + i, strata, rng) else {
+                let Some((q, value)) = at.light_term(scene, light, i, n, sample, rng) else {
                     continue;
                 };
-                let Some(q) = shadow_query(scene, hit.position, p, ng, ns, s.point) else {
-                    continue;
-                };
-                if scene.occluded(&q.ray, 0.0, q.t_max) {
-                    continue;
+                if !scene.occluded(&q.ray, 0.0, q.t_max) {
+                    sum += value;
                 }
-                sum += mat.brdf(albedo, ns, wo, q.wi) * s.weight * q.cos;
             }
             l += sum / n as f32;
         }
     }
-    if mat.reflects() && depth < scene.max_depth {
-        let dir = mat.reflection_dir(ray.dir, ns, rng);
-        if dir.dot(ng) > 0.0 {
-            l += mat.reflect * radiance(scene, &Ray::new(p, dir), depth + 1, None, rng);
+    l + at.reflected(scene, ray, depth, rng)
+}
+
+/// What a hit sends back along `ray` by itself: a visible area light's
+/// quad from its front, plus its material's `emission` (both sides). Shared
+/// with the path integrator.
+pub(crate) fn emitted(scene: &Scene, ray: &Ray, hit: &Interaction) -> Vec3 {
+    let mut le = scene.materials[hit.material as usize].emission;
+    if let Some(e) = hit.emitter {
+        if let Light::Area { quad, radiance } = &scene.lights[e as usize] {
+            if quad.normal.dot(ray.dir) < 0.0 {
+                le += *radiance;
+            }
         }
     }
-    l
+    le
+}
+
+/// A hit as shading sees it: its material and albedo, the normals turned
+/// to the viewer and the point secondary rays start from.
+struct Surface<'a> {
+    mat: &'a crate::material::Material,
+    albedo: Vec3,
+    hit: &'a Interaction,
+    wo: Vec3,
+    ng: Vec3,
+    ns: Vec3,
+    p: Vec3,
+}
+
+impl<'a> Surface<'a> {
+    fn new(scene: &'a Scene, ray: &Ray, hit: &'a Interaction) -> Self {
+        let mat = &scene.materials[hit.material as usize];
+        let (ng, ns, p) = facing(scene, ray, hit);
+        Surface {
+            mat,
+            albedo: mat.albedo(hit.uv, hit.tint),
+            hit,
+            wo: -ray.dir,
+            ng,
+            ns,
+            p,
+        }
+    }
+
+    /// Whether direct light is gathered at all (a black, non-specular
+    /// surface casts no shadow rays).
+    fn lit(&self) -> bool {
+        self.albedo != Vec3::ZERO || self.mat.specular != Vec3::ZERO
+    }
+
+    /// Shadow ray `i` of `n` towards `light` and what it carries if
+    /// nothing blocks it, or `None` where no ray is cast.
+    fn light_term(
+        &self,
+        scene: &Scene,
+        light: &Light,
+        i: u32,
+        n: u32,
+        sample: Option<PixelSample>,
+        rng: &mut Rng,
+    ) -> Option<(ShadowQuery, Vec3)> {
+        let (first, strata) = match sample {
+            Some(ps) => (ps.index * n, ps.count * n),
+            None => (0, n),
+        };
+        let s = light.sample(self.hit.position, first + i, strata, rng)?;
+        let q = shadow_query(scene, self.hit.position, self.p, self.ng, self.ns, s.point)?;
+        let value = self.mat.brdf(self.albedo, self.ns, self.wo, q.wi) * s.weight * q.cos;
+        Some((q, value))
+    }
+
+    /// The mirror or glossy reflection (drawn after the light samples, from
+    /// the same generator).
+    fn reflected(&self, scene: &Scene, ray: &Ray, depth: u32, rng: &mut Rng) -> Vec3 {
+        if self.mat.reflects() && depth < scene.max_depth {
+            let dir = self.mat.reflection_dir(ray.dir, self.ns, rng);
+            if dir.dot(self.ng) > 0.0 {
+                return self.mat.reflect
+                    * radiance(scene, &Ray::new(self.p, dir), depth + 1, None, rng);
+            }
+        }
+        Vec3::ZERO
+    }
+}
+
+/// A first hit's shading with its shadow rays held back, so that a pixel's
+/// shadow rays are traced together ([`Scene::occluded_many`]) and then
+/// summed by [`Deferred::finish`] exactly as [`radiance`] sums them.
+#[derive(Clone, Copy, Debug)]
+pub struct Deferred {
+    emitted: Vec3,
+    reflected: Vec3,
+    lit: bool,
+    /// This hit's shadow rays: `terms[first..first + count]` of the pixel's
+    /// list.
+    first: usize,
+    count: usize,
+}
+
+/// A held-back shadow ray: the light it samples and what it carries when
+/// nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub struct Term {
+    pub query: ShadowQuery,
+    pub light: u32,
+    pub value: Vec3,
+}
+
+/// [`radiance`] of a camera ray whose first hit (or miss) is already
+/// known, its shadow rays appended to `terms` instead of traced.
+pub fn radiance_deferred(
+    scene: &Scene,
+    ray: &Ray,
+    hit: Option<&Interaction>,
+    sample: Option<PixelSample>,
+    rng: &mut Rng,
+    terms: &mut Vec<Term>,
+) -> Deferred {
+    let first = terms.len();
+    let Some(hit) = hit else {
+        return Deferred {
+            emitted: scene.environment.radiance(ray.dir),
+            reflected: Vec3::ZERO,
+            lit: false,
+            first,
+            count: 0,
+        };
+    };
+    let emitted = emitted(scene, ray, hit);
+    let at = Surface::new(scene, ray, hit);
+    let lit = at.lit();
+    if lit {
+        for (k, light) in scene.lights.iter().enumerate() {
+            let n = light.samples(scene.shadow_samples);
+            for i in 0..n {
+                if let Some((query, value)) = at.light_term(scene, light, i, n, sample, rng) {
+                    terms.push(Term {
+                        query,
+                        light: k as u32,
+                        value,
+                    });
+                }
+            }
+        }
+    }
+    let reflected = at.reflected(scene, ray, 0, rng);
+    Deferred {
+        emitted,
+        reflected,
+        lit,
+        first,
+        count: terms.len() - first,
+    }
+}
+
+impl Deferred {
+    /// The radiance, given which of the pixel's held-back shadow rays are
+    /// blocked: the sums of [`radiance`], in its order.
+    pub fn finish(&self, scene: &Scene, terms: &[Term], blocked: &[bool]) -> Vec3 {
+        let mut l = self.emitted;
+        if self.lit {
+            let mine = self.first..self.first + self.count;
+            let mut k = mine.start;
+            for (li, light) in scene.lights.iter().enumerate() {
+                let n = light.samples(scene.shadow_samples);
+                let mut sum = Vec3::ZERO;
+                while k < mine.end && terms[k].light == li as u32 {
+                    if !blocked[k] {
+                        sum += terms[k].value;
+                    }
+                    k += 1;
+                }
+                l += sum / n as f32;
+            }
+        }
+        l + self.reflected
+    }
 }

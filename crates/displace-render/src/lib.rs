@@ -10,7 +10,9 @@
 //!
 //! Modules, one job each (after pbrt-v4's layout): [`scene`] (TOML, checks,
 //! construction), [`camera`], [`shapes`], [`displaced`], [`bvh`],
-//! [`material`], [`light`], [`sampler`], [`integrator`], [`render`] (tiles,
+//! [`material`], [`light`], [`sampler`], [`integrator`] (Whitted), [`path`]
+//! (path tracing with MIS) with [`bsdf`], [`emitters`], [`environment`] and
+//! [`distribution`], [`render`] (tiles,
 //! threads, crops, AOVs), [`probe`] (ray sets for benchmarks), [`output`]
 //! (PNG/EXR/npy, atomic), [`bake_cache`].
 //!
@@ -23,10 +25,14 @@
 
 pub mod bake_cache;
 pub mod bake_lock;
+pub mod bsdf;
 pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
 pub mod displaced;
+pub mod distribution;
+pub mod emitters;
+pub mod environment;
 pub mod error;
 pub mod geometry;
 mod heights;
@@ -36,6 +42,7 @@ pub mod material;
 pub mod merge;
 pub mod mesh;
 pub mod output;
+pub mod path;
 pub mod probe;
 pub mod render;
 pub mod sampler;
@@ -47,5 +54,6 @@ pub mod tiling;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};
+pub use path::{Integrator, Sampling};
 pub use render::{render, Aov, AovImage, Crop, Image, RenderOptions, Rendered};
 pub use scene::{Scene, SceneOptions};

@@ -24,6 +24,11 @@ pub struct Material {
     /// exponent `2 / roughness^2 - 2`, the Blinn/Beckmann correspondence of
     /// Walter et al. 2007).
     pub roughness: f32,
+    /// Radiance the surface emits from both sides (`emission`): the camera
+    /// and reflections see it; the path integrator also lights the scene
+    /// with it (as an area light of every emitting quad, triangle and
+    /// sphere, see [`crate::emitters`]).
+    pub emission: Vec3,
 }
 
 impl Material {

@@ -32,37 +32,64 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
+/// Reads the image file `path` (a `kind` of input, as messages name it) as
+/// float RGB after the checks every image input gets: a regular file within
+/// the size limit, the decoded size from the header checked before decoding
+/// (a small file can hold a huge image; `bytes_per_texel` is what a texel
+/// will cost), not empty, and when `format` is given, of that format (else
+/// the message it carries). Errors name the file.
+pub(crate) fn read_rgb32f(
+    path: &Path,
+    kind: &str,
+    bytes_per_texel: u128,
+    format: Option<(image::ImageFormat, &str)>,
+) -> Result<image::Rgb32FImage> {
+    use displace_core::io::{check_input, MAX_IMAGE_FILE_BYTES};
+    check_input(path, kind, MAX_IMAGE_FILE_BYTES)?;
+    let image_err = |message: String| Error::Image {
+        path: path.to_path_buf(),
+        message,
+    };
+    let open = || {
+        image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| image_err(e.to_string()))
+    };
+    let reader = open()?;
+    if let Some((want, message)) = format {
+        if reader.format() != Some(want) {
+            return Err(image_err(message.into()));
+        }
+    }
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| image_err(e.to_string()))?;
+    displace_core::convention::check_allocation(
+        kind,
+        &format!("{w}x{h}"),
+        w as u128 * h as u128,
+        bytes_per_texel,
+    )
+    .map_err(|e| image_err(e.to_string()))?;
+    let img = open()?.decode().map_err(|e| image_err(e.to_string()))?;
+    let rgb = img.to_rgb32f();
+    if rgb.width() == 0 || rgb.height() == 0 {
+        return Err(image_err("empty image".into()));
+    }
+    Ok(rgb)
+}
+
 impl Texture {
     /// Loads `path`; `srgb` decodes the sRGB transfer function (colour maps),
     /// otherwise values are kept as stored (normal maps).
     pub fn load(path: &Path, srgb: bool) -> Result<Self> {
-        use displace_core::io::{check_input, MAX_IMAGE_FILE_BYTES};
-        check_input(path, "texture", MAX_IMAGE_FILE_BYTES)?;
-        let image_err = |message: String| Error::Image {
-            path: path.to_path_buf(),
-            message,
-        };
-        // The decoded size from the header, before decoding: a small file
-        // can hold a huge image, and each texel costs 12 bytes here.
-        let reader = image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| image_err(e.to_string()))?;
-        let (w, h) = reader
-            .into_dimensions()
-            .map_err(|e| image_err(e.to_string()))?;
-        displace_core::convention::check_allocation(
+        let rgb = read_rgb32f(
+            path,
             "texture",
-            &format!("{w}x{h}"),
-            w as u128 * h as u128,
             std::mem::size_of::<Vec3>() as u128 * 2,
-        )
-        .map_err(|e| image_err(e.to_string()))?;
-        let img = image::open(path).map_err(|e| image_err(e.to_string()))?;
-        let rgb = img.to_rgb32f();
+            None,
+        )?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-        if w == 0 || h == 0 {
-            return Err(image_err("empty image".into()));
-        }
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
         let data = rgb
             .pixels()

@@ -9,11 +9,14 @@ use crate::builtin_mesh;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::displaced::{DisplacedFace, FaceFrame};
+use crate::emitters::Emitters;
+use crate::environment::{Environment, EnvironmentMap};
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
 use crate::light::Light;
 use crate::material::Material;
 use crate::mesh::MeshTriangle;
+use crate::path::Sampling;
 use crate::shapes::{box_faces, Quad, Sphere, Triangle};
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
@@ -191,7 +194,36 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
             img.max_depth
         )));
     }
-    let background = cx.color(img.background, "image.background")?;
+    let integrator = match opts.integrator {
+        Some(i) => i,
+        None => img
+            .integrator
+            .parse()
+            .map_err(|e: Error| cx.err(format!("image.integrator: {e}")))?,
+    };
+    let sampling: Sampling = img
+        .sampling
+        .parse()
+        .map_err(|e: Error| cx.err(format!("image.sampling: {e}")))?;
+    let background = match img.background {
+        Some(b) => cx.color(b, "image.background")?,
+        None => Vec3::ZERO,
+    };
+    let environment = match &img.environment {
+        None => Environment::Constant(background),
+        Some(file) => {
+            if img.background.is_some() {
+                return Err(cx.err(
+                    "image.background and image.environment both give the light of escaping rays: give one",
+                ));
+            }
+            let path = cx.base.join(file);
+            let map = EnvironmentMap::load(&path)
+                .map_err(|e| cx.err(format!("image.environment = \"{file}\": {e}")))?;
+            cx.source(path);
+            Environment::Map(Arc::new(map))
+        }
+    };
 
     let c = &spec.camera;
     let position = cx.vec(c.position, "camera.position")?;
@@ -219,23 +251,35 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
 
     let mut prims = Vec::new();
     let mut lights = Vec::new();
+    let mut fill = Vec::new();
     for (k, l) in spec.lights.iter().enumerate() {
         let what = format!("lights[{k}]");
         match l {
             LightSpec::Point {
                 position,
                 intensity,
-            } => lights.push(Light::Point {
-                position: cx.vec(*position, &format!("{what}.position"))?,
-                intensity: cx.color(*intensity, &format!("{what}.intensity"))?,
-            }),
+                fill: f,
+            } => {
+                lights.push(Light::Point {
+                    position: cx.vec(*position, &format!("{what}.position"))?,
+                    intensity: cx.color(*intensity, &format!("{what}.intensity"))?,
+                });
+                fill.push(*f);
+            }
             LightSpec::Area {
                 origin,
                 edge_u,
                 edge_v,
                 radiance,
                 visible,
+                fill: f,
             } => {
+                if *f && *visible {
+                    return Err(cx.err(format!(
+                        "{what}: a fill light needs visible = false (the path integrator leaves it out, and its quad would still block rays)"
+                    )));
+                }
+                fill.push(*f);
                 let quad = quad(&cx, *origin, *edge_u, *edge_v, &what)?;
                 let radiance = cx.color(*radiance, &format!("{what}.radiance"))?;
                 if *visible {
@@ -480,6 +524,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
     } else {
         (world.max - world.min).length()
     };
+    let emitters = Emitters::new(&lights, &fill, &prims, &materials, &environment, 0.5 * diag);
     Ok(Scene {
         camera,
         width,
@@ -489,6 +534,10 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         seed: img.seed,
         shadow_samples,
         background,
+        environment,
+        integrator,
+        sampling,
+        emitters,
         prims,
         attrs,
         bvh,
@@ -509,8 +558,16 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
     let tex = |cx: &mut Ctx, t: &Option<String>| {
         t.as_ref().map(|f| cx.texture(f, true, &key)).transpose()
     };
-    Ok(match m {
-        MaterialSpec::Lambert { color, texture } => Material {
+    let emission = match m {
+        MaterialSpec::Lambert { emission, .. }
+        | MaterialSpec::Phong { emission, .. }
+        | MaterialSpec::Mirror { emission, .. }
+        | MaterialSpec::Glossy { emission, .. } => {
+            cx.color(*emission, &format!("{what}.emission"))?
+        }
+    };
+    let material = match m {
+        MaterialSpec::Lambert { color, texture, .. } => Material {
             diffuse: cx.color(*color, &format!("{what}.color"))?,
             texture: tex(cx, texture)?,
             ..Material::default()
@@ -520,6 +577,7 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
             texture,
             specular,
             shininess,
+            ..
         } => {
             if !(*shininess > 0.0 && shininess.is_finite()) {
                 return Err(cx.err(format!(
@@ -534,7 +592,7 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
                 ..Material::default()
             }
         }
-        MaterialSpec::Mirror { color, diffuse } => Material {
+        MaterialSpec::Mirror { color, diffuse, .. } => Material {
             diffuse: cx.color(*diffuse, &format!("{what}.diffuse"))?,
             reflect: cx.color(*color, &format!("{what}.color"))?,
             ..Material::default()
@@ -543,6 +601,7 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
             color,
             roughness,
             diffuse,
+            ..
         } => {
             if !(*roughness > 0.0 && *roughness <= 1.0) {
                 return Err(cx.err(format!(
@@ -556,6 +615,10 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
                 ..Material::default()
             }
         }
+    };
+    Ok(Material {
+        emission,
+        ..material
     })
 }
 

@@ -2,8 +2,8 @@
 //! can tell tiles of one render from tiles of another. It covers the scene
 //! text, the bytes of every file the scene reads (height maps, textures,
 //! meshes; by content, not by path, so that machines mounting the shared
-//! file system at different places agree), and the command-line overrides.
-//! The seed is part of the scene text. Where the bake cache lives does not
+//! file system at different places agree), and the command-line overrides
+//! (`--spp`, `--size`, `--method`, `--integrator`, `--frame`). The seed is part of the scene text. Where the bake cache lives does not
 //! change the image, so it is left out.
 
 use super::SceneOptions;
@@ -51,6 +51,10 @@ pub(crate) fn content_hash(text: &str, sources: &[PathBuf], opts: &SceneOptions)
         opts.method.map(|m| bytes_hash(format!("{m:?}").as_bytes())),
     ));
     words.extend(option(opts.frame.map(u64::from)));
+    words.extend(option(
+        opts.integrator
+            .map(|i| bytes_hash(format!("{i:?}").as_bytes())),
+    ));
     Ok(hash_iter(words))
 }
 
@@ -85,6 +89,10 @@ mod tests {
             },
             SceneOptions {
                 frame: Some(0),
+                ..SceneOptions::default()
+            },
+            SceneOptions {
+                integrator: Some(crate::Integrator::Path),
                 ..SceneOptions::default()
             },
         ] {

@@ -2,6 +2,7 @@
 //! primitives under one BVH, with materials, lights and a camera.
 
 pub mod animation;
+pub mod batch;
 mod build;
 mod content;
 pub mod spec;
@@ -13,9 +14,12 @@ pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriA
 use crate::bake_cache::CacheStats;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
+use crate::emitters::Emitters;
+use crate::environment::Environment;
 use crate::error::{Error, Result};
 use crate::light::Light;
 use crate::material::Material;
+use crate::path::{Integrator, Sampling};
 use displace_core::Method;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -36,6 +40,8 @@ pub struct SceneOptions {
     pub cache_dir: Option<PathBuf>,
     /// The frame of an `[animation]` to build (`None`: frame 0).
     pub frame: Option<u32>,
+    /// Overrides `image.integrator` (`--integrator`).
+    pub integrator: Option<Integrator>,
 }
 
 pub struct Scene {
@@ -47,6 +53,12 @@ pub struct Scene {
     pub(crate) seed: u64,
     pub(crate) shadow_samples: u32,
     pub(crate) background: Vec3,
+    /// What escaping rays see: `Constant(background)` or the map.
+    pub(crate) environment: Environment,
+    pub(crate) integrator: Integrator,
+    pub(crate) sampling: Sampling,
+    /// The path integrator's lights.
+    pub(crate) emitters: Emitters,
     pub(crate) prims: Vec<Primitive>,
     pub(crate) attrs: Vec<TriAttr>,
     pub(crate) bvh: Bvh,
@@ -151,6 +163,22 @@ impl Scene {
     }
     pub fn background(&self) -> Vec3 {
         self.background
+    }
+    /// What escaping rays see (the constant background or the map).
+    pub fn environment(&self) -> &Environment {
+        &self.environment
+    }
+    /// The light transport algorithm [`crate::render`] runs.
+    pub fn integrator(&self) -> Integrator {
+        self.integrator
+    }
+    /// The path integrator's estimators of direct light.
+    pub fn sampling(&self) -> Sampling {
+        self.sampling
+    }
+    /// Bounce limit (`image.max_depth`).
+    pub fn max_depth(&self) -> u32 {
+        self.max_depth
     }
     /// The scene's meshes and triangles with their vertex data, for
     /// rasterisers ([`SceneMesh`]).

@@ -83,10 +83,6 @@ pub struct PathKeySpec {
     pub position: V3,
 }
 
-fn exact3_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<V3>, D::Error> {
-    exact3(d).map(Some)
-}
-
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImageSpec {
@@ -100,8 +96,31 @@ pub struct ImageSpec {
     pub seed: u64,
     #[serde(default = "default_shadow_samples")]
     pub shadow_samples: i64,
-    #[serde(default, deserialize_with = "exact3")]
-    pub background: V3,
+    /// `None` when the file leaves it out (black, unless `environment`).
+    #[serde(default, deserialize_with = "exact3_opt")]
+    pub background: Option<V3>,
+    /// `"whitted"` (the default) or `"path"`.
+    #[serde(default = "default_integrator")]
+    pub integrator: String,
+    /// The path integrator's estimators: `"mis"` (the default), `"light"`
+    /// or `"bsdf"`.
+    #[serde(default = "default_sampling")]
+    pub sampling: String,
+    /// An equirectangular, linear OpenEXR environment map, relative to the
+    /// scene file.
+    pub environment: Option<String>,
+}
+
+/// [`exact3`] for an optional key.
+fn exact3_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<V3>, D::Error> {
+    exact3(d).map(Some)
+}
+
+fn default_integrator() -> String {
+    "whitted".into()
+}
+fn default_sampling() -> String {
+    "mis".into()
 }
 
 fn default_spp() -> i64 {
@@ -145,18 +164,24 @@ pub enum MaterialSpec {
     Lambert {
         color: V3,
         texture: Option<String>,
+        #[serde(default)]
+        emission: V3,
     },
     Phong {
         color: V3,
         texture: Option<String>,
         specular: V3,
         shininess: f32,
+        #[serde(default)]
+        emission: V3,
     },
     Mirror {
         #[serde(default = "one")]
         color: V3,
         #[serde(default)]
         diffuse: V3,
+        #[serde(default)]
+        emission: V3,
     },
     Glossy {
         #[serde(default = "one")]
@@ -164,6 +189,8 @@ pub enum MaterialSpec {
         roughness: f32,
         #[serde(default)]
         diffuse: V3,
+        #[serde(default)]
+        emission: V3,
     },
 }
 
@@ -177,6 +204,9 @@ pub enum LightSpec {
     Point {
         position: V3,
         intensity: V3,
+        /// As for area lights.
+        #[serde(default)]
+        fill: bool,
     },
     Area {
         origin: V3,
@@ -185,6 +215,10 @@ pub enum LightSpec {
         radiance: V3,
         #[serde(default = "yes")]
         visible: bool,
+        /// A fill light standing in for indirect light: the path
+        /// integrator, which computes indirect light, leaves it out.
+        #[serde(default)]
+        fill: bool,
     },
 }
 

@@ -1,0 +1,599 @@
+//! Rays eight at a time: the sphere-tracing steps of a packet in AVX2
+//! lanes, one gather per step for all eight, the exact walks per lane.
+//!
+//! A scalar sphere trace is one chain of dependent work per ray: the step
+//! read at the ray's point decides the next point, so each step waits for
+//! its load. Eight rays stepped together keep eight such chains in flight
+//! and pay the addressing once per packet (Wald, Slusallek, Benthin and
+//! Wagner 2001, "Interactive rendering with coherent ray tracing", section
+//! 3, for packets of coherent rays; here the lanes need not stay coherent,
+//! each has its own exit and mask). Where a lane's step falls under the
+//! early-out threshold, or it leaves the shell, the packet stops and every
+//! lane takes that step through the scalar [`Lane`] state machine, so each
+//! ray's hit is the one the scalar tracer finds, bit for bit, whatever its
+//! packet's other rays do.
+//!
+//! Runs where the CPU has AVX2 (detected at run time, as the bake's
+//! envelope kernel does) and the map is clamped; elsewhere every ray takes
+//! the scalar loop.
+
+use super::{Constants, Lane, Outcome};
+use crate::sphere_trace::{MapRay, Method, TraceOptions};
+use crate::{Address, DistanceMap, HeightMap};
+
+/// Rays per packet.
+pub const LANES: usize = 8;
+
+/// Traces every ray of `rays` with its own options, handing each outcome to
+/// `emit` with the ray's index. The outcomes are those of the scalar
+/// [`super::run`].
+pub(super) fn run_all<const ANY: bool>(
+    height: &HeightMap,
+    distance: &DistanceMap,
+    rays: &[MapRay],
+    opts: &[TraceOptions],
+    mut emit: impl FnMut(usize, Outcome),
+) {
+    debug_assert_eq!(rays.len(), opts.len());
+    let c = Constants::new(height, distance);
+    let vector = vector_kernel() && eligible(height, distance);
+    let mut k = 0;
+    while k < rays.len() {
+        let n = LANES.min(rays.len() - k);
+        let mut lanes: [Option<Lane>; LANES] = Default::default();
+        for l in 0..n {
+            let (ray, o) = (&rays[k + l], &opts[k + l]);
+            if o.method != Method::Sphere {
+                emit(k + l, super::run_other(height, distance, ray, o, ANY));
+                continue;
+            }
+            match Lane::begin(height, &c, ray, o, ANY) {
+                Ok(lane) => lanes[l] = Some(lane),
+                Err(out) => emit(k + l, out),
+            }
+        }
+        if vector {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 is present (`vector_kernel`), and the map's
+            // voxel indices fit the kernel's 32-bit gathers (`eligible`).
+            unsafe {
+                avx2::steps::<ANY>(height, distance, &c, &mut lanes, &mut |l, out| {
+                    emit(k + l, out)
+                });
+            }
+        } else {
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                if let Some(lane) = lane {
+                    emit(k + l, scalar::<ANY>(height, distance, &c, lane));
+                }
+            }
+        }
+        k += n;
+    }
+}
+
+/// The scalar loop on one lane (the packet kernel's fallback).
+fn scalar<const ANY: bool>(
+    height: &HeightMap,
+    distance: &DistanceMap,
+    c: &Constants,
+    lane: &mut Lane,
+) -> Outcome {
+    loop {
+        let next = lane.check();
+        if let Some(out) = lane.resolve::<ANY>(height, c, next) {
+            return out;
+        }
+        let s = distance.cell_bound(lane.at());
+        let next = lane.take_step(c, s);
+        if let Some(out) = lane.resolve::<ANY>(height, c, next) {
+            return out;
+        }
+    }
+}
+
+/// Whether the kernel's assumptions hold for `distance`: a clamped map
+/// (the kernel clamps; a repeating map's wrap stays scalar) whose voxel
+/// indices fit in 32 bits.
+fn eligible(height: &HeightMap, distance: &DistanceMap) -> bool {
+    let [w, h, d] = distance.size();
+    distance.address() == Address::Clamp
+        && height.address() == Address::Clamp
+        && (w as u64) * (h as u64) * (d as u64) <= i32::MAX as u64
+        && (height.width() as u64) * (height.height() as u64) <= i32::MAX as u64
+}
+
+fn vector_kernel() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::super::{Next, SurfaceHit, Walk};
+    use super::{Constants, Lane, Outcome, LANES};
+    use crate::exact::patch_hit;
+    use crate::{DistanceMap, HeightMap};
+    use std::arch::x86_64::*;
+
+    /// A lane's walk in progress, in the vector kernel's arrays.
+    #[derive(Clone, Copy, Default)]
+    struct WalkState {
+        t1: f32,
+        last: bool,
+    }
+
+    /// The lanes of bit set `m`, lowest first: one iteration a set bit
+    /// (a loop over all eight with a test each mispredicts on every lane
+    /// that changes).
+    #[inline(always)]
+    fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
+        std::iter::from_fn(move || {
+            (m != 0).then(|| {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                l
+            })
+        })
+    }
+
+    /// Bit `l` set for each lane `l` of `mask`.
+    #[inline(always)]
+    unsafe fn bits(mask: __m256) -> u32 {
+        _mm256_movemask_ps(mask) as u32
+    }
+
+    /// The lanes of `live` as an all-ones / all-zeros vector mask.
+    #[inline(always)]
+    unsafe fn lane_mask(live: u32) -> __m256 {
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(
+            _mm256_and_si256(
+                _mm256_set1_epi32(live as i32),
+                _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
+            ),
+            _mm256_setzero_si256(),
+        ))
+    }
+
+    /// Traces the packet's lanes to their ends, handing each outcome to
+    /// `emit` with its lane.
+    ///
+    /// Two phases alternate. **Steps**: every stepping lane reads its
+    /// voxel (one gather for all), and the packet goes on while each of
+    /// them takes a plain sphere step; a lane whose step falls under the
+    /// early-out threshold, runs out of budget or leaves the shell is
+    /// handed to [`Lane::take_step`] / [`Lane::check`] and parks until the
+    /// others have parked too. **Walks**: the parked lanes walk their bands
+    /// cell by cell together (four gathers of the height map per cell, the
+    /// cell steps as blends, no branch per lane), each candidate patch
+    /// solved by the scalar solver, the ends handed to [`Lane::walked`].
+    ///
+    /// Every operation on a lane's values is the scalar tracer's, in the
+    /// same order ([`DistanceMap::cell_bound`]'s multiply, clamp, truncation
+    /// and index for a step; [`super::super::walk`]'s minima, maxima and
+    /// margins for a cell), so the hits are the scalar tracer's bit for
+    /// bit. Parking a lane changes when its work is done, not what it is.
+    ///
+    /// # Safety
+    /// AVX2 must be present, the distance map's voxel count must fit in an
+    /// `i32`, and the map must be clamped.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn steps<const ANY: bool>(
+        height: &HeightMap,
+        distance: &DistanceMap,
+        c: &Constants,
+        lanes: &mut [Option<Lane>; LANES],
+        emit: &mut dyn FnMut(usize, Outcome),
+    ) {
+        let mut walks = [WalkState::default(); LANES];
+        // Lanes at the top of the scalar loop: every lane at first, then
+        // those a walk hands back to the steps.
+        let mut pending = lanes
+            .iter()
+            .enumerate()
+            .fold(0u32, |m, (l, s)| m | (u32::from(s.is_some()) << l));
+        while pending != 0 {
+            let mut stepping = 0u32;
+            let mut walking = 0u32;
+            for l in lanes_of(pending) {
+                let lane = lanes[l].as_mut().expect("a pending lane");
+                match lane.check() {
+                    Next::Step => stepping |= 1 << l,
+                    Next::Done(out) => emit(l, out),
+                    Next::Walk { t1, last } => {
+                        walks[l] = WalkState { t1, last };
+                        walking |= 1 << l;
+                    }
+                }
+            }
+            if stepping != 0 {
+                let (parked, parked_walks) = step_phase(distance, c, lanes, stepping, emit);
+                walking |= parked;
+                for l in lanes_of(parked) {
+                    walks[l] = parked_walks[l];
+                }
+            }
+            pending = if walking != 0 {
+                walk_phase::<ANY>(height, c, lanes, walking, &walks, emit)
+            } else {
+                0
+            };
+        }
+    }
+
+    /// Steps the lanes of `live` until each has parked for a walk or
+    /// ended; returns the parked lanes and their walks.
+    #[target_feature(enable = "avx2")]
+    unsafe fn step_phase(
+        distance: &DistanceMap,
+        c: &Constants,
+        lanes: &mut [Option<Lane>; LANES],
+        mut live: u32,
+        emit: &mut dyn FnMut(usize, Outcome),
+    ) -> (u32, [WalkState; LANES]) {
+        let [w, h, d] = distance.size();
+        let [sx, sy, sz] = distance.cell_scale();
+        let data = distance.data();
+        let mut o = [[0.0f32; LANES]; 3];
+        let mut dir = [[0.0f32; LANES]; 3];
+        let mut t_out = [0.0f32; LANES];
+        let mut max_steps = [0i32; LANES];
+        let mut t = [0.0f32; LANES];
+        let mut steps = [0i32; LANES];
+        for (l, slot) in lanes.iter().enumerate() {
+            if let Some(lane) = slot {
+                for a in 0..3 {
+                    o[a][l] = lane.ray.origin[a];
+                    dir[a][l] = lane.ray.dir[a];
+                }
+                t_out[l] = lane.t_out;
+                max_steps[l] = lane.max_steps.min(i32::MAX as u32) as i32;
+                t[l] = lane.t;
+                steps[l] = lane.steps.min(i32::MAX as u32) as i32;
+            }
+        }
+        let load = |v: &[f32; LANES]| _mm256_loadu_ps(v.as_ptr());
+        let (ox, oy, oz) = (load(&o[0]), load(&o[1]), load(&o[2]));
+        let (dx, dy, dz) = (load(&dir[0]), load(&dir[1]), load(&dir[2]));
+        let t_out_v = load(&t_out);
+        let max_steps_v = _mm256_loadu_si256(max_steps.as_ptr().cast());
+        let scale = [_mm256_set1_ps(sx), _mm256_set1_ps(sy), _mm256_set1_ps(sz)];
+        let top = [w, h, d].map(|n| _mm256_set1_ps((n - 1) as f32));
+        let (wv, hv) = (_mm256_set1_epi32(w as i32), _mm256_set1_epi32(h as i32));
+        let zero = _mm256_setzero_ps();
+        let tau = _mm256_set1_ps(c.tau);
+        let one = _mm256_set1_epi32(1);
+        let mut tv = load(&t);
+        let mut sv = _mm256_loadu_si256(steps.as_ptr().cast());
+        let mut parked = 0u32;
+        let mut walks = [WalkState::default(); LANES];
+        let mut s = [0.0f32; LANES];
+        while live != 0 {
+            let live_v = lane_mask(live);
+            let clamped = |p: __m256, a: usize| {
+                let x = _mm256_mul_ps(p, scale[a]);
+                _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(x, zero), top[a]))
+            };
+            let i = clamped(_mm256_add_ps(ox, _mm256_mul_ps(dx, tv)), 0);
+            let j = clamped(_mm256_add_ps(oy, _mm256_mul_ps(dy, tv)), 1);
+            let k = clamped(_mm256_add_ps(oz, _mm256_mul_ps(dz, tv)), 2);
+            let idx = _mm256_add_epi32(
+                _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(k, hv), j), wv),
+                i,
+            );
+            let value = _mm256_i32gather_ps::<4>(data.as_ptr(), idx);
+            let next_t = _mm256_add_ps(tv, value);
+            let next_steps = _mm256_add_epi32(sv, one);
+            // A lane stays in the vector loop while its step is a sphere
+            // step that keeps it in the shell and in budget: exactly when
+            // the scalar loop would take the step and find nothing to do
+            // before the next.
+            let fast = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(value, tau),
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(next_t, t_out_v),
+                ),
+                _mm256_castsi256_ps(_mm256_cmpgt_epi32(max_steps_v, next_steps)),
+            );
+            let fast_live = _mm256_and_ps(fast, live_v);
+            tv = _mm256_blendv_ps(tv, next_t, fast_live);
+            sv = _mm256_blendv_epi8(sv, next_steps, _mm256_castps_si256(fast_live));
+            let slow = live & !bits(fast_live);
+            if slow == 0 {
+                continue;
+            }
+            // The lanes that did not take a plain step take this one
+            // through the scalar transitions.
+            _mm256_storeu_ps(t.as_mut_ptr(), tv);
+            _mm256_storeu_si256(steps.as_mut_ptr().cast(), sv);
+            _mm256_storeu_ps(s.as_mut_ptr(), value);
+            for l in lanes_of(slow) {
+                let lane = lanes[l].as_mut().expect("a live lane");
+                lane.t = t[l];
+                lane.steps = steps[l] as u32;
+                let mut next = lane.take_step(c, s[l]);
+                if matches!(next, Next::Step) {
+                    next = lane.check();
+                }
+                live &= !(1 << l);
+                match next {
+                    // A sphere step that left the shell or the budget was
+                    // checked above; one that did neither stays.
+                    Next::Step => {
+                        live |= 1 << l;
+                        t[l] = lane.t;
+                        steps[l] = lane.steps as i32;
+                    }
+                    Next::Done(out) => emit(l, out),
+                    Next::Walk { t1, last } => {
+                        walks[l] = WalkState { t1, last };
+                        parked |= 1 << l;
+                    }
+                }
+            }
+            tv = load(&t);
+            sv = _mm256_loadu_si256(steps.as_ptr().cast());
+        }
+        // Every lane has parked or ended, its point and budget written back
+        // on the way out of the loop.
+        (parked, walks)
+    }
+
+    /// Walks the lanes of `live` over their bands together; returns the
+    /// lanes that step on.
+    #[target_feature(enable = "avx2")]
+    unsafe fn walk_phase<const ANY: bool>(
+        height: &HeightMap,
+        c: &Constants,
+        lanes: &mut [Option<Lane>; LANES],
+        mut live: u32,
+        walks: &[WalkState; LANES],
+        emit: &mut dyn FnMut(usize, Outcome),
+    ) -> u32 {
+        let mut resume = 0u32;
+        let mut ci = [0i32; LANES];
+        let mut cj = [0i32; LANES];
+        let mut tx = [0.0f32; LANES];
+        let mut ty = [0.0f32; LANES];
+        let mut dtx = [0.0f32; LANES];
+        let mut dty = [0.0f32; LANES];
+        let mut sti = [0i32; LANES];
+        let mut stj = [0i32; LANES];
+        let mut ta = [0.0f32; LANES];
+        let mut t1 = [0.0f32; LANES];
+        let mut margin = [0.0f32; LANES];
+        let mut oz = [0.0f32; LANES];
+        let mut axes = [[0.0f32; LANES]; 4];
+        let mut dz = [0.0f32; LANES];
+        for l in lanes_of(live) {
+            let lane = lanes[l].as_ref().expect("a live lane");
+            let (t0, end) = (lane.t, walks[l].t1);
+            if end < t0 {
+                // The walk of an empty band: its miss, at once.
+                live &= !(1 << l);
+                let lane = lanes[l].as_mut().expect("a live lane");
+                match lane.walked::<ANY>(c, Walk::Miss { cells: 0 }, end, walks[l].last) {
+                    Some(out) => emit(l, out),
+                    None => resume |= 1 << l,
+                }
+                continue;
+            }
+            let g = &lane.grid;
+            let (i, x) = g.x.start(t0);
+            let (j, y) = g.y.start(t0);
+            // Cells lie within a cell or two of the map (the band is
+            // inside the shell box): far inside `i32`.
+            ci[l] = i.clamp(i32::MIN as i64 / 2, i32::MAX as i64 / 2) as i32;
+            cj[l] = j.clamp(i32::MIN as i64 / 2, i32::MAX as i64 / 2) as i32;
+            tx[l] = x;
+            ty[l] = y;
+            dtx[l] = g.x.dt;
+            dty[l] = g.y.dt;
+            sti[l] = g.x.step as i32;
+            stj[l] = g.y.step as i32;
+            ta[l] = t0;
+            t1[l] = end;
+            margin[l] = 1e-4 * (1.0 + end.abs());
+            oz[l] = g.o.z;
+            axes[0][l] = g.x.o;
+            axes[1][l] = g.x.d;
+            axes[2][l] = g.y.o;
+            axes[3][l] = g.y.d;
+            dz[l] = g.d.z;
+        }
+        let load = |v: &[f32; LANES]| _mm256_loadu_ps(v.as_ptr());
+        let loadi = |v: &[i32; LANES]| _mm256_loadu_si256(v.as_ptr().cast());
+        let (mut ci_v, mut cj_v) = (loadi(&ci), loadi(&cj));
+        let (mut tx_v, mut ty_v) = (load(&tx), load(&ty));
+        let (dtx_v, dty_v) = (load(&dtx), load(&dty));
+        let (sti_v, stj_v) = (loadi(&sti), loadi(&stj));
+        let mut ta_v = load(&ta);
+        let t1_v = load(&t1);
+        let margin_v = load(&margin);
+        let (oz_v, dz_v) = (load(&oz), load(&dz));
+        let descending = _mm256_cmp_ps::<_CMP_LT_OQ>(dz_v, _mm256_setzero_ps());
+        let (w, h) = (height.width() as i32, height.height() as i32);
+        let (wmax, hmax) = (_mm256_set1_epi32(w - 1), _mm256_set1_epi32(h - 1));
+        let zero_i = _mm256_setzero_si256();
+        let one_i = _mm256_set1_epi32(1);
+        let wv = _mm256_set1_epi32(w);
+        let data = height.data();
+        let (xo_v, xd_v, yo_v, yd_v) = (
+            load(&axes[0]),
+            load(&axes[1]),
+            load(&axes[2]),
+            load(&axes[3]),
+        );
+        // What single precision may miss of the ray's height over a patch:
+        // its cell coordinates are rounded at the scale of the map's width
+        // and height (a few ulps each), and each corner difference carries
+        // that error into the height.
+        let slack = _mm256_set1_ps(8.0 * f32::EPSILON * (w + h + 2) as f32);
+        let abs = |v: __m256| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
+        let mut cells = [0u32; LANES];
+        // Cells walked per lane: each live lane's all-ones mask (-1)
+        // subtracted once a cell.
+        let mut cells_v = _mm256_setzero_si256();
+        let mut corners = [[0.0f32; LANES]; 4];
+        let mut tb = [0.0f32; LANES];
+        while live != 0 {
+            let live_v = lane_mask(live);
+            let tb_v = _mm256_min_ps(_mm256_min_ps(tx_v, ty_v), t1_v);
+            cells_v = _mm256_sub_epi32(cells_v, _mm256_castps_si256(live_v));
+            // The cell's corners, clamped to the map as `HeightMap::cell`
+            // addresses a clamped map.
+            let clamp = |v: __m256i, hi: __m256i| _mm256_min_epi32(_mm256_max_epi32(v, zero_i), hi);
+            let i0 = clamp(ci_v, wmax);
+            let i1 = clamp(_mm256_add_epi32(ci_v, one_i), wmax);
+            let r0 = _mm256_mullo_epi32(clamp(cj_v, hmax), wv);
+            let r1 = _mm256_mullo_epi32(clamp(_mm256_add_epi32(cj_v, one_i), hmax), wv);
+            let ptr = data.as_ptr();
+            let h00 = _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r0, i0));
+            let h10 = _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r0, i1));
+            let h01 = _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r1, i0));
+            let h11 = _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r1, i1));
+            let z_low = _mm256_add_ps(
+                oz_v,
+                _mm256_mul_ps(dz_v, _mm256_blendv_ps(ta_v, tb_v, descending)),
+            );
+            let highest = _mm256_max_ps(_mm256_max_ps(h00, h10), _mm256_max_ps(h01, h11));
+            let mut ended = 0u32;
+            if ANY {
+                let lowest = _mm256_min_ps(_mm256_min_ps(h00, h10), _mm256_min_ps(h01, h11));
+                let below = _mm256_cmp_ps::<_CMP_LT_OQ>(z_low, _mm256_sub_ps(lowest, margin_v));
+                let blocked = live & bits(below);
+                for l in lanes_of(blocked) {
+                    emit(l, Outcome::Blocked);
+                }
+                ended |= blocked;
+            }
+            let near = _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(z_low, margin_v), highest);
+            let mut solve = live & !ended & bits(near);
+            if solve != 0 {
+                // The patch's quadratic along the stretch, in single
+                // precision (`exact::patch_hit`'s in double): a cell where
+                // the ray stays above the patch by more than the rounding
+                // of either is not solved. The solve would find no root
+                // there, so the hits are unchanged; most cells the ray
+                // comes down to but passes over end here, without the
+                // double-precision solve.
+                let mul = _mm256_mul_ps;
+                let (add, sub) = (_mm256_add_ps, _mm256_sub_ps);
+                let px = sub(add(xo_v, mul(xd_v, ta_v)), _mm256_cvtepi32_ps(ci_v));
+                let py = sub(add(yo_v, mul(yd_v, ta_v)), _mm256_cvtepi32_ps(cj_v));
+                let a = sub(h10, h00);
+                let b = sub(h01, h00);
+                let c = add(sub(sub(h00, h10), h01), h11);
+                let z0 = add(oz_v, mul(dz_v, ta_v));
+                let k0 = sub(
+                    sub(sub(sub(z0, h00), mul(a, px)), mul(b, py)),
+                    mul(c, mul(px, py)),
+                );
+                let k1 = sub(
+                    sub(sub(dz_v, mul(a, xd_v)), mul(b, yd_v)),
+                    mul(c, add(mul(px, yd_v), mul(xd_v, py))),
+                );
+                let k2 = sub(zero, mul(c, mul(xd_v, yd_v)));
+                let len = sub(tb_v, ta_v);
+                let k_end = add(k0, mul(len, add(k1, mul(len, k2))));
+                let m = add(
+                    margin_v,
+                    mul(slack, add(add(abs(a), abs(b)), add(abs(c), one))),
+                );
+                let gt = |x: __m256, y: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(x, y);
+                let ends_clear = _mm256_and_ps(gt(k0, m), gt(k_end, m));
+                // Convex with its vertex inside the stretch: clear only if
+                // the vertex too stays above the margin.
+                let neg_k1 = sub(zero, k1);
+                let two_k2 = add(k2, k2);
+                let vertex_inside = _mm256_and_ps(
+                    _mm256_and_ps(gt(k2, zero), gt(neg_k1, zero)),
+                    gt(mul(two_k2, len), neg_k1),
+                );
+                let vertex_clear = gt(mul(add(two_k2, two_k2), sub(k0, m)), mul(k1, k1));
+                let clear = _mm256_and_ps(
+                    ends_clear,
+                    _mm256_or_ps(
+                        _mm256_andnot_ps(vertex_inside, _mm256_castsi256_ps(_mm256_set1_epi32(-1))),
+                        vertex_clear,
+                    ),
+                );
+                solve &= !bits(clear);
+            }
+            let last_cell = _mm256_cmp_ps::<_CMP_GE_OQ>(tb_v, t1_v);
+            let at_end = live & !ended & bits(last_cell);
+            if solve | at_end != 0 {
+                _mm256_storeu_ps(tb.as_mut_ptr(), tb_v);
+                _mm256_storeu_ps(ta.as_mut_ptr(), ta_v);
+                _mm256_storeu_si256(ci.as_mut_ptr().cast(), ci_v);
+                _mm256_storeu_si256(cj.as_mut_ptr().cast(), cj_v);
+                if solve != 0 {
+                    _mm256_storeu_ps(corners[0].as_mut_ptr(), h00);
+                    _mm256_storeu_ps(corners[1].as_mut_ptr(), h10);
+                    _mm256_storeu_ps(corners[2].as_mut_ptr(), h01);
+                    _mm256_storeu_ps(corners[3].as_mut_ptr(), h11);
+                }
+                _mm256_storeu_si256(cells.as_mut_ptr().cast(), cells_v);
+                for l in lanes_of(solve | at_end) {
+                    let bit = 1 << l;
+                    let lane = lanes[l].as_mut().expect("a live lane");
+                    let mut w = None;
+                    if solve & bit != 0 {
+                        let g = &lane.grid;
+                        let cell = [corners[0][l], corners[1][l], corners[2][l], corners[3][l]];
+                        if let Some((t, normal)) = patch_hit(
+                            cell,
+                            ci[l] as i64,
+                            cj[l] as i64,
+                            g.od,
+                            g.dd,
+                            g.sx,
+                            g.sy,
+                            ta[l] as f64,
+                            tb[l] as f64,
+                        ) {
+                            w = Some(Walk::Hit(SurfaceHit {
+                                t,
+                                normal,
+                                cells: cells[l],
+                            }));
+                        }
+                    }
+                    if w.is_none() && at_end & bit != 0 {
+                        w = Some(Walk::Miss { cells: cells[l] });
+                    }
+                    let Some(w) = w else { continue };
+                    ended |= bit;
+                    match lane.walked::<ANY>(c, w, walks[l].t1, walks[l].last) {
+                        Some(out) => emit(l, out),
+                        None => resume |= bit,
+                    }
+                }
+            }
+            live &= !ended;
+            // The next cell: across where the ray leaves through an x side
+            // first, down otherwise (the scalar walk's `tx < ty`).
+            ta_v = tb_v;
+            let across = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LT_OQ>(tx_v, ty_v));
+            let along = _mm256_castps_si256(_mm256_andnot_ps(_mm256_castsi256_ps(across), live_v));
+            let across = _mm256_and_si256(across, _mm256_castps_si256(live_v));
+            ci_v = _mm256_add_epi32(ci_v, _mm256_and_si256(sti_v, across));
+            cj_v = _mm256_add_epi32(cj_v, _mm256_and_si256(stj_v, along));
+            tx_v = _mm256_blendv_ps(
+                tx_v,
+                _mm256_add_ps(tx_v, dtx_v),
+                _mm256_castsi256_ps(across),
+            );
+            ty_v = _mm256_blendv_ps(ty_v, _mm256_add_ps(ty_v, dty_v), _mm256_castsi256_ps(along));
+        }
+        resume
+    }
+}
