@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # System packages displace needs beyond a Rust toolchain: Mesa's software
 # Vulkan (lavapipe) so the GPU path runs and is tested on machines without a
-# GPU, and Xvfb so the viewer's window is tested without a display.
+# GPU, Xvfb so the viewer's window is tested without a display, and Slurm
+# with munge for the render-farm test.
 # Idempotent; uses sudo only when not root.
 set -euo pipefail
 SUDO=""
@@ -12,6 +13,10 @@ dpkg -s libvulkan1 >/dev/null 2>&1 || need+=(libvulkan1)
 # `displace view` and its tests: a virtual X server, and the X client
 # libraries winit loads at run time.
 for p in xvfb libx11-6 libx11-xcb1 libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0; do
+  dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
+done
+# The farm test (scripts/slurm-local.sh): a throwaway one-node Slurm.
+for p in slurmctld slurmd slurm-client munge iproute2; do
   dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
 done
 if [ ${#need[@]} -gt 0 ]; then

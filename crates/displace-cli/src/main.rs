@@ -9,7 +9,10 @@ mod bench_render;
 mod bench_trace;
 mod compare;
 mod export_mesh;
+mod farm_env;
+mod frames;
 mod gpu;
+mod merge;
 mod progress;
 mod render;
 mod trace;
@@ -39,6 +42,10 @@ enum Command {
     Trace(trace::TraceArgs),
     /// Ray trace a scene (or the built-in studded Cornell box) to PNG/EXR.
     Render(render::RenderArgs),
+    /// Stitch the EXR tiles of `render --tile I/N` into the whole image,
+    /// bit-identical to one render, after checking they are one render's
+    /// tiles covering it exactly once.
+    Merge(merge::MergeArgs),
     /// Measure: `bench bake`, `bench trace`, `bench render`, `bench gpu`.
     Bench(bench::BenchArgs),
     /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
@@ -62,6 +69,7 @@ fn main() -> std::process::ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Trace(args) => trace::run(args),
         Command::Render(args) => render::run(args),
+        Command::Merge(args) => merge::run(args),
         Command::Bench(args) => bench::run(args),
         Command::ExportMesh(args) => export_mesh::run(args),
         Command::GpuRender(args) => gpu::run_render(args),

@@ -1,11 +1,14 @@
 //! `displace render`: ray trace a scene file (or the built-in studded Cornell
 //! box) to PNG/EXR, with optional AOVs. Ctrl-C (or SIGTERM, SIGHUP) stops
 //! the render and writes nothing; the outputs are written to temporary
-//! names and renamed into place together at the end.
+//! names and renamed into place together at the end. `--tile I/N` renders
+//! one farm tile to an EXR tile file for `displace merge`.
 
 use anyhow::{bail, Context, Result};
 use displace_core::io::atomic::Batch;
 use displace_render::output::{aov_paths, write_aov, write_image, ImageFile};
+use displace_render::tile_file::{write_tile, TileMeta};
+use displace_render::tiling::{tile_rect, TileArg, TileIndex};
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -38,6 +41,11 @@ pub struct RenderArgs {
     /// Render only the region x,y,w,h of the full image.
     #[arg(long)]
     pub crop: Option<String>,
+    /// Render farm tile I of N (bands of whole rows of 16-pixel render
+    /// tiles, counted from 0) to an EXR tile file for `displace merge`;
+    /// `auto/N` takes I from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
+    #[arg(long, conflicts_with_all = ["crop", "aov"])]
+    pub tile: Option<String>,
     /// AOVs to write next to the output, comma separated: depth, normal, uv,
     /// position, iterations (each as OUT.NAME.npy and OUT.NAME.png).
     #[arg(long, value_delimiter = ',')]
@@ -49,9 +57,31 @@ pub struct RenderArgs {
     /// Do not read or write the on-disk bake cache.
     #[arg(long)]
     pub no_cache: bool,
+    /// The frame of the scene's [animation] to render, or `auto` (from
+    /// SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX: one frame per task). A
+    /// `%04d` in the output name is replaced by the frame number.
+    #[arg(long, conflicts_with = "frames")]
+    pub frame: Option<String>,
+    /// Render frames A..B (B not included) of the scene's [animation], one
+    /// after the other, to OUT_%04d.png (the frame number replaces a
+    /// `%04d` in the output name, or is appended to its stem).
+    #[arg(long, conflicts_with_all = ["tile", "crop"])]
+    pub frames: Option<String>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// What every frame of one `render` command shares, checked up front.
+struct Plan {
+    size: Option<[u32; 2]>,
+    crop: Option<Crop>,
+    aovs: Vec<Aov>,
+    method: Option<displace_core::Method>,
+    integrator: Option<displace_render::Integrator>,
+    tile: Option<TileIndex>,
+    pool: rayon::ThreadPool,
+    cancel: Arc<AtomicBool>,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -81,14 +111,69 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--integrator")?;
-    crate::bake::check_output_dir(&args.output)?;
+    let tile = args
+        .tile
+        .as_deref()
+        .map(|t| resolve_tile(t, &args.output))
+        .transpose()?;
+    if args.frame.as_deref().map(str::trim) == Some("auto")
+        && args
+            .tile
+            .as_deref()
+            .is_some_and(|t| t.trim().starts_with("auto"))
+    {
+        bail!("--frame auto with --tile auto/N: both would take the one task index; give one of them explicitly");
+    }
+    let jobs = crate::frames::jobs(args.frame.as_deref(), args.frames.as_deref(), &args.output)?;
+    for (_, output) in &jobs {
+        crate::bake::check_output_dir(output)?;
+    }
+    if let (Some(range), Some((Some(last), _))) = (&args.frames, jobs.last()) {
+        let count = Scene::animation_frames(args.scene.as_deref())?;
+        let count =
+            count.with_context(|| format!("--frames {range}: the scene has no [animation]"))?;
+        if *last >= count {
+            bail!("--frames {range}: the animation has {count} frames (0..{count})");
+        }
+    }
     let pool = crate::bench_bake::pool(args.threads)?;
-
-    let opts = SceneOptions {
-        spp: args.spp,
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        // Ignore failure: another subcommand may own the handler in tests.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let plan = Plan {
         size,
+        crop,
+        aovs,
         method,
         integrator,
+        tile,
+        pool,
+        cancel,
+    };
+    for (frame, output) in &jobs {
+        render_one(&args, &plan, *frame, output)?;
+    }
+    Ok(())
+}
+
+/// Renders one image (one frame, or the whole of a still scene) to
+/// `output`.
+fn render_one(
+    args: &RenderArgs,
+    plan: &Plan,
+    frame: Option<u32>,
+    output: &std::path::Path,
+) -> Result<()> {
+    let (pool, cancel) = (&plan.pool, &plan.cancel);
+    let opts = SceneOptions {
+        frame,
+        spp: args.spp,
+        size: plan.size,
+        method: plan.method,
+        integrator: plan.integrator,
         cache_dir: if args.no_cache {
             None
         } else {
@@ -102,13 +187,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
     })?;
     let setup = start.elapsed();
     let stats = scene.cache_stats();
-
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        // Ignore failure: another subcommand may own the handler in tests.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    for w in scene.warnings() {
+        eprintln!("warning: {w}");
     }
+    let tile_meta = plan
+        .tile
+        .map(|t| -> Result<TileMeta> {
+            Ok(TileMeta {
+                content_hash: scene.content_hash(),
+                full_size: [scene.width(), scene.height()],
+                rect: tile_rect(scene.width(), scene.height(), t)
+                    .with_context(|| format!("--tile {t}"))?,
+                tile: t,
+            })
+        })
+        .transpose()?;
+    let crop = tile_meta.map(|m| m.rect).or(plan.crop);
+
     let bar = if args.quiet {
         ProgressBar::hidden()
     } else {
@@ -132,9 +227,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
             &scene,
             &RenderOptions {
                 crop,
-                aovs,
+                aovs: plan.aovs.clone(),
                 progress: Some(&progress),
-                cancel: Some(&cancel),
+                cancel: Some(cancel.as_ref()),
             },
         )
     });
@@ -147,9 +242,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
     // The image and its AOVs land together or not at all.
     let batch = Batch::new();
-    write_image(&args.output, &rendered.image)?;
+    match &tile_meta {
+        Some(meta) => write_tile(output, meta, &rendered.image)?,
+        None => write_image(output, &rendered.image)?,
+    }
     for a in &rendered.aovs {
-        write_aov(&args.output, a)?;
+        write_aov(output, a)?;
     }
     batch.commit().context("moving the outputs into place")?;
     let name = args
@@ -158,6 +256,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map_or("built-in default scene".to_string(), |p| {
             p.display().to_string()
         });
+    let name = match frame {
+        Some(f) => format!("{name} frame {f}"),
+        None => name,
+    };
+    if let Some(m) = &tile_meta {
+        eprintln!(
+            "tile {} of a {}x{} image: rows {}..{}, content hash {:016x}",
+            m.tile,
+            m.full_size[0],
+            m.full_size[1],
+            m.rect.y,
+            m.rect.y + m.rect.height,
+            m.content_hash
+        );
+    }
     eprintln!(
         "{name}: {}x{} at {} spp ({}), {} primitives, {} threads; setup {:.2} s (bakes: {} computed, {} from cache, {} shared), render {:.2} s -> {}",
         rendered.image.width,
@@ -171,10 +284,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         stats.loaded,
         stats.shared,
         render_time.as_secs_f64(),
-        args.output.display()
+        output.display()
     );
     for a in &rendered.aovs {
-        let (npy, png) = aov_paths(&args.output, a.aov);
+        let (npy, png) = aov_paths(output, a.aov);
         eprintln!(
             "  {}: {} and {}",
             a.aov.name(),
@@ -183,4 +296,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--tile I/N` or `auto/N` (the index from the scheduler), checked with
+/// its output before any work: a tile is an EXR tile file.
+fn resolve_tile(arg: &str, output: &std::path::Path) -> Result<TileIndex> {
+    if ImageFile::from_path(output)? != ImageFile::Exr {
+        bail!(
+            "--tile {arg}: output {} must be .exr (a tile is linear float with its metadata; `displace merge` writes the PNG)",
+            output.display()
+        );
+    }
+    Ok(match arg.parse::<TileArg>()? {
+        TileArg::Fixed(t) => t,
+        TileArg::Auto { count } => {
+            let index = crate::farm_env::task_index(&format!("--tile {arg}"))?;
+            TileIndex::new(index, count).with_context(|| format!("--tile {arg}"))?
+        }
+    })
 }

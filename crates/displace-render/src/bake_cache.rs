@@ -11,7 +11,14 @@
 //! baked again rather than trusted, since a wrong distance would make the
 //! tracer step through the surface. The normal map is rebuilt from the
 //! height map (cheap); only the distance transform is cached.
+//!
+//! Many processes may share one cache directory (the tasks of a render
+//! farm on a shared file system): a lock file next to an entry
+//! ([`crate::bake_lock`]) has one of them bake it while the others wait
+//! and read it, and a directory that cannot be written falls back to
+//! baking in memory with a warning ([`BakeCache::warnings`]).
 
+use crate::bake_lock::{lock_path, try_lock, Attempt};
 use crate::error::Result;
 use crate::sampler::{hash, hash_iter};
 use displace_core::io::atomic::{remove_stale_temps, write_atomic};
@@ -22,6 +29,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 const MAGIC: &[u8; 8] = b"DSPLDM01";
 /// Bumped whenever the bake's output for the same inputs could change.
@@ -48,6 +56,7 @@ pub struct BakeCache {
     baked: AtomicUsize,
     loaded: AtomicUsize,
     shared: AtomicUsize,
+    warnings: Mutex<Vec<String>>,
 }
 
 /// Counts of what the cache did, for reports and tests.
@@ -118,39 +127,112 @@ impl BakeCache {
             .dir
             .as_ref()
             .map(|d| d.join(format!("{key:016x}.dmap")));
-        let map = match path
-            .as_deref()
-            .and_then(|p| read_map(p, height, size, extent))
-        {
-            Some(m) => {
-                self.loaded.fetch_add(1, Ordering::Relaxed);
-                m
-            }
-            None => {
-                let m = bake(
-                    height,
-                    &BakeOptions {
-                        size,
-                        extent,
-                        ..BakeOptions::default()
-                    },
-                )?;
-                self.baked.fetch_add(1, Ordering::Relaxed);
-                if let Some(p) = &path {
-                    // A cache that cannot be written only costs time next run.
-                    let dir = self.dir.as_ref().expect("dir");
-                    if std::fs::create_dir_all(dir).is_ok() {
-                        // Killed bakes leave temporaries no run would rename.
-                        remove_stale_temps(dir);
-                        let _ = write_map(p, &m.distance);
-                    }
-                }
-                m
-            }
+        let map = match &path {
+            Some(p) => self.shared_bake(p, height, size, extent)?,
+            None => self.bake(height, size, extent)?,
         };
         let map = Arc::new(map);
         memory.insert(key, map.clone());
         Ok(map)
+    }
+}
+
+impl BakeCache {
+    /// Bakes in memory.
+    fn bake(
+        &self,
+        height: &HeightMap,
+        size: [usize; 3],
+        extent: Extent,
+    ) -> Result<DisplacementMap> {
+        let m = bake(
+            height,
+            &BakeOptions {
+                size,
+                extent,
+                ..BakeOptions::default()
+            },
+        )?;
+        self.baked.fetch_add(1, Ordering::Relaxed);
+        Ok(m)
+    }
+
+    /// The entry at `path`, read if there, else baked once among all the
+    /// processes sharing the directory ([`crate::bake_lock`]): the holder
+    /// of the lock bakes and writes it, the others wait and read it. A
+    /// directory that cannot take the lock (read-only, not creatable) is
+    /// warned about and the map baked in memory.
+    fn shared_bake(
+        &self,
+        path: &Path,
+        height: &HeightMap,
+        size: [usize; 3],
+        extent: Extent,
+    ) -> Result<DisplacementMap> {
+        let read = || {
+            let m = read_map(path, height, size, extent)?;
+            self.loaded.fetch_add(1, Ordering::Relaxed);
+            Some(m)
+        };
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let lock = lock_path(path);
+        let mut wait = Duration::from_millis(20);
+        loop {
+            if let Some(m) = read() {
+                return Ok(m);
+            }
+            let attempt = match std::fs::create_dir_all(dir) {
+                Ok(()) => try_lock(&lock),
+                Err(e) => Attempt::Unwritable(e),
+            };
+            match attempt {
+                Attempt::Acquired(_guard) => {
+                    // Written by a holder that released just before we locked.
+                    if let Some(m) = read() {
+                        return Ok(m);
+                    }
+                    // Killed bakes leave temporaries no run would rename.
+                    remove_stale_temps(dir);
+                    let m = self.bake(height, size, extent)?;
+                    // A cache that cannot be written only costs time next run.
+                    if let Err(e) = write_map(path, &m.distance) {
+                        self.warn(format!(
+                            "bake cache entry {}: not written: {e}",
+                            path.display()
+                        ));
+                    }
+                    return Ok(m);
+                }
+                Attempt::Held => {
+                    std::thread::sleep(wait);
+                    wait = (wait * 2).min(Duration::from_millis(500));
+                }
+                Attempt::Unwritable(e) => {
+                    self.warn(format!(
+                        "bake cache {} is not writable ({e}): baking in memory",
+                        dir.display()
+                    ));
+                    return self.bake(height, size, extent);
+                }
+            }
+        }
+    }
+
+    fn warn(&self, message: String) {
+        self.warnings
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(message);
+    }
+
+    /// What went wrong with the disk cache without stopping the render (a
+    /// read-only directory, an entry that could not be written), for the
+    /// caller to show.
+    pub fn warnings(&self) -> Vec<String> {
+        self.warnings
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 }
 
@@ -284,6 +366,34 @@ mod tests {
             .get(&h, [8, 8, 4], Extent::new(2.0, 1.0, 0.5).unwrap())
             .unwrap();
         assert_eq!(again.stats().baked, 1);
+    }
+
+    /// Four caches (as four processes would) on one empty directory at
+    /// once: one bakes, the others wait on its lock and read its entry.
+    #[test]
+    fn concurrent_caches_on_one_directory_bake_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let h = height();
+        let extent = Extent::new(1.0, 1.0, 0.25).unwrap();
+        let maps: Vec<(CacheStats, Arc<DisplacementMap>)> = std::thread::scope(|s| {
+            let jobs: Vec<_> = (0..4)
+                .map(|_| {
+                    s.spawn(|| {
+                        let c = BakeCache::new(Some(dir.path().join("cache")));
+                        let m = c.get(&h, [16, 16, 8], extent).unwrap();
+                        (c.stats(), m)
+                    })
+                })
+                .collect();
+            jobs.into_iter().map(|j| j.join().unwrap()).collect()
+        });
+        assert_eq!(maps.iter().map(|(s, _)| s.baked).sum::<usize>(), 1);
+        assert_eq!(maps.iter().map(|(s, _)| s.loaded).sum::<usize>(), 3);
+        assert!(maps.iter().all(|(_, m)| m.distance == maps[0].1.distance));
+        let left: Vec<_> = std::fs::read_dir(dir.path().join("cache"))
+            .unwrap()
+            .collect();
+        assert_eq!(left.len(), 1, "{left:?}");
     }
 
     #[test]

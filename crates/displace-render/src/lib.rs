@@ -24,6 +24,7 @@
 //! ```
 
 pub mod bake_cache;
+pub mod bake_lock;
 pub mod bsdf;
 pub mod builtin_mesh;
 pub mod bvh;
@@ -38,6 +39,7 @@ mod heights;
 pub mod integrator;
 pub mod light;
 pub mod material;
+pub mod merge;
 pub mod mesh;
 pub mod output;
 pub mod path;
@@ -47,6 +49,8 @@ pub mod sampler;
 pub mod scene;
 pub mod shapes;
 pub mod texture;
+pub mod tile_file;
+pub mod tiling;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};

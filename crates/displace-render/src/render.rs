@@ -137,7 +137,9 @@ pub struct Rendered {
     pub aovs: Vec<AovImage>,
 }
 
-const TILE: u32 = 16;
+/// The side of the square tiles the render loop hands to its threads; farm
+/// tiles ([`crate::tiling`]) are whole rows of them.
+pub const TILE: u32 = 16;
 
 /// Renders `scene` in the current rayon pool.
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {

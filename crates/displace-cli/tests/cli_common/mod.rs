@@ -51,3 +51,67 @@ center = [0, 0, 0]
 radius = 1
 material = "m"
 "#;
+
+/// Runs `displace ARGS` in `dir` with the bake cache in `dir/cache`, none
+/// of the scheduler's task-index variables but those in `env` (a test run
+/// under Slurm must not leak its own), and returns what it did.
+pub fn displace_env(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_displace"));
+    c.args(args)
+        .current_dir(dir)
+        .env("DISPLACE_CACHE", dir.join("cache"))
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("run displace")
+}
+
+/// A small bake of `height` (32 x 32 texels, 32 x 32 x 8 voxels) for
+/// [`floor_scene`].
+pub fn small_bake(height: &str) -> String {
+    format!(r#"height = "{height}", height_size = [32, 32], depth = 0.1, map_size = [32, 32, 8]"#)
+}
+
+/// Asserts that a run succeeded (its stderr as the message) and returns it.
+pub fn ok(o: Output) -> Output {
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
+/// A displaced floor under an area light, whose soft shadows draw random
+/// numbers: `width` x `height_px` pixels at 2 spp; `displacement` is the
+/// body of the floor's displacement table.
+pub fn floor_scene(width: u32, height_px: u32, seed: u64, displacement: &str) -> String {
+    format!(
+        r#"
+[image]
+width = {width}
+height = {height_px}
+spp = 2
+shadow_samples = 2
+seed = {seed}
+[camera]
+position = [0, 1.6, -2.2]
+look_at = [0, 0, 0]
+vfov = 50
+[materials.floor]
+type = "lambert"
+color = [0.7, 0.6, 0.5]
+[[lights]]
+type = "area"
+origin = [-0.3, 2, -0.3]
+edge_u = [0.6, 0, 0]
+edge_v = [0, 0, 0.6]
+radiance = [6, 6, 6]
+[[shapes]]
+type = "quad"
+origin = [-1, 0, -1]
+edge_u = [2, 0, 0]
+edge_v = [0, 0, 2]
+material = "floor"
+displacement = {{ {displacement} }}
+"#
+    )
+}

@@ -70,6 +70,8 @@ struct Ctx<'a> {
     planned: HashSet<(HeightKey, [usize; 3])>,
     /// Estimated bytes the scene holds: its image and its bakes' peaks.
     memory: u128,
+    /// Every file the scene reads besides itself, for its content hash.
+    sources: Vec<PathBuf>,
 }
 
 impl Ctx<'_> {
@@ -118,6 +120,13 @@ impl Ctx<'_> {
         Ok(n)
     }
 
+    /// Records a file the scene reads, once.
+    fn source(&mut self, path: PathBuf) {
+        if !self.sources.contains(&path) {
+            self.sources.push(path);
+        }
+    }
+
     /// The texture `file` that scene key `key` names; a failure to load it
     /// names the key as well as the file.
     fn texture(&mut self, file: &str, srgb: bool, key: &str) -> Result<Arc<Texture>> {
@@ -125,6 +134,7 @@ impl Ctx<'_> {
         if let Some(t) = self.textures.get(&(path.clone(), srgb)) {
             return Ok(t.clone());
         }
+        self.source(path.clone());
         let t = Arc::new(
             Texture::load(&path, srgb).map_err(|e| self.err(format!("{key} = \"{file}\": {e}")))?,
         );
@@ -143,6 +153,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         method: opts.method,
         planned: HashSet::new(),
         memory: 0,
+        sources: Vec::new(),
     };
     let img = &spec.image;
     let (width, height) = match opts.size {
@@ -209,6 +220,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
             let path = cx.base.join(file);
             let map = EnvironmentMap::load(&path)
                 .map_err(|e| cx.err(format!("image.environment = \"{file}\": {e}")))?;
+            cx.source(path);
             Environment::Map(Arc::new(map))
         }
     };
@@ -428,6 +440,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                     None => {
                         let file = cx.base.join(path);
                         let mesh = crate::mesh::load(&file)?;
+                        cx.source(file.clone());
                         (file, mesh)
                     }
                 };
@@ -533,6 +546,9 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         epsilon: 5e-5 * diag.max(1e-3),
         meshes,
         cache_stats: cx.cache.stats(),
+        sources: cx.sources,
+        content_hash: 0,
+        warnings: cx.cache.warnings(),
     })
 }
 
@@ -736,6 +752,10 @@ impl DispBuild {
                     crate::heights::load(&d.height, size, address, cx.base)
                         .map_err(|e| core_err(cx, e))?,
                 );
+                if !d.height.starts_with("gen:") {
+                    let file = cx.base.join(&d.height);
+                    cx.source(file);
+                }
                 cx.heights.insert(key, h.clone());
                 h
             }

@@ -1,8 +1,10 @@
 //! Scenes: parsed from TOML ([`spec`]), validated and built ([`build`]) into
 //! primitives under one BVH, with materials, lights and a camera.
 
+pub mod animation;
 pub mod batch;
 mod build;
+mod content;
 pub mod spec;
 mod world;
 
@@ -36,6 +38,8 @@ pub struct SceneOptions {
     pub method: Option<Method>,
     /// Where bakes are cached on disk; `None` keeps them in memory only.
     pub cache_dir: Option<PathBuf>,
+    /// The frame of an `[animation]` to build (`None`: frame 0).
+    pub frame: Option<u32>,
     /// Overrides `image.integrator` (`--integrator`).
     pub integrator: Option<Integrator>,
 }
@@ -64,32 +68,31 @@ pub struct Scene {
     pub(crate) epsilon: f32,
     pub(crate) meshes: Vec<SceneMesh>,
     cache_stats: CacheStats,
+    /// The files the scene read besides itself (for [`Scene::content_hash`]).
+    sources: Vec<PathBuf>,
+    content_hash: u64,
+    /// What went wrong without stopping the build (the bake cache).
+    warnings: Vec<String>,
 }
 
 impl Scene {
     /// Reads and builds the scene file at `path`; relative paths inside it
     /// are relative to its directory.
     pub fn load(path: &Path, opts: &SceneOptions) -> Result<Self> {
-        use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
-        check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            // Where the bad byte is, as for a TOML error.
-            let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-            let good = std::str::from_utf8(good).unwrap_or_default();
-            let (line, column) = line_column(good, good.len());
-            Error::Parse {
-                path: path.to_path_buf(),
-                line,
-                column,
-                message: "invalid UTF-8: a scene file is UTF-8 text".into(),
-            }
-        })?;
+        let text = read_text(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_toml(&text, path, base, opts)
+    }
+
+    /// The frame count of the `[animation]` of the scene at `path` (the
+    /// built-in scene without one), checked, without building the scene:
+    /// `--frames` is checked against it before any frame is rendered.
+    pub fn animation_frames(path: Option<&Path>) -> Result<Option<u32>> {
+        let (text, name) = match path {
+            Some(p) => (read_text(p)?, p),
+            None => (DEFAULT_SCENE.to_string(), Path::new(DEFAULT_SCENE_NAME)),
+        };
+        animation::frame_count(&parse(&text, name)?, name)
     }
 
     /// The built-in default scene.
@@ -105,16 +108,11 @@ impl Scene {
     /// Builds a scene from TOML `text`; `name` is used in messages, `base`
     /// resolves relative file names.
     pub fn from_toml(text: &str, name: &Path, base: &Path, opts: &SceneOptions) -> Result<Self> {
-        let spec: spec::SceneSpec = toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-            Error::Parse {
-                path: name.to_path_buf(),
-                line,
-                column,
-                message: e.message().trim().to_string(),
-            }
-        })?;
-        build::build(spec, name, base, opts)
+        let spec = parse(text, name)?;
+        let spec = animation::at_frame(spec, opts.frame, name)?;
+        let mut scene = build::build(spec, name, base, opts)?;
+        scene.content_hash = content::content_hash(text, &scene.sources, opts)?;
+        Ok(scene)
     }
 
     pub fn width(&self) -> u32 {
@@ -131,6 +129,23 @@ impl Scene {
     }
     pub fn cache_stats(&self) -> CacheStats {
         self.cache_stats
+    }
+    /// A hash of everything the image depends on: the scene text, the bytes
+    /// of every file it reads, and the overrides it was built with. Tiles of
+    /// one render carry it, so that a merge can refuse tiles of another.
+    pub fn content_hash(&self) -> u64 {
+        self.content_hash
+    }
+    /// Problems met while building that did not stop it (a bake cache that
+    /// could not be written, so bakes were kept in memory), for the caller
+    /// to show.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+    /// The files the scene read besides the scene file itself (height maps,
+    /// textures, meshes), as resolved against the scene's directory.
+    pub fn sources(&self) -> &[PathBuf] {
+        &self.sources
     }
     /// The built primitives, for other renderers of the same scene (the GPU
     /// path of `displace gpu-render`).
@@ -170,6 +185,41 @@ impl Scene {
     pub fn meshes(&self) -> &[SceneMesh] {
         &self.meshes
     }
+}
+
+/// The scene file at `path` as text, held to the scene file limits.
+fn read_text(path: &Path) -> Result<String> {
+    use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
+    check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    String::from_utf8(bytes).map_err(|e| {
+        // Where the bad byte is, as for a TOML error.
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let good = std::str::from_utf8(good).unwrap_or_default();
+        let (line, column) = line_column(good, good.len());
+        Error::Parse {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message: "invalid UTF-8: a scene file is UTF-8 text".into(),
+        }
+    })
+}
+
+/// The scene file's TOML, parsed (not yet checked).
+fn parse(text: &str, name: &Path) -> Result<spec::SceneSpec> {
+    toml::from_str(text).map_err(|e| {
+        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+        Error::Parse {
+            path: name.to_path_buf(),
+            line,
+            column,
+            message: e.message().trim().to_string(),
+        }
+    })
 }
 
 /// 1-based line and column (in characters) of byte offset `at`.

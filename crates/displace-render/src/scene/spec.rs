@@ -30,6 +30,57 @@ pub struct SceneSpec {
     pub lights: Vec<LightSpec>,
     #[serde(default)]
     pub shapes: Vec<ShapeSpec>,
+    /// Frames over which the camera and a light move (docs/scenes.md).
+    pub animation: Option<AnimationSpec>,
+}
+
+/// `[animation]`: checked by [`super::animation::Animation::new`].
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationSpec {
+    pub frames: i64,
+    /// Frames per second, for whoever encodes the frames into a video.
+    #[serde(default = "default_fps")]
+    pub fps: f32,
+    /// `"linear"` or `"catmull-rom"`.
+    #[serde(default = "default_interpolation")]
+    pub interpolation: String,
+    /// Camera keyframes, in increasing frame order.
+    #[serde(default)]
+    pub camera: Vec<CameraKeySpec>,
+    /// Which `[[lights]]` entry `light_path` moves.
+    #[serde(default)]
+    pub light: i64,
+    /// Keyframes of that light's position (area lights: their origin).
+    #[serde(default)]
+    pub light_path: Vec<PathKeySpec>,
+}
+
+fn default_fps() -> f32 {
+    24.0
+}
+fn default_interpolation() -> String {
+    "linear".into()
+}
+
+/// A camera keyframe; a key may set the position, the look-at or both.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraKeySpec {
+    pub frame: i64,
+    #[serde(default, deserialize_with = "exact3_opt")]
+    pub position: Option<V3>,
+    #[serde(default, deserialize_with = "exact3_opt")]
+    pub look_at: Option<V3>,
+}
+
+/// A keyframe of a light's position.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathKeySpec {
+    pub frame: i64,
+    #[serde(deserialize_with = "exact3")]
+    pub position: V3,
 }
 
 #[derive(Debug, Deserialize)]

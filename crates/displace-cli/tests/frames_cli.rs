@@ -1,0 +1,181 @@
+//! Animations: frame F of `--frames` equals `--frame F` alone, byte for
+//! byte; a frame at a key equals the still scene with the camera and the
+//! light where that key puts them (the paths hit their keys exactly); the
+//! frames differ; `--frame auto` takes the scheduler's index; bad
+//! `[animation]` keys and frames out of range are refused by name.
+
+mod cli_common;
+
+use cli_common::{displace_env as run, files, ok, stderr, SPHERE_SCENE};
+use std::path::Path;
+
+/// A lit sphere (16 x 16 at 2 spp) with a camera path and a moving point
+/// light.
+fn still() -> String {
+    SPHERE_SCENE.replace(
+        "width = 8\nheight = 8\nspp = 1",
+        "width = 16\nheight = 16\nspp = 2",
+    )
+}
+
+const ANIMATION: &str = r#"
+[animation]
+frames = 6
+fps = 12
+interpolation = "catmull-rom"
+camera = [
+  { frame = 0, position = [0, 1, -3], look_at = [0, 0, 0] },
+  { frame = 2, position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0] },
+  { frame = 5, position = [2.5, 1.5, -1.0], look_at = [0, 0.3, 0.1] },
+]
+light_path = [
+  { frame = 0, position = [0, 3, -1] },
+  { frame = 2, position = [1.5, 2.5, -1.5] },
+  { frame = 5, position = [-2, 2, -2] },
+]
+"#;
+
+fn read(d: &Path, f: &str) -> Vec<u8> {
+    std::fs::read(d.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"))
+}
+
+#[test]
+fn frames_equal_single_frames_and_keys_are_hit_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("a.toml"), format!("{}{ANIMATION}", still())).unwrap();
+    ok(run(
+        &[
+            "render", "-q", "a.toml", "--frames", "0..6", "-o", "out.png",
+        ],
+        d,
+        &[],
+    ));
+    for f in 0..6 {
+        let name = format!("out_{f:04}.png");
+        ok(run(
+            &[
+                "render",
+                "-q",
+                "a.toml",
+                "--frame",
+                &f.to_string(),
+                "-o",
+                "one.png",
+            ],
+            d,
+            &[],
+        ));
+        assert!(read(d, &name) == read(d, "one.png"), "frame {f}");
+    }
+    assert!(
+        read(d, "out_0000.png") != read(d, "out_0001.png"),
+        "nothing moved"
+    );
+    // Frame 2 is the still scene with key 2's camera and light.
+    let key2 = still()
+        .replace("position = [0, 1, -3]", "position = [1.3, 0.7, -2.6]")
+        .replace("look_at = [0, 0, 0]", "look_at = [0.1, 0.2, 0]")
+        .replace("position = [0, 3, -1]", "position = [1.5, 2.5, -1.5]");
+    std::fs::write(d.join("key2.toml"), key2).unwrap();
+    ok(run(
+        &["render", "-q", "key2.toml", "-o", "key2.png"],
+        d,
+        &[],
+    ));
+    assert!(
+        read(d, "out_0002.png") == read(d, "key2.png"),
+        "key 2 not hit exactly"
+    );
+    // One frame per task, and a name pattern.
+    ok(run(
+        &[
+            "render",
+            "-q",
+            "a.toml",
+            "--frame",
+            "auto",
+            "-o",
+            "task_%04d.png",
+        ],
+        d,
+        &[("JOB_COMPLETION_INDEX", "3")],
+    ));
+    assert!(read(d, "task_0003.png") == read(d, "out_0003.png"));
+}
+
+#[test]
+fn bad_animations_and_frames_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases: &[(&str, &[&str], &str)] = &[
+        (&still(), &["--frame", "0"], "no [animation]"),
+        (ANIMATION, &["--frame", "6"], "has 6 frames"),
+        (ANIMATION, &["--frames", "4..9"], "has 6 frames"),
+        (
+            ANIMATION,
+            &["--frame", "auto"],
+            "neither SLURM_ARRAY_TASK_ID",
+        ),
+        (
+            &ANIMATION.replace("catmull-rom", "cubic"),
+            &[],
+            "animation.interpolation = \"cubic\"",
+        ),
+        (
+            &ANIMATION.replace(
+                "{ frame = 2, position = [1.3",
+                "{ frame = 7, position = [1.3",
+            ),
+            &[],
+            "animation.camera (position)[1].frame = 7",
+        ),
+        (
+            &ANIMATION.replace(
+                "{ frame = 5, position = [2.5",
+                "{ frame = 1, position = [2.5",
+            ),
+            &[],
+            "increasing frame order",
+        ),
+        (
+            &ANIMATION.replace("frames = 6", "frames = 0"),
+            &[],
+            "animation.frames",
+        ),
+        (
+            &ANIMATION.replace("fps = 12", "fps = -1"),
+            &[],
+            "animation.fps",
+        ),
+        (
+            &ANIMATION.replace("light_path = [", "light = 3\nlight_path = ["),
+            &[],
+            "animation.light = 3",
+        ),
+        (
+            &ANIMATION.replace("fps = 12", "fps = 12\nspeed = 2"),
+            &[],
+            "speed",
+        ),
+    ];
+    for (anim, args, expect) in cases {
+        let text = if anim.contains("[image]") {
+            anim.to_string()
+        } else {
+            format!("{}{anim}", still())
+        };
+        std::fs::write(d.join("s.toml"), text).unwrap();
+        let before = files(d);
+        let mut all = vec!["render", "-q", "s.toml", "-o", "x.png"];
+        all.extend_from_slice(args);
+        let o = run(&all, d, &[]);
+        assert!(!o.status.success(), "{expect}: accepted");
+        assert!(
+            stderr(&o).contains(expect),
+            "`{expect}` not in: {}",
+            stderr(&o)
+        );
+        assert_eq!(files(d), before, "{expect}: files written");
+    }
+}

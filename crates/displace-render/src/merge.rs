@@ -1,0 +1,300 @@
+//! Putting farm tiles back together: the tiles must all belong to one
+//! render (same content hash, image size and tile count), cover the image
+//! exactly once on the grid of [`crate::tiling`], and be complete files.
+//! Every problem found is reported, each naming the file or the tile at
+//! fault, and no image is returned unless there are none; the merged image
+//! is then the one a single machine renders, pixel for pixel.
+
+use crate::render::{Crop, Image};
+use crate::tile_file::{read_tile, TileImage, TileMeta};
+use crate::tiling::{tile_rects, TileIndex};
+use glam::Vec3;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// One reason a set of tiles cannot be merged.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum Problem {
+    /// The file could not be read as a complete tile (cut short, damaged,
+    /// not a tile at all).
+    #[error("{0}")]
+    Unreadable(String),
+    /// A tile of another render: other scene, seed, files, overrides, size
+    /// or tile count than the others.
+    #[error("{path}: a tile of another render: {why}")]
+    Foreign { path: PathBuf, why: String },
+    /// The same tile in two files.
+    #[error("tile {tile} is given twice: {first} and {second}")]
+    Duplicate {
+        tile: TileIndex,
+        first: PathBuf,
+        second: PathBuf,
+    },
+    /// A tile whose rectangle is not the grid's rectangle for its index.
+    #[error("{path}: tile {tile} covers {got}, but tile {tile} of this image is {want}")]
+    WrongRect {
+        path: PathBuf,
+        tile: TileIndex,
+        got: String,
+        want: String,
+    },
+    /// A tile of the grid that no file holds.
+    #[error("tile {tile} (rows {first_row}..{end_row}) is missing")]
+    Missing {
+        tile: TileIndex,
+        first_row: u32,
+        end_row: u32,
+    },
+    /// Tiles that claim a grid no image has (more tiles than its rows of
+    /// render tiles).
+    #[error("the tiles claim a grid that does not exist: {0}")]
+    Grid(String),
+    /// Nothing to merge.
+    #[error("no tiles were given")]
+    NoTiles,
+}
+
+/// Why a merge was refused: every problem found.
+#[derive(Debug, thiserror::Error)]
+#[error("{}", summary(.problems))]
+pub struct MergeError {
+    pub problems: Vec<Problem>,
+}
+
+fn summary(problems: &[Problem]) -> String {
+    let mut s = format!(
+        "refusing to merge ({} problem{}), nothing written:",
+        problems.len(),
+        if problems.len() == 1 { "" } else { "s" }
+    );
+    for p in problems {
+        let _ = write!(s, "\n  {p}");
+    }
+    s
+}
+
+fn rect_text(r: &Crop) -> String {
+    format!("{},{},{}x{}", r.x, r.y, r.width, r.height)
+}
+
+/// What tiles of one render share: content hash, image size, tile count.
+type RenderKey = (u64, [u32; 2], u32);
+
+/// The render most tiles agree on (ties go to the first file given): the
+/// others are foreign to it.
+fn reference(tiles: &[(PathBuf, TileImage)]) -> RenderKey {
+    let key = |m: &TileMeta| (m.content_hash, m.full_size, m.tile.count);
+    let mut votes: Vec<(RenderKey, usize)> = Vec::new();
+    for (_, t) in tiles {
+        let k = key(&t.meta);
+        match votes.iter_mut().find(|(v, _)| *v == k) {
+            Some((_, n)) => *n += 1,
+            None => votes.push((k, 1)),
+        }
+    }
+    let best = votes.iter().map(|(_, n)| *n).max().unwrap_or(0);
+    votes
+        .into_iter()
+        .find(|(_, n)| *n == best)
+        .map(|(k, _)| k)
+        .expect("at least one tile")
+}
+
+/// Why `meta` is not of the render `want`, if it is not.
+fn foreign(meta: &TileMeta, want: RenderKey) -> Option<String> {
+    let (hash, [w, h], count) = want;
+    let mut why = Vec::new();
+    if meta.content_hash != hash {
+        why.push(format!(
+            "content hash {:016x}, the others {hash:016x} (another scene, seed, referenced file or override)",
+            meta.content_hash
+        ));
+    }
+    if meta.full_size != [w, h] {
+        why.push(format!(
+            "a {}x{} image, the others {w}x{h}",
+            meta.full_size[0], meta.full_size[1]
+        ));
+    }
+    if meta.tile.count != count {
+        why.push(format!(
+            "one of {} tiles, the others of {count}",
+            meta.tile.count
+        ));
+    }
+    (!why.is_empty()).then(|| why.join("; "))
+}
+
+/// Checks `tiles` (each with the file it came from) and stitches them.
+pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
+    if tiles.is_empty() {
+        return Err(MergeError {
+            problems: vec![Problem::NoTiles],
+        });
+    }
+    let want = reference(&tiles);
+    let (_, [width, height], count) = want;
+    let mut problems = Vec::new();
+    let grid = match tile_rects(width, height, count) {
+        Ok(g) => g,
+        Err(e) => {
+            return Err(MergeError {
+                problems: vec![Problem::Grid(e.to_string())],
+            })
+        }
+    };
+    let mut placed: BTreeMap<u32, (PathBuf, TileImage)> = BTreeMap::new();
+    for (path, t) in tiles {
+        if let Some(why) = foreign(&t.meta, want) {
+            problems.push(Problem::Foreign { path, why });
+            continue;
+        }
+        let tile = t.meta.tile;
+        let expected = grid[tile.index as usize];
+        if t.meta.rect != expected {
+            problems.push(Problem::WrongRect {
+                path,
+                tile,
+                got: rect_text(&t.meta.rect),
+                want: rect_text(&expected),
+            });
+            continue;
+        }
+        if let Some((first, _)) = placed.get(&tile.index) {
+            problems.push(Problem::Duplicate {
+                tile,
+                first: first.clone(),
+                second: path,
+            });
+            continue;
+        }
+        placed.insert(tile.index, (path, t));
+    }
+    for (i, r) in grid.iter().enumerate() {
+        if !placed.contains_key(&(i as u32)) {
+            problems.push(Problem::Missing {
+                tile: TileIndex {
+                    index: i as u32,
+                    count,
+                },
+                first_row: r.y,
+                end_row: r.y + r.height,
+            });
+        }
+    }
+    if !problems.is_empty() {
+        return Err(MergeError { problems });
+    }
+    // Bands are whole rows in index order: the image is their pixels in turn.
+    let mut pixels: Vec<Vec3> = Vec::with_capacity(width as usize * height as usize);
+    for (_, (_, t)) in placed {
+        pixels.extend_from_slice(&t.pixels);
+    }
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// Reads the tile files at `paths` and merges them; a file that cannot be
+/// read is one of the problems reported, beside any among the others.
+pub fn merge_files(paths: &[PathBuf]) -> Result<Image, MergeError> {
+    let mut tiles = Vec::with_capacity(paths.len());
+    let mut unreadable = Vec::new();
+    for p in paths {
+        match read_tile(p) {
+            Ok(t) => tiles.push((p.clone(), t)),
+            Err(e) => unreadable.push(Problem::Unreadable(e.to_string())),
+        }
+    }
+    if tiles.is_empty() && unreadable.is_empty() {
+        return Err(MergeError {
+            problems: vec![Problem::NoTiles],
+        });
+    }
+    match (tiles.is_empty(), merge(tiles)) {
+        (false, Ok(img)) if unreadable.is_empty() => Ok(img),
+        (false, Ok(_)) => Err(MergeError {
+            problems: unreadable,
+        }),
+        (true, _) => Err(MergeError {
+            problems: unreadable,
+        }),
+        (false, Err(mut e)) => {
+            // An unreadable file is likely the tile reported missing: both
+            // are said.
+            unreadable.append(&mut e.problems);
+            Err(MergeError {
+                problems: unreadable,
+            })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tile(hash: u64, index: u32, count: u32) -> (PathBuf, TileImage) {
+        let rect = tile_rects(4, 64, count).unwrap()[index as usize];
+        let pixels = (0..rect.width * rect.height)
+            .map(|k| Vec3::splat((rect.y * rect.width + k) as f32))
+            .collect();
+        (
+            PathBuf::from(format!("t{index}of{count}.exr")),
+            TileImage {
+                meta: TileMeta {
+                    content_hash: hash,
+                    full_size: [4, 64],
+                    rect,
+                    tile: TileIndex { index, count },
+                },
+                pixels,
+            },
+        )
+    }
+
+    #[test]
+    fn bands_in_any_order_stitch_to_the_whole() {
+        let tiles = vec![tile(7, 2, 3), tile(7, 0, 3), tile(7, 1, 3)];
+        let img = merge(tiles).unwrap();
+        assert_eq!((img.width, img.height), (4, 64));
+        for (k, p) in img.pixels.iter().enumerate() {
+            assert_eq!(*p, Vec3::splat(k as f32));
+        }
+    }
+
+    #[test]
+    fn every_problem_is_named() {
+        let mut shifted = tile(7, 1, 3);
+        shifted.1.meta.rect.y += 16;
+        let e = merge(vec![
+            tile(7, 0, 3),
+            tile(7, 0, 3),
+            tile(9, 1, 3),
+            shifted,
+            tile(7, 0, 4),
+        ])
+        .unwrap_err();
+        let text = e.to_string();
+        assert_eq!(e.problems.len(), 6, "{text}");
+        assert!(text.contains("tile 0/3 is given twice"), "{text}");
+        assert!(
+            text.contains("t1of3.exr: a tile of another render: content hash 0000000000000009"),
+            "{text}"
+        );
+        assert!(
+            text.contains("t1of3.exr: tile 1/3 covers 0,32,4x16"),
+            "{text}"
+        );
+        assert!(
+            text.contains("t0of4.exr: a tile of another render: one of 4 tiles"),
+            "{text}"
+        );
+        assert!(text.contains("tile 1/3 (rows 16..32) is missing"), "{text}");
+        assert!(text.contains("tile 2/3 (rows 32..64) is missing"), "{text}");
+        assert_eq!(merge(vec![]).unwrap_err().problems, vec![Problem::NoTiles]);
+    }
+}

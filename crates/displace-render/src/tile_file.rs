@@ -1,0 +1,314 @@
+//! Farm tile files: one tile of a render as an OpenEXR image (linear RGB,
+//! 32-bit float, so a merge loses nothing), written with the OpenEXR
+//! windows for what they are meant for: the display window is the full
+//! image, the data window the tile's own rectangle. Two attributes say
+//! which render it belongs to: `displace.content_hash` (the scene's
+//! [`content hash`](crate::Scene::content_hash), 16 hex digits) and
+//! `displace.tile` (`I/N`, the tile's index and the tile count).
+
+use crate::error::{Error, Result};
+use crate::render::{Crop, Image};
+use crate::tiling::TileIndex;
+use displace_core::io::atomic::write_atomic;
+use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
+use exr::prelude::{
+    Encoding, Image as ExrImage, LayerAttributes, ReadChannels, ReadLayers, SpecificChannels, Vec2,
+    WritableImage,
+};
+use glam::Vec3;
+use std::path::Path;
+
+/// Attribute naming the render a tile belongs to.
+pub const HASH_ATTRIBUTE: &str = "displace.content_hash";
+/// Attribute giving a tile's `I/N`.
+pub const TILE_ATTRIBUTE: &str = "displace.tile";
+
+/// Largest tile file read: the largest image a scene allows (2^28 pixels)
+/// at 12 bytes a pixel, with room for the header.
+const MAX_TILE_FILE_BYTES: u64 = (12 << 28) + (1 << 20);
+
+/// What a tile file says about itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileMeta {
+    /// The render's [`content hash`](crate::Scene::content_hash).
+    pub content_hash: u64,
+    /// The whole image, `[width, height]`.
+    pub full_size: [u32; 2],
+    /// This tile's pixels within it.
+    pub rect: Crop,
+    /// Which tile of how many.
+    pub tile: TileIndex,
+}
+
+/// A tile as read back: what it says and its pixels (row-major over
+/// `meta.rect`).
+#[derive(Clone, Debug)]
+pub struct TileImage {
+    pub meta: TileMeta,
+    pub pixels: Vec<Vec3>,
+}
+
+fn bad(path: &Path, message: impl Into<String>) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// Writes `image` (the pixels of `meta.rect`) to `path` atomically.
+pub fn write_tile(path: &Path, meta: &TileMeta, image: &Image) -> Result<()> {
+    let r = meta.rect;
+    if (image.width, image.height) != (r.width, r.height) {
+        return Err(bad(
+            path,
+            format!(
+                "a {}x{} image is not the {}x{} tile it is written as",
+                image.width, image.height, r.width, r.height
+            ),
+        ));
+    }
+    let width = r.width as usize;
+    let pixels = &image.pixels;
+    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let v = pixels[p.y() * width + p.x()];
+        (v.x, v.y, v.z)
+    });
+    let mut attributes = LayerAttributes::named("rgb");
+    attributes.layer_position = Vec2(r.x as i32, r.y as i32);
+    let layer = exr::prelude::Layer::new(
+        (r.width as usize, r.height as usize),
+        attributes,
+        // Blocks in order, not as the threads finish them: the same tile
+        // is the same bytes on every run.
+        Encoding {
+            line_order: exr::meta::attribute::LineOrder::Increasing,
+            ..Encoding::FAST_LOSSLESS
+        },
+        channels,
+    );
+    let mut exr = ExrImage::from_layer(layer);
+    exr.attributes.display_window = IntegerBounds::new(
+        (0, 0),
+        (meta.full_size[0] as usize, meta.full_size[1] as usize),
+    );
+    // One custom attribute per map: the writer walks each map in hash
+    // order, which changes from process to process, and a tile must be
+    // the same bytes on every run. The hash is the whole render's, the
+    // index this layer's.
+    exr.attributes.other.insert(
+        Text::from(HASH_ATTRIBUTE),
+        AttributeValue::Text(Text::from(format!("{:016x}", meta.content_hash).as_str())),
+    );
+    exr.layer_data.attributes.other.insert(
+        Text::from(TILE_ATTRIBUTE),
+        AttributeValue::Text(Text::from(meta.tile.to_string().as_str())),
+    );
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    exr.write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| bad(path, e.to_string()))?;
+    write_atomic(path, |w| w.write_all(bytes.get_ref()))?;
+    Ok(())
+}
+
+/// The text attribute `name` of a tile, wherever the reader filed it (a
+/// one-layer file has one header: custom attributes come back as the
+/// layer's or the image's).
+fn text_attribute(
+    attrs: [&std::collections::HashMap<Text, AttributeValue>; 2],
+    name: &str,
+    path: &Path,
+) -> Result<String> {
+    let key = Text::from(name);
+    match attrs.iter().find_map(|a| a.get(&key)) {
+        Some(AttributeValue::Text(t)) => Ok(t.to_string()),
+        Some(_) => Err(bad(path, format!("attribute {name} is not text"))),
+        None => Err(bad(
+            path,
+            format!("not a displace tile: it has no {name} attribute (write tiles with `displace render --tile I/N`)"),
+        )),
+    }
+}
+
+/// Reads a tile file: its attributes, its windows and every pixel. A file
+/// cut short, a missing attribute, a rectangle outside the full image or
+/// channels other than 32-bit float R, G, B are errors naming the file.
+pub fn read_tile(path: &Path) -> Result<TileImage> {
+    displace_core::io::check_input(path, "tile file", MAX_TILE_FILE_BYTES)?;
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let unreadable = |e: exr::error::Error| {
+        bad(
+            path,
+            format!("not a complete OpenEXR tile (cut short or damaged?): {e}"),
+        )
+    };
+    let meta =
+        exr::meta::MetaData::read_from_buffered(bytes.as_slice(), true).map_err(unreadable)?;
+    let [header] = meta.headers.as_slice() else {
+        return Err(bad(path, "a tile has exactly one layer"));
+    };
+    let names: Vec<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    if names != ["B", "G", "R"]
+        || header
+            .channels
+            .list
+            .iter()
+            .any(|c| c.sample_type != SampleType::F32)
+    {
+        return Err(bad(
+            path,
+            format!("a tile holds 32-bit float R, G, B channels, this one {names:?}"),
+        ));
+    }
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgb_channels(
+            |size, _| (size.width(), vec![Vec3::ZERO; size.width() * size.height()]),
+            |(w, px): &mut (usize, Vec<Vec3>), p, (r, g, b): (f32, f32, f32)| {
+                px[p.y() * *w + p.x()] = Vec3::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .pedantic()
+        .from_buffered(std::io::Cursor::new(&bytes))
+        .map_err(unreadable)?;
+
+    let attrs = [&image.attributes.other, &image.layer_data.attributes.other];
+    let hash_text = text_attribute(attrs, HASH_ATTRIBUTE, path)?;
+    let content_hash = u64::from_str_radix(&hash_text, 16)
+        .ok()
+        .filter(|_| hash_text.len() == 16)
+        .ok_or_else(|| {
+            bad(
+                path,
+                format!("{HASH_ATTRIBUTE} = `{hash_text}` is not 16 hex digits"),
+            )
+        })?;
+    let tile_text = text_attribute(attrs, TILE_ATTRIBUTE, path)?;
+    let tile = match tile_text.parse() {
+        Ok(crate::tiling::TileArg::Fixed(t)) => t,
+        _ => {
+            return Err(bad(
+                path,
+                format!("{TILE_ATTRIBUTE} = `{tile_text}` is not I/N"),
+            ))
+        }
+    };
+    let display = image.attributes.display_window;
+    let layer = &image.layer_data;
+    let (pos, size) = (layer.attributes.layer_position, layer.size);
+    let fits = |v: i64| u32::try_from(v).ok();
+    let (Some(fw), Some(fh), Some(x), Some(y)) = (
+        fits(display.size.width() as i64).filter(|_| display.position == Vec2(0, 0)),
+        fits(display.size.height() as i64),
+        fits(pos.x() as i64),
+        fits(pos.y() as i64),
+    ) else {
+        return Err(bad(
+            path,
+            format!("the display window (full image) must start at 0,0 and the data window (tile) inside it; they are {display:?} and {pos:?}+{size:?}"),
+        ));
+    };
+    let rect = Crop {
+        x,
+        y,
+        width: size.width() as u32,
+        height: size.height() as u32,
+    };
+    if u64::from(x) + u64::from(rect.width) > u64::from(fw)
+        || u64::from(y) + u64::from(rect.height) > u64::from(fh)
+    {
+        return Err(bad(
+            path,
+            format!(
+                "the tile's rectangle {x},{y},{},{} lies outside its {fw}x{fh} image",
+                rect.width, rect.height
+            ),
+        ));
+    }
+    Ok(TileImage {
+        meta: TileMeta {
+            content_hash,
+            full_size: [fw, fh],
+            rect,
+            tile,
+        },
+        pixels: image.layer_data.channel_data.pixels.1,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> (TileMeta, Image) {
+        let rect = Crop {
+            x: 0,
+            y: 16,
+            width: 5,
+            height: 3,
+        };
+        let pixels = (0..15)
+            .map(|i| Vec3::new(i as f32 * 0.1, -1.5e-9, f32::MAX / (i + 1) as f32))
+            .collect();
+        (
+            TileMeta {
+                content_hash: 0x0123_4567_89ab_cdef,
+                full_size: [5, 40],
+                rect,
+                tile: TileIndex { index: 1, count: 3 },
+            },
+            Image {
+                width: 5,
+                height: 3,
+                pixels,
+            },
+        )
+    }
+
+    #[test]
+    fn tiles_round_trip_bit_exactly_with_their_metadata() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.exr");
+        let (meta, img) = sample();
+        write_tile(&p, &meta, &img).unwrap();
+        let back = read_tile(&p).unwrap();
+        assert_eq!(back.meta, meta);
+        let bits = |v: &[Vec3]| -> Vec<u32> {
+            v.iter()
+                .flat_map(|p| p.to_array())
+                .map(f32::to_bits)
+                .collect()
+        };
+        assert_eq!(bits(&back.pixels), bits(&img.pixels));
+    }
+
+    #[test]
+    fn cut_short_and_foreign_files_are_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.exr");
+        let (meta, img) = sample();
+        write_tile(&p, &meta, &img).unwrap();
+        let good = std::fs::read(&p).unwrap();
+        for keep in [good.len() - 1, good.len() / 2, 10, 0] {
+            std::fs::write(&p, &good[..keep]).unwrap();
+            let e = read_tile(&p).unwrap_err().to_string();
+            assert!(e.contains("t.exr"), "{keep}: {e}");
+        }
+        // An EXR without the attributes: not a tile.
+        let plain = dir.path().join("plain.exr");
+        crate::output::write_image(&plain, &img).unwrap();
+        let e = read_tile(&plain).unwrap_err().to_string();
+        assert!(e.contains("plain.exr") && e.contains(HASH_ATTRIBUTE), "{e}");
+    }
+}
