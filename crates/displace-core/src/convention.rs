@@ -39,6 +39,8 @@ impl Address {
         }
     }
 
+    /// The name [`str::parse`] accepts (`clamp` or `repeat`), as KTX2's
+    /// `displace.addressing` key stores it.
     pub fn name(self) -> &'static str {
         match self {
             Address::Clamp => "clamp",
@@ -64,8 +66,11 @@ impl std::str::FromStr for Address {
 /// (along `v`) and displacement depth `sz`, in any one unit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Extent {
+    /// Width of the tile along `u`.
     pub sx: f32,
+    /// Height of the tile along `v`.
     pub sy: f32,
+    /// Displacement depth: the height of a texel of value 1 above the base.
     pub sz: f32,
 }
 

@@ -14,12 +14,15 @@ use std::sync::Arc;
 /// Called with `(slices done, slices in all)` as the bake progresses.
 pub type Progress = Arc<dyn Fn(usize, usize) + Send + Sync>;
 
+/// What [`bake`] builds: the distance map's resolution, the tile's
+/// proportions, and the caller's hooks for progress and cancellation.
 #[derive(Clone)]
 pub struct BakeOptions {
     /// Distance-map voxels `[W, H, D]`. Donnelly used 256x256x16.
     pub size: [usize; 3],
     /// Physical size of one tile of the face.
     pub extent: Extent,
+    /// Told after each depth slice; `None` for silence.
     pub progress: Option<Progress>,
     /// Set to stop a bake early; [`bake`] then returns [`Error::Cancelled`].
     pub cancel: Option<Arc<AtomicBool>>,
@@ -53,9 +56,13 @@ impl std::fmt::Debug for BakeOptions {
 /// every face with the same height source, resolution and proportions.
 #[derive(Clone, Debug)]
 pub struct DisplacementMap {
+    /// The source heights: the bilinear surface hits are refined on.
     pub height: HeightMap,
+    /// Tangent-space normals for shading, one per height texel.
     pub normals: NormalMap,
+    /// The conservative distance map the tracer steps through.
     pub distance: DistanceMap,
+    /// Physical size of one tile, to scale map space back to the face.
     pub extent: Extent,
 }
 
@@ -65,6 +72,8 @@ impl DisplacementMap {
         self.distance.aspect()
     }
 
+    /// Whether the surface repeats past a tile's edges (the height map's
+    /// addressing, which the distance map shares).
     pub fn address(&self) -> Address {
         self.height.address()
     }
@@ -207,9 +216,13 @@ pub struct Slab<'a> {
 /// What a streamed bake knows about its map before any slab is computed.
 #[derive(Clone, Copy, Debug)]
 pub struct BakeLayout {
+    /// Distance-map voxels `[W, H, D]`.
     pub size: [usize; 3],
+    /// Tile width and height in shell depths.
     pub aspect: [f32; 2],
+    /// The map's addressing (the height map's).
     pub address: Address,
+    /// Physical size of one tile.
     pub extent: Extent,
     /// The bound [`DistanceMap::from_raw`] takes, before any rounding.
     pub underestimate: f32,

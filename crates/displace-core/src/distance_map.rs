@@ -43,6 +43,7 @@ pub enum Format {
 }
 
 impl Format {
+    /// The name [`str::parse`] accepts (`r8`, `r16f`, `r32f`).
     pub fn name(self) -> &'static str {
         match self {
             Format::R8 => "r8",
@@ -50,6 +51,7 @@ impl Format {
             Format::R32F => "r32f",
         }
     }
+    /// Bytes one voxel takes in this format.
     pub fn bytes_per_voxel(self) -> usize {
         match self {
             Format::R8 => 1,
@@ -79,7 +81,9 @@ impl std::str::FromStr for Format {
 /// distances clamp down to `max`, which stays safe.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct R8Range {
+    /// The value of code 0, in depth units.
     pub min: f32,
+    /// The value of code 255, in depth units (`min + R8_SPAN`).
     pub max: f32,
 }
 
@@ -128,10 +132,13 @@ impl R8Range {
         }
     }
 
+    /// The value, in depth units, that code `c` stands for.
     pub fn decode(&self, c: u8) -> f32 {
         self.min + c as f32 / 255.0 * (self.max - self.min)
     }
 
+    /// The step between two codes, in depth units: the most that
+    /// [`Self::encode`] rounds a value down by (inside the range).
     pub fn quantum(&self) -> f32 {
         (self.max - self.min) / 255.0
     }
@@ -148,6 +155,7 @@ pub struct R8Encoder {
 }
 
 impl R8Encoder {
+    /// The same code as [`R8Range::encode`] gives for `v`.
     pub fn encode(&self, v: f32) -> u8 {
         settle(guess((v - self.min) * self.scale), v, |c| {
             self.decoded[c as usize]
@@ -270,6 +278,10 @@ fn min_and_nan(values: &[f32]) -> (f32, bool) {
     )
 }
 
+/// A conservative 3D distance map over one tile's shell (Donnelly, GPU
+/// Gems 2 ch. 8, section 8.2; made conservative as the module docs prove):
+/// signed distances in depth units on a voxel grid over map space, with the
+/// bound the tracer needs on how far the values underestimate the truth.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DistanceMap {
     size: [usize; 3],
@@ -361,12 +373,17 @@ impl DistanceMap {
         )
     }
 
+    /// Voxels along `u`, `v` and depth: `[width, height, depth]`.
     pub fn size(&self) -> [usize; 3] {
         self.size
     }
+    /// The tile's width and height in depth units (`[sx / sz, sy / sz]` of
+    /// its [`crate::Extent`]): the map-space extent of `u` and `v`.
     pub fn aspect(&self) -> [f32; 2] {
         self.aspect
     }
+    /// How the map continues past the tile's edges: clamped or repeating,
+    /// as the height map it was baked from.
     pub fn address(&self) -> Address {
         self.address
     }
@@ -376,6 +393,8 @@ impl DistanceMap {
     pub(crate) fn cell_scale(&self) -> [f32; 3] {
         self.cell_scale
     }
+    /// The stored values at full precision, `[k][j][i]` (depth slice `k`
+    /// outermost), in depth units.
     pub fn data(&self) -> &[f32] {
         &self.data
     }
@@ -400,6 +419,8 @@ impl DistanceMap {
         )
     }
 
+    /// The stored value of voxel `(i, j, k)`, in depth units, without
+    /// addressing: each index must be below its [`Self::size`].
     #[inline]
     pub fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
         self.data[(k * self.size[1] + j) * self.size[0] + i]

@@ -3,51 +3,101 @@
 
 use std::path::PathBuf;
 
+/// Every failure of the core library. Variants carry the offending value
+/// in their message, so callers can show it unchanged.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// A height map smaller than 2x2, a size that does not match its data,
+    /// a height that is not finite or lies outside `[0, 1]`, or an unknown
+    /// image channel.
     #[error("invalid height map: {0}")]
     InvalidHeightMap(String),
+    /// A tile extent or map aspect that is zero, negative or not finite.
     #[error("invalid extent: {0}")]
     InvalidExtent(String),
+    /// A size that is too small, unparsable or not positive, values that do
+    /// not match their size (or a distance map holding NaN), a streamed map
+    /// fed out of order, or an unparsable memory limit.
     #[error("invalid size: {0}")]
     InvalidSize(String),
     /// A name that is none of the known choices (an addressing mode, a
     /// storage format): the message says which names are known.
     #[error("{0}")]
     UnknownName(String),
+    /// A size whose allocation would exceed
+    /// [`crate::convention::MAX_ALLOCATION_BYTES`]; refused before allocating.
     #[error(
         "size {what} = {size} is too large: it would need {bytes} bytes (limit {limit} bytes)"
     )]
     TooLarge {
+        /// What was being allocated ("distance map", "height map", ...).
         what: String,
+        /// The requested size as written (`WxH` or `WxHxD`).
         size: String,
+        /// Bytes the allocation would need.
         bytes: u128,
+        /// The limit it exceeds, in bytes.
         limit: u128,
     },
     /// A job whose estimated peak memory exceeds the limit
     /// ([`crate::memory::check`]); the message has the estimate.
     #[error("{message}")]
-    OutOfMemory { message: String },
+    OutOfMemory {
+        /// The estimate against the limit, in words.
+        message: String,
+    },
+    /// A `gen:` height-map spec naming no known generator.
     #[error("unknown generator `{0}` (known: flat, gaussian, studded, grating, text, noise)")]
     UnknownGenerator(String),
+    /// A known generator given an unknown, malformed or out-of-range parameter.
     #[error("generator `{generator}`: {message}")]
-    GeneratorParameter { generator: String, message: String },
+    GeneratorParameter {
+        /// The generator's name (`noise`, `text`, ...).
+        generator: String,
+        /// What was wrong with the parameter.
+        message: String,
+    },
+    /// Trace options that cannot be used: an unknown method name, or a
+    /// technique run without the map it needs.
     #[error("invalid trace: {0}")]
     InvalidTrace(String),
+    /// A map file with an unknown extension, a format it cannot hold, or
+    /// contents that break its format (KTX2, DDS, NumPy `.npy`).
     #[error("{path}: {message}")]
-    Format { path: PathBuf, message: String },
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What in it is wrong.
+        message: String,
+    },
+    /// An operating-system error reading or writing a file.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The underlying error.
         #[source]
         source: std::io::Error,
     },
+    /// A height source that is not `gen:NAME`, a PNG or an EXR, or an image
+    /// that cannot be decoded or read as heights.
     #[error("{path}: {message}")]
-    Image { path: PathBuf, message: String },
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        message: String,
+    },
     /// An input path that is not a regular file, or too large to read
     /// ([`crate::io::check_input`]).
     #[error("{path}: {message}")]
-    Input { path: PathBuf, message: String },
+    Input {
+        /// The path.
+        path: PathBuf,
+        /// Why it is refused.
+        message: String,
+    },
+    /// A bake stopped early because its cancel flag was set.
     #[error("operation cancelled")]
     Cancelled,
 }

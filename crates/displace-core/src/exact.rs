@@ -11,6 +11,7 @@ use glam::{DVec3, Vec3};
 /// A hit found on the bilinear surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceHit {
+    /// Ray parameter of the hit, in double precision as the patch is solved.
     pub t: f64,
     /// Geometric normal of the bilinear patch, map space, unit length.
     pub normal: Vec3,
@@ -21,12 +22,16 @@ pub struct SurfaceHit {
 /// Outcome of walking a segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Walk {
+    /// The first surface point on the segment.
     Hit(SurfaceHit),
     /// The ray was already under the surface at the segment's start.
     StartsInside {
+        /// Patches visited: 0, since the start is tested before the walk.
         cells: u32,
     },
+    /// The segment stays above the surface.
     Miss {
+        /// Patches visited.
         cells: u32,
     },
 }

@@ -7,6 +7,10 @@ use crate::convention::{check_allocation, texel_lerp, Address};
 use crate::{Error, Result};
 use rayon::prelude::*;
 
+/// A displacement map: heights in `[0, 1]` (0 on the base surface, 1 at
+/// the top of the shell) on a texel grid, read as a continuous surface of
+/// bilinear patches between texel centres, as the software ray-tracing
+/// displacement paper intersects it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightMap {
     width: usize,
@@ -67,18 +71,23 @@ impl HeightMap {
         )
     }
 
+    /// Texels per row (along `u`).
     pub fn width(&self) -> usize {
         self.width
     }
+    /// Rows (along `v`).
     pub fn height(&self) -> usize {
         self.height
     }
+    /// How [`Self::texel`] reads indices past the edges.
     pub fn address(&self) -> Address {
         self.address
     }
+    /// The texels, row-major (`data[j * width + i]`), each in `[0, 1]`.
     pub fn data(&self) -> &[f32] {
         &self.data
     }
+    /// The same texels read with another addressing mode.
     pub fn with_address(mut self, address: Address) -> Self {
         self.address = address;
         self

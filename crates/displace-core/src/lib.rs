@@ -26,6 +26,8 @@
 //! assert!((hit.position.z - 1.0).abs() < 1e-2); // the gaussian peaks at full height
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod cell_trace;
 pub mod convention;
 pub mod distance_map;

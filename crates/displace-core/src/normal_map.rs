@@ -19,9 +19,13 @@ use crate::{Address, Extent, HeightMap};
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// Shading normals of a height map's surface for one face's proportions
+/// (Donnelly, GPU Gems 2 ch. 8, section 8.4 reads them in tangent space).
 #[derive(Clone, Debug)]
 pub struct NormalMap {
+    /// Normals per row: the height map's width.
     pub width: usize,
+    /// Rows: the height map's height.
     pub height: usize,
     /// Unit normals in map space (x along u, y along v, z up), row-major,
     /// `data[j * width + i]` at texel centre `(i, j)` as in the height map.

@@ -21,7 +21,9 @@ use glam::{Vec2, Vec3};
 /// A ray in map space; `dir` is unit length in that metric.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MapRay {
+    /// Start of the ray, map space (depth units).
     pub origin: Vec3,
+    /// Direction, unit length in map space ([`MapRay::new`] normalises it).
     pub dir: Vec3,
 }
 
@@ -51,6 +53,7 @@ pub enum Method {
 }
 
 impl Method {
+    /// The name [`str::parse`] accepts (`sphere`, `sphere-fixed`, `exact`).
     pub fn name(self) -> &'static str {
         match self {
             Method::Sphere => "sphere",
@@ -74,14 +77,18 @@ impl std::str::FromStr for Method {
     }
 }
 
+/// How a map-space ray is traced: the method, its step budget and the
+/// interval of `t` that counts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceOptions {
+    /// Which intersector runs.
     pub method: Method,
     /// [`Method::SphereFixed`]: the number of steps. [`Method::Sphere`]: the
     /// most steps before the rest of the ray is walked exactly.
     pub iterations: u32,
     /// Only hits with `t` in `[t_min, t_max]` count.
     pub t_min: f32,
+    /// Upper end of the hit interval (infinite by default).
     pub t_max: f32,
     /// How many tiles of the map the face spans (1 x 1 unless the map
     /// repeats).
@@ -109,8 +116,10 @@ pub enum HitKind {
     Wall,
 }
 
+/// A map-space hit: where, with which normal, and what it cost.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MapHit {
+    /// Ray parameter of the hit: distance from the origin in depth units.
     pub t: f32,
     /// Map space, depth units.
     pub position: Vec3,
@@ -118,6 +127,7 @@ pub struct MapHit {
     pub uv: Vec2,
     /// Geometric normal in map space, unit length.
     pub normal: Vec3,
+    /// Whether the surface or the shell's wall was hit.
     pub kind: HitKind,
     /// Distance-map steps plus patches walked.
     pub iterations: u32,
@@ -129,7 +139,9 @@ pub struct MapHit {
 /// The shell's box, and where the ray crosses it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clip {
+    /// Ray parameter where the ray enters the box (`t_min` if it starts inside).
     pub t_in: f32,
+    /// Ray parameter where the ray leaves the box.
     pub t_out: f32,
     /// Outward normal of the face the ray entered through (zero if the ray
     /// starts inside).

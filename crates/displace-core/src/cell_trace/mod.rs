@@ -71,8 +71,8 @@ mod packet;
 pub use packet::LANES;
 
 /// [`trace`] for many rays, each with its own options, eight at a time
-/// where the CPU allows ([`packet`]): `out[i]` is exactly what
-/// `trace(height, distance, &rays[i], &opts[i])` returns.
+/// where the CPU allows (packets of [`LANES`] rays in AVX2 lanes): `out[i]`
+/// is exactly what `trace(height, distance, &rays[i], &opts[i])` returns.
 ///
 /// # Panics
 /// When the three slices differ in length.

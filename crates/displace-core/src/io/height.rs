@@ -14,9 +14,13 @@ use std::path::Path;
 /// Which channel of a colour image holds the height.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Channel {
+    /// Red.
     R,
+    /// Green.
     G,
+    /// Blue.
     B,
+    /// Alpha.
     A,
 }
 
@@ -53,6 +57,7 @@ pub struct HeightOptions {
     pub channel: Option<Channel>,
     /// Texels of a generated map (`gen:...`); files have their own size.
     pub size: [usize; 2],
+    /// Addressing of the loaded map: whether the surface repeats.
     pub address: Address,
 }
 

@@ -236,9 +236,13 @@ pub fn write(path: &Path, map: &DistanceMap, extent: Extent, format: Format) -> 
 /// A distance map read back from KTX2, with what its key/value data says.
 #[derive(Clone, Debug)]
 pub struct Decoded {
+    /// The distance map, values decoded to depth units.
     pub map: DistanceMap,
+    /// The tile's physical size, from the `displace.extent` key.
     pub extent: Extent,
+    /// The storage format of the file's voxels.
     pub format: Format,
+    /// The `KTXwriter` key (the tool that wrote the file), if present.
     pub writer: Option<String>,
 }
 

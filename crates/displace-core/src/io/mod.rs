@@ -29,14 +29,21 @@ use std::path::{Path, PathBuf};
 /// it into [`Error::Format`] naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum FormatError {
+    /// The file does not start with the format's identifier (named here).
     #[error("not a {0} file (bad magic bytes)")]
     BadMagic(&'static str),
+    /// The file ends before its header or payload says it should.
     #[error("truncated: {0}")]
     Truncated(String),
+    /// Well formed, but using a feature this reader does not accept (another
+    /// pixel format or dtype, supercompression, column-major order, ...).
     #[error("unsupported: {0}")]
     Unsupported(String),
+    /// A header or value that breaks the format's specification, or
+    /// KTX2 `displace.*` key/value data that does not parse.
     #[error("invalid: {0}")]
     Invalid(String),
+    /// A core error (a size refused, an I/O failure) met while decoding.
     #[error(transparent)]
     Core(#[from] Error),
 }
@@ -124,8 +131,13 @@ pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 /// The distance-map file types, chosen by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapFile {
+    /// Khronos KTX 2.0 (`.ktx2`): one 3D level, with the extent, addressing
+    /// and underestimate bound as key/value data.
     Ktx2,
+    /// DirectDraw Surface (`.dds`) with the DX10 header: a volume texture.
     Dds,
+    /// NumPy `.npy`: a C-order `(D, H, W)` float32 array in physical units,
+    /// with no metadata; for Python tools.
     Npy,
 }
 

@@ -17,8 +17,11 @@ const MAGIC: &[u8; 6] = b"\x93NUMPY";
 pub trait Element: Copy + Send + Sync + 'static {
     /// The numpy `descr` string.
     const DESCR: &'static str;
+    /// Bytes per element in the file.
     const SIZE: usize;
+    /// Writes the element's bytes (little-endian) into `out`, `SIZE` long.
     fn put(self, out: &mut [u8]);
+    /// Reads an element from the first `SIZE` bytes (little-endian).
     fn get(bytes: &[u8]) -> Self;
 }
 
@@ -47,7 +50,9 @@ impl Element for u8 {
 /// A C-order array: `data[((i0 * s1) + i1) * s2 + ...]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Array<T> {
+    /// Length of each axis, outermost first.
     pub shape: Vec<usize>,
+    /// The elements in C order; `data.len()` is the product of `shape`.
     pub data: Vec<T>,
 }
 
@@ -114,9 +119,13 @@ pub fn write_file<T: Element>(path: &Path, shape: &[usize], data: &[T]) -> Resul
 /// The parsed header: dtype, order and shape, and where the data starts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Header {
+    /// The NumPy dtype string, such as `<f4` or `|u1`.
     pub descr: String,
+    /// True for column-major (Fortran) data, which readers here refuse.
     pub fortran_order: bool,
+    /// Length of each axis, outermost first.
     pub shape: Vec<usize>,
+    /// Byte offset of the first element: magic, version, length and header.
     pub data_offset: usize,
 }
 

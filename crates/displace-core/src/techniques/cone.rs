@@ -44,13 +44,19 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// `displace compare` use from any height.
 pub const MAX_RATIO: f32 = 1.0e6;
 
+/// Which cones a [`ConeMap`] holds (module docs give both definitions).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ConeKind {
+    /// Cones that contain no surface (Dummer 2006): a step never passes the
+    /// first hit.
     Conservative,
+    /// Relaxed cones (Policarpo and Oliveira, GPU Gems 3 ch. 18): a step
+    /// crosses the surface at most once, and a binary search finds the hit.
     Relaxed,
 }
 
 impl ConeKind {
+    /// `conservative` or `relaxed`, as reports print it.
     pub fn name(self) -> &'static str {
         match self {
             ConeKind::Conservative => "conservative",
@@ -107,12 +113,15 @@ impl ConeMap {
         }
     }
 
+    /// Which cones the map holds.
     pub fn kind(&self) -> ConeKind {
         self.kind
     }
+    /// Ratios per row: the height map's width.
     pub fn width(&self) -> usize {
         self.width
     }
+    /// Rows: the height map's height.
     pub fn height(&self) -> usize {
         self.height
     }
@@ -120,6 +129,7 @@ impl ConeMap {
     pub fn data(&self) -> &[f32] {
         &self.data
     }
+    /// Memory the ratios take as float32.
     pub fn bytes(&self) -> usize {
         self.data.len() * 4
     }

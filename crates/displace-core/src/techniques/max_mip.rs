@@ -69,6 +69,8 @@ impl MaxPyramid {
         Self { levels, dims }
     }
 
+    /// Number of levels, from level 0 (one node per bilinear cell) to the
+    /// coarsest.
     pub fn levels(&self) -> usize {
         self.levels.len()
     }

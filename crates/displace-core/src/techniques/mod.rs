@@ -34,6 +34,7 @@ use glam::{Vec2, Vec3};
 /// A technique's answer for one ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// Ray parameter of the hit (depth units from the ray's origin).
     pub t: f32,
     /// Map space, depth units.
     pub position: Vec3,
@@ -44,7 +45,9 @@ pub struct Hit {
 /// Hit (or miss) plus what it cost.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Traced {
+    /// The hit the technique believes in; `None` when it says the ray misses.
     pub hit: Option<Hit>,
+    /// Texture fetches spent, counted alike for every technique (module docs).
     pub fetches: u32,
 }
 
@@ -86,6 +89,7 @@ pub enum Technique {
 }
 
 impl Technique {
+    /// Every technique; the WGSL technique codes follow this order.
     pub const ALL: [Technique; 11] = [
         Technique::Parallax,
         Technique::Steep,
@@ -100,6 +104,7 @@ impl Technique {
         Technique::Distance,
     ];
 
+    /// The name [`str::parse`] accepts and reports print.
     pub fn name(self) -> &'static str {
         match self {
             Technique::Parallax => "parallax",
@@ -190,22 +195,32 @@ impl std::str::FromStr for Technique {
 /// The precomputation a technique reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Needs {
+    /// The height map alone (the parallax and relief families).
     Nothing,
+    /// Conservative cone ratios (Dummer 2006 cone step mapping).
     ConservativeCones,
+    /// Relaxed cone ratios (Policarpo and Oliveira, GPU Gems 3 ch. 18).
     RelaxedCones,
+    /// The maximum mipmap (Tevs, Ihrke and Seidel 2008).
     Pyramid,
+    /// The baked distance map (Donnelly, GPU Gems 2 ch. 8).
     DistanceMap,
 }
 
 /// One height map and whatever precomputations were built for it.
 #[derive(Clone, Debug)]
 pub struct Maps {
+    /// The heights every technique samples.
     pub height: HeightMap,
     /// Tile size in shell depths (`Extent::aspect`).
     pub aspect: [f32; 2],
+    /// Conservative cone map, for [`Technique::Cone`].
     pub cones: Option<ConeMap>,
+    /// Relaxed cone map, for [`Technique::RelaxedCone`].
     pub relaxed: Option<ConeMap>,
+    /// Maximum mipmap, for [`Technique::MaxMip`].
     pub pyramid: Option<MaxPyramid>,
+    /// Baked distance map, for the two distance techniques.
     pub displacement: Option<DisplacementMap>,
 }
 
