@@ -1,0 +1,525 @@
+//! The plugin against `displace-gpu` (the renderer behind `displace
+//! gpu-render`) and against the CPU's exact trace, on one displaced quad
+//! seen by the same pinhole camera (GPU Gems 2 ch. 8, section 8.5):
+//! - the displaced texture coordinate agrees on >= 99% of the pixels both
+//!   cover, and the checkerboard images agree within a FLIP threshold;
+//! - the depth the prepass holds is the depth of the displaced point;
+//! - the shadow map holds the displaced shape: a bump shadows the floor
+//!   where the exact trace says it does.
+//!
+//! On lavapipe in CI. A machine without an adapter fails these tests in CI
+//! (`CI` set) and elsewhere unless `DISPLACE_ALLOW_NO_GPU=1`
+//! (`displace_gpu::test_support`).
+
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::{Hdr, RenderTarget};
+use bevy::core_pipeline::prepass::DepthPrepass;
+use bevy::core_pipeline::schedule::Core3d;
+use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
+use bevy::core_pipeline::Core3dSystems;
+use bevy::image::{ImageAddressMode, ImageFilterMode, ImageSampler, ImageSamplerDescriptor};
+use bevy::mesh::{Indices, PrimitiveTopology};
+use bevy::prelude::*;
+use bevy::render::camera::ExtractedCamera;
+use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::{
+    Extent3d, Origin3d, TexelCopyTextureInfo, TextureAspect, TextureDimension, TextureFormat,
+    TextureUsages,
+};
+use bevy::render::renderer::{RenderContext, ViewQuery};
+use bevy::render::texture::GpuImage;
+use bevy::render::view::ViewDepthTexture;
+use bevy::render::RenderApp;
+use displace_bevy::headless::Headless;
+use displace_bevy::{DistanceMappedMaterial, DistanceMapping, Encoding, Output};
+use displace_core::{bake, BakeOptions};
+use displace_core::{Address, DisplacementMap, Extent, Method, TraceOptions};
+use displace_gpu::raster::checker_mips;
+use displace_gpu::{DistanceTexture, PlaneScene, Renderer, Shadows};
+use std::sync::{Arc, Mutex};
+
+const W: u32 = 192;
+const H: u32 = 128;
+
+/// Bevy apps are heavy on two cores: one at a time.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn map(source: &str) -> DisplacementMap {
+    let opts = displace_core::io::height::HeightOptions {
+        size: [64, 64],
+        address: Address::Clamp,
+        ..Default::default()
+    };
+    let height = displace_core::io::height::load(source, &opts).unwrap();
+    bake(
+        &height,
+        &BakeOptions {
+            size: [64, 64, 16],
+            extent: Extent {
+                sx: 1.0,
+                sy: 1.0,
+                sz: 0.15,
+            },
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// displace-gpu's built-in plane (gpu-render without a scene file),
+/// shading reduced to the colour texture: ambient 1, no light, no
+/// specular, no shadows.
+fn gpu_scene(map: &DisplacementMap) -> PlaneScene {
+    let mut scene = PlaneScene::for_map(map, [W, H]);
+    scene.shadows = Shadows::None;
+    scene.ambient = 1.0;
+    scene.light_intensity = 0.0;
+    scene.specular = 0.0;
+    scene.iterations = 64;
+    scene.method = Method::Sphere;
+    scene
+}
+
+/// The top of the scene's shell as a Bevy mesh (our material marches down
+/// from the mesh; displace-gpu's face is the shell's bottom): texture
+/// coordinate (0, 0) at the origin, u along the tangent, v along the
+/// bitangent, wound counter-clockwise seen from the normal's side.
+fn shell_top(scene: &PlaneScene) -> Mesh {
+    let n = scene.normal();
+    let o = scene.origin + n * scene.depth;
+    let (t, b) = (scene.tangent, scene.bitangent);
+    let positions = vec![o, o + t, o + t + b, o + b];
+    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD)
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        )
+        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![n.to_array(); 4])
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_UV_0,
+            vec![[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        )
+        .with_inserted_indices(Indices::U32(vec![0, 1, 2, 0, 2, 3]))
+}
+
+/// The scene's pinhole camera in Bevy: same eye, target, up and vertical
+/// field of view, so pixel (x, y) looks along the same ray.
+fn camera(scene: &PlaneScene, target: RenderTarget) -> impl Bundle {
+    (
+        Camera3d::default(),
+        target,
+        Projection::Perspective(PerspectiveProjection {
+            fov: scene.fov_y_degrees.to_radians(),
+            aspect_ratio: W as f32 / H as f32,
+            near: 0.01,
+            ..default()
+        }),
+        Transform::from_translation(scene.eye).looking_at(scene.target, scene.up),
+        Msaa::Off,
+        Tonemapping::None,
+        DebandDither::Disabled,
+    )
+}
+
+/// Donnelly's checkerboard, the very texels displace-gpu samples, as a
+/// mipmapped sRGB Bevy image with its sampler.
+fn checker_image() -> Image {
+    let mips = checker_mips(256, 16);
+    let mut image = Image::new(
+        Extent3d {
+            width: 256,
+            height: 256,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        mips.concat(),
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    image.texture_descriptor.mip_level_count = mips.len() as u32;
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: ImageAddressMode::ClampToEdge,
+        address_mode_v: ImageAddressMode::ClampToEdge,
+        mag_filter: ImageFilterMode::Linear,
+        min_filter: ImageFilterMode::Linear,
+        mipmap_filter: ImageFilterMode::Linear,
+        ..default()
+    });
+    image
+}
+
+/// Spawns the quad with our material (unlit checkerboard, or the hit as
+/// data) into `app`.
+fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, output: Output) {
+    let world = app.world_mut();
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(shell_top(scene));
+    let (mapping, checker) = {
+        let mut images = world.resource_mut::<Assets<Image>>();
+        let mapping = DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap();
+        (mapping, images.add(checker_image()))
+    };
+    let material = world
+        .resource_mut::<Assets<DistanceMappedMaterial>>()
+        .add(DistanceMappedMaterial {
+            base: StandardMaterial {
+                base_color_texture: Some(checker),
+                unlit: true,
+                ..default()
+            },
+            extension: mapping
+                .with_depth(scene.depth)
+                .with_iterations(scene.iterations)
+                .with_output(output),
+        });
+    world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
+    world.insert_resource(ClearColor(Color::linear_rgb(0.02, 0.02, 0.03)));
+}
+
+/// One little-endian binary16 channel.
+fn half(bytes: &[u8]) -> f32 {
+    half::f16::from_le_bytes([bytes[0], bytes[1]]).to_f32()
+}
+
+#[test]
+fn displaced_uv_and_image_agree_with_displace_gpu() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(ctx) = displace_gpu::test_support::test_context() else {
+        return;
+    };
+    let map = map("gen:studded");
+    let scene = gpu_scene(&map);
+    let reference = Renderer::new(ctx, &map, DistanceTexture::R8Linear)
+        .unwrap()
+        .render(ctx, &scene)
+        .unwrap();
+
+    // The hit as data, in a float target.
+    let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
+    spawn_quad(&mut app, &map, &scene, Output::Hit);
+    let target = app.target();
+    app.world_mut().spawn((camera(&scene, target), Hdr));
+    let hits = app.capture().expect("a frame");
+    drop(app);
+    let data = hits.data.as_ref().unwrap();
+    assert_eq!(data.len(), (W * H * 8) as usize);
+    let (mut both, mut agree, mut only_one) = (0usize, 0usize, 0usize);
+    for (i, aov) in reference.uv.iter().enumerate() {
+        let px = &data[i * 8..i * 8 + 8];
+        let bevy_hit = half(&px[6..8]) > 0.5;
+        let gpu_hit = aov[2] != 0.0;
+        if bevy_hit != gpu_hit {
+            only_one += 1;
+        }
+        if bevy_hit && gpu_hit {
+            both += 1;
+            let du = (half(&px[0..2]) - aov[0]).abs();
+            let dv = (half(&px[2..4]) - aov[1]).abs();
+            // Half a height texel (64 texels), well above binary16's
+            // resolution below 1 (2^-11).
+            if du.max(dv) <= 0.5 / 64.0 {
+                agree += 1;
+            }
+        }
+    }
+    let covered = reference.uv.iter().filter(|a| a[2] != 0.0).count();
+    assert!(covered > (W * H / 4) as usize, "the face covers {covered} pixels");
+    let ratio = agree as f64 / both as f64;
+    eprintln!(
+        "uv: {agree}/{both} agree ({:.3}%), {only_one} pixels covered by one renderer only",
+        100.0 * ratio
+    );
+    assert!(ratio >= 0.99, "displaced uv agrees on {:.3}% of the pixels both cover", 100.0 * ratio);
+    // displace-gpu draws the shell's whole box; the material draws the
+    // mesh (the top face), so rays entering through the box's near wall
+    // are displace-gpu's alone: a strip along the near edge.
+    assert!(
+        (only_one as f64) <= 0.1 * covered as f64,
+        "{only_one} pixels are covered by one renderer only"
+    );
+
+    // The checkerboard at the displaced coordinate, sRGB.
+    let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
+    spawn_quad(&mut app, &map, &scene, Output::Shaded);
+    let target = app.target();
+    app.world_mut().spawn(camera(&scene, target));
+    let shaded = app.capture().expect("a frame");
+    drop(app);
+    let rgb = |rgba: &[u8]| -> Vec<u8> {
+        rgba.chunks_exact(4)
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect()
+    };
+    let err = nv_flip::flip(
+        nv_flip::FlipImageRgb8::with_data(W, H, &rgb(&reference.rgba8)),
+        nv_flip::FlipImageRgb8::with_data(W, H, &rgb(shaded.data.as_ref().unwrap())),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    );
+    let mean = nv_flip::FlipPool::from_image(&err).mean();
+    eprintln!("FLIP mean {mean:.4}");
+    // Same texels, same coordinates, same mips: what differs is the
+    // derivatives' source (the shell box's faces against the mesh) and a
+    // pixel's worth of coverage at the silhouette.
+    assert!(mean < 0.05, "FLIP mean {mean}");
+}
+
+/// The prepass depth copied out before the main pass, as in Bevy's
+/// `render_depth_to_texture` example.
+#[derive(Resource, Clone, ExtractResource)]
+struct DepthCopy(Handle<Image>);
+
+fn copy_prepass_depth(
+    view: ViewQuery<(&ExtractedCamera, &ViewDepthTexture)>,
+    copy: Option<Res<DepthCopy>>,
+    images: Res<RenderAssets<GpuImage>>,
+    mut ctx: RenderContext,
+) {
+    let Some(copy) = copy else { return };
+    let (_, depth) = view.into_inner();
+    let Some(dst) = images.get(copy.0.id()) else {
+        return;
+    };
+    ctx.command_encoder().copy_texture_to_texture(
+        TexelCopyTextureInfo {
+            texture: &depth.texture,
+            mip_level: 0,
+            origin: Origin3d::default(),
+            aspect: TextureAspect::DepthOnly,
+        },
+        TexelCopyTextureInfo {
+            texture: &dst.texture,
+            mip_level: 0,
+            origin: Origin3d::default(),
+            aspect: TextureAspect::DepthOnly,
+        },
+        Extent3d {
+            width: W,
+            height: H,
+            depth_or_array_layers: 1,
+        },
+    );
+}
+
+#[test]
+fn prepass_depth_is_the_depth_of_the_displaced_point() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    // The adapter policy of the other GPU tests.
+    if displace_gpu::test_support::test_context().is_none() {
+        return;
+    }
+    let map = map("gen:studded");
+    let scene = gpu_scene(&map);
+    let mut app = Headless::with(W, H, TextureFormat::Rgba8UnormSrgb, |app| {
+        app.add_plugins(ExtractResourcePlugin::<DepthCopy>::default());
+        app.sub_app_mut(RenderApp).add_systems(
+            Core3d,
+            copy_prepass_depth
+                .after(Core3dSystems::Prepass)
+                .before(Core3dSystems::MainPass),
+        );
+    });
+    spawn_quad(&mut app, &map, &scene, Output::Shaded);
+    let mut depth = Image::new_uninit(
+        Extent3d {
+            width: W,
+            height: H,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        TextureFormat::Depth32Float,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    depth.texture_descriptor.usage |=
+        TextureUsages::COPY_DST | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
+    let depth = app.world_mut().resource_mut::<Assets<Image>>().add(depth);
+    app.world_mut().insert_resource(DepthCopy(depth.clone()));
+    let target = app.target();
+    app.world_mut()
+        .spawn((camera(&scene, target), DepthPrepass));
+    app.update();
+    app.update();
+    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let sink = slot.clone();
+    app.world_mut()
+        .spawn(Readback::texture(depth))
+        .observe(move |done: On<ReadbackComplete>| {
+            *sink.lock().unwrap() = Some(done.data.clone());
+        });
+    let mut bytes = None;
+    for _ in 0..16 {
+        app.update();
+        if let Some(b) = slot.lock().unwrap().take() {
+            bytes = Some(b);
+            break;
+        }
+    }
+    let bytes = bytes.expect("the depth read-back came back");
+    assert_eq!(bytes.len(), (W * H * 4) as usize, "rows of {W} f32 are 256-byte aligned");
+
+    // Bevy's reverse-Z infinite perspective: depth = near / view distance
+    // along the camera axis.
+    let near = 0.01f32;
+    let forward = (scene.target - scene.eye).normalize();
+    let [ax, ay] = map.aspect();
+    let n = scene.normal();
+    let opts = TraceOptions {
+        method: Method::Exact,
+        ..Default::default()
+    };
+    let (mut both, mut close, mut coverage_differs) = (0usize, 0usize, 0usize);
+    for y in 0..H {
+        for x in 0..W {
+            let i = (y * W + x) as usize * 4;
+            let d = f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+            let ray = scene.pixel_ray(&map, x, y);
+            let hit = map.trace(&ray, &opts);
+            match (hit, d > 0.0) {
+                (Some(hit), true) => {
+                    both += 1;
+                    let p = hit.position;
+                    let world = scene.origin
+                        + scene.tangent * (p.x / ax)
+                        + scene.bitangent * (p.y / ay)
+                        + n * (p.z * scene.depth);
+                    let exact = (world - scene.eye).dot(forward);
+                    let written = near / d;
+                    // In shell depths.
+                    if ((written - exact) / scene.depth).abs() <= 1e-3 {
+                        close += 1;
+                    }
+                }
+                (None, false) => {}
+                _ => coverage_differs += 1,
+            }
+        }
+    }
+    let ratio = close as f64 / both as f64;
+    eprintln!(
+        "prepass depth: {close}/{both} within 1e-3 shell depths ({:.3}%), coverage differs on {coverage_differs}",
+        100.0 * ratio
+    );
+    assert!(both > (W * H / 4) as usize, "{both} pixels hit");
+    assert!(ratio >= 0.99, "{:.3}% within 1e-3 shell depths", 100.0 * ratio);
+    assert!(coverage_differs as f64 <= 0.01 * both as f64);
+}
+
+/// Renders the quad lit white by a low directional light, with or without
+/// its shadow map, and returns the sRGB pixels.
+fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: bool) -> Vec<u8> {
+    use bevy::light::{CascadeShadowConfigBuilder, DirectionalLightShadowMap};
+    let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
+    {
+        let world = app.world_mut();
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(shell_top(scene));
+        let mapping = {
+            let mut images = world.resource_mut::<Assets<Image>>();
+            DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap()
+        };
+        let material = world
+            .resource_mut::<Assets<DistanceMappedMaterial>>()
+            .add(DistanceMappedMaterial {
+                base: StandardMaterial {
+                    base_color: Color::WHITE,
+                    perceptual_roughness: 1.0,
+                    reflectance: 0.0,
+                    ..default()
+                },
+                extension: mapping
+                    .with_depth(scene.depth)
+                    .with_iterations(scene.iterations),
+            });
+        world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
+        world.insert_resource(GlobalAmbientLight {
+            brightness: 0.0,
+            ..default()
+        });
+        world.insert_resource(DirectionalLightShadowMap { size: 2048 });
+        world.spawn((
+            DirectionalLight {
+                illuminance: 10_000.0,
+                shadow_maps_enabled: shadows,
+                ..default()
+            },
+            Transform::from_translation(scene.target + to_light).looking_at(scene.target, Vec3::Z),
+            CascadeShadowConfigBuilder {
+                num_cascades: 1,
+                minimum_distance: 0.01,
+                maximum_distance: 4.0,
+                first_cascade_far_bound: 4.0,
+                overlap_proportion: 0.2,
+            }
+            .build(),
+        ));
+    }
+    let target = app.target();
+    app.world_mut().spawn(camera(scene, target));
+    let image = app.capture().expect("a frame");
+    image.data.unwrap()
+}
+
+#[test]
+fn a_displaced_bump_casts_its_own_shadow() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    if displace_gpu::test_support::test_context().is_none() {
+        return;
+    }
+    // One tall bump on a flat floor: a flat quad casts no shadow on itself;
+    // the displaced one shadows the floor behind the bump.
+    let map = map("gen:gaussian");
+    let mut scene = gpu_scene(&map);
+    scene.depth = 0.3;
+    // Low light from -x: the bump's shadow falls towards +x.
+    let to_light = Vec3::new(-1.0, 0.15, 0.45).normalize();
+    let lit = lit_quad(&map, &scene, to_light * 3.0, true);
+    let unshadowed = lit_quad(&map, &scene, to_light * 3.0, false);
+
+    let [ax, ay] = map.aspect();
+    let n = scene.normal();
+    let to_map = |v: Vec3| {
+        Vec3::new(
+            v.dot(scene.tangent) / scene.tangent.length_squared() * ax,
+            v.dot(scene.bitangent) / scene.bitangent.length_squared() * ay,
+            v.dot(n) / scene.depth,
+        )
+    };
+    let l_map = to_map(to_light).normalize();
+    let opts = TraceOptions {
+        method: Method::Exact,
+        ..Default::default()
+    };
+    let luma = |p: &[u8]| p[0] as f32 + p[1] as f32 + p[2] as f32;
+    let (mut both, mut agree, mut exact_shadowed, mut bevy_shadowed) = (0, 0, 0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let i = (y * W + x) as usize * 4;
+            let Some(hit) = map.trace(&scene.pixel_ray(&map, x, y), &opts) else {
+                continue;
+            };
+            let off = luma(&unshadowed[i..i + 4]);
+            if off < 30.0 {
+                // Facing away from the light: shadowed either way.
+                continue;
+            }
+            both += 1;
+            let start = hit.position + hit.normal * 1e-3;
+            let exact = map.occluded(&displace_core::MapRay::new(start, l_map), &opts);
+            let bevy = luma(&lit[i..i + 4]) < 0.5 * off;
+            exact_shadowed += usize::from(exact);
+            bevy_shadowed += usize::from(bevy);
+            agree += usize::from(exact == bevy);
+        }
+    }
+    let ratio = agree as f64 / both as f64;
+    eprintln!(
+        "shadow: {agree}/{both} lit pixels agree ({:.2}%); shadowed: exact {exact_shadowed}, Bevy {bevy_shadowed}",
+        100.0 * ratio
+    );
+    assert!(exact_shadowed > 200, "the bump shadows {exact_shadowed} pixels");
+    assert!(
+        bevy_shadowed as f64 > 0.5 * exact_shadowed as f64,
+        "the shadow map holds no bump: {bevy_shadowed} shadowed pixels against {exact_shadowed}"
+    );
+    // A shadow map's texels, filter and biases blur the edge.
+    assert!(ratio >= 0.9, "shadowed where the exact trace says on {:.2}%", 100.0 * ratio);
+}
