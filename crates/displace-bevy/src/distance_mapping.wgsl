@@ -40,8 +40,8 @@ struct DistanceMappingSettings {
     depth: f32,
     // OUTPUT_SHADED, or OUTPUT_HIT: the hit as data for tests.
     output: u32,
-    _pad0: u32,
-    _pad1: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 const OUTPUT_SHADED: u32 = 0u;

@@ -20,6 +20,9 @@ use std::sync::{Arc, Mutex};
 /// Frames pumped after a screenshot is requested before giving up: the
 /// read-back lands a frame or two later.
 const CAPTURE_FRAMES: u32 = 16;
+/// Frames rendered before the screenshot: assets (meshes, images, material
+/// bind groups) are prepared over the first frames after they are added.
+const WARMUP_FRAMES: u32 = 4;
 
 /// Why a headless frame did not come back.
 #[derive(Debug, thiserror::Error)]
@@ -116,6 +119,9 @@ impl Headless {
     /// Renders frames until a screenshot of the target comes back, and
     /// returns it (in the target's format).
     pub fn capture(&mut self) -> Result<Image, HeadlessError> {
+        for _ in 0..WARMUP_FRAMES {
+            self.update();
+        }
         let slot: Arc<Mutex<Option<Image>>> = Arc::default();
         let sink = slot.clone();
         let target = self.target.clone();

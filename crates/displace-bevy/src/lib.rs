@@ -127,7 +127,7 @@ pub struct MapParams {
     pub iterations: u32,
     pub t_min: f32,
     pub t_max: f32,
-    pub _pad: u32,
+    pub pad_end: u32,
 }
 
 /// What the fragment stage writes ([`DistanceMapping::output`]).
@@ -150,8 +150,8 @@ pub struct DistanceMappingSettings {
     /// depths.
     pub depth: f32,
     pub output: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+    pub pad_a: u32,
+    pub pad_b: u32,
 }
 
 /// How the march ends (section 8.5.2).
@@ -417,15 +417,15 @@ impl DistanceMapping {
                 iterations: 16,
                 t_min: 0.0,
                 t_max: big,
-                _pad: 0,
+                pad_end: 0,
             },
             height: height_image,
             distance: distance_image,
             settings: DistanceMappingSettings {
                 depth,
                 output: 0,
-                _pad0: 0,
-                _pad1: 0,
+                pad_a: 0,
+                pad_b: 0,
             },
         }
     }

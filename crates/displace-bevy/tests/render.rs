@@ -1,15 +1,16 @@
-//! The plugin against `displace-gpu` (the renderer behind `displace
-//! gpu-render`) and against the CPU's exact trace, on one displaced quad
-//! seen by the same pinhole camera (GPU Gems 2 ch. 8, section 8.5):
-//! - the displaced texture coordinate agrees on >= 99% of the pixels both
-//!   cover, and the checkerboard images agree within a FLIP threshold;
+//! The plugin against the CPU's exact trace (`displace-core`, which
+//! `displace gpu-render` agrees with on every pixel of a planar face), on
+//! one displaced quad seen by a pinhole camera (GPU Gems 2 ch. 8, section
+//! 8.5):
+//! - the displaced texture coordinate the fragment computes agrees with the
+//!   exact hit's on >= 99% of the pixels both cover;
 //! - the depth the prepass holds is the depth of the displaced point;
 //! - the shadow map holds the displaced shape: a bump shadows the floor
 //!   where the exact trace says it does.
 //!
-//! On lavapipe in CI. A machine without an adapter fails these tests in CI
-//! (`CI` set) and elsewhere unless `DISPLACE_ALLOW_NO_GPU=1`
-//! (`displace_gpu::test_support`).
+//! On lavapipe in CI. A machine where Bevy finds no adapter fails these
+//! tests in CI (`CI` set) and elsewhere unless `DISPLACE_ALLOW_NO_GPU=1`,
+//! the policy of displace-gpu's tests.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{Hdr, RenderTarget};
@@ -17,7 +18,6 @@ use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::core_pipeline::Core3dSystems;
-use bevy::image::{ImageAddressMode, ImageFilterMode, ImageSampler, ImageSamplerDescriptor};
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::camera::ExtractedCamera;
@@ -35,9 +35,7 @@ use bevy::render::RenderApp;
 use displace_bevy::headless::Headless;
 use displace_bevy::{DistanceMappedMaterial, DistanceMapping, Encoding, Output};
 use displace_core::{bake, BakeOptions};
-use displace_core::{Address, DisplacementMap, Extent, Method, TraceOptions};
-use displace_gpu::raster::checker_mips;
-use displace_gpu::{DistanceTexture, PlaneScene, Renderer, Shadows};
+use displace_core::{Address, DisplacementMap, Extent, MapRay, Method, TraceOptions};
 use std::sync::{Arc, Mutex};
 
 const W: u32 = 192;
@@ -68,18 +66,105 @@ fn map(source: &str) -> DisplacementMap {
     .unwrap()
 }
 
-/// displace-gpu's built-in plane (gpu-render without a scene file),
-/// shading reduced to the colour texture: ambient 1, no light, no
-/// specular, no shadows.
-fn gpu_scene(map: &DisplacementMap) -> PlaneScene {
-    let mut scene = PlaneScene::for_map(map, [W, H]);
-    scene.shadows = Shadows::None;
-    scene.ambient = 1.0;
-    scene.light_intensity = 0.0;
-    scene.specular = 0.0;
-    scene.iterations = 64;
-    scene.method = Method::Sphere;
-    scene
+/// displace-gpu's built-in plane (`PlaneScene::for_map`, what `displace
+/// gpu-render` draws without a scene file): the face spans `[0, sx] x [0,
+/// sy]` at z = 0 (the shell's bottom), seen obliquely from above.
+struct PlaneScene {
+    eye: Vec3,
+    target: Vec3,
+    up: Vec3,
+    fov_y_degrees: f32,
+    origin: Vec3,
+    tangent: Vec3,
+    bitangent: Vec3,
+    depth: f32,
+    iterations: u32,
+}
+
+impl PlaneScene {
+    fn for_map(map: &DisplacementMap) -> Self {
+        let e = map.extent;
+        let centre = Vec3::new(e.sx * 0.5, e.sy * 0.5, 0.0);
+        let reach = e.sx.max(e.sy);
+        Self {
+            eye: centre + Vec3::new(-0.35, -1.0, 0.8) * reach,
+            target: centre,
+            up: Vec3::Z,
+            fov_y_degrees: 45.0,
+            origin: Vec3::ZERO,
+            tangent: Vec3::new(e.sx, 0.0, 0.0),
+            bitangent: Vec3::new(0.0, e.sy, 0.0),
+            depth: e.sz,
+            iterations: 64,
+        }
+    }
+
+    fn normal(&self) -> Vec3 {
+        self.tangent.cross(self.bitangent).normalize()
+    }
+
+    /// World vector to map space (depth units).
+    fn to_map(&self, map: &DisplacementMap, v: Vec3) -> Vec3 {
+        let [ax, ay] = map.aspect();
+        Vec3::new(
+            v.dot(self.tangent) / self.tangent.length_squared() * ax,
+            v.dot(self.bitangent) / self.bitangent.length_squared() * ay,
+            v.dot(self.normal()) / self.depth,
+        )
+    }
+
+    /// The camera ray through the centre of pixel `(x, y)`, in map space.
+    fn pixel_ray(&self, map: &DisplacementMap, x: u32, y: u32) -> MapRay {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        let tan = (self.fov_y_degrees.to_radians() * 0.5).tan();
+        let sx = ((x as f32 + 0.5) / W as f32 * 2.0 - 1.0) * tan * W as f32 / H as f32;
+        let sy = (1.0 - (y as f32 + 0.5) / H as f32 * 2.0) * tan;
+        let dir = forward + right * sx + up * sy;
+        // displace-core's glam is not Bevy's: through arrays.
+        MapRay::new(
+            self.to_map(map, self.eye - self.origin).to_array().into(),
+            self.to_map(map, dir).to_array().into(),
+        )
+    }
+
+    /// World point of a map-space point.
+    fn world(&self, map: &DisplacementMap, p: Vec3) -> Vec3 {
+        let [ax, ay] = map.aspect();
+        self.origin + self.tangent * (p.x / ax) + self.bitangent * (p.y / ay) + self.normal() * (p.z * self.depth)
+    }
+}
+
+/// Whether the map-space ray crosses the shell's top face (z = 1 over the
+/// face) on its way down: the rays the mesh, which is that face, can
+/// start. The others enter through the shell's sides, which displace-gpu
+/// draws as a box and the material, like Donnelly's polygon, does not.
+fn enters_through_top(map: &DisplacementMap, ray: &MapRay) -> bool {
+    let [ax, ay] = map.aspect();
+    if ray.dir.z >= 0.0 {
+        return false;
+    }
+    let t = (1.0 - ray.origin.z) / ray.dir.z;
+    let p = ray.origin + ray.dir * t;
+    (0.0..=ax).contains(&p.x) && (0.0..=ay).contains(&p.y)
+}
+
+/// Bevy's frame, or the adapter policy's verdict.
+fn frame(app: &mut Headless) -> Option<Image> {
+    match app.capture() {
+        Ok(image) => Some(image),
+        Err(e) => {
+            if std::env::var_os("CI").is_some() {
+                panic!("GPU test: no frame in CI ({e}); CI must install mesa-vulkan-drivers");
+            }
+            if std::env::var("DISPLACE_ALLOW_NO_GPU").is_ok_and(|v| v == "1") {
+                eprintln!("!!!!!!!! DISPLACE_ALLOW_NO_GPU=1: skipping this GPU test ({e})");
+                return None;
+            }
+            panic!("no frame ({e}); install mesa-vulkan-drivers, or set DISPLACE_ALLOW_NO_GPU=1");
+        }
+    }
 }
 
 /// The top of the scene's shell as a Bevy mesh (our material marches down
@@ -123,48 +208,19 @@ fn camera(scene: &PlaneScene, target: RenderTarget) -> impl Bundle {
     )
 }
 
-/// Donnelly's checkerboard, the very texels displace-gpu samples, as a
-/// mipmapped sRGB Bevy image with its sampler.
-fn checker_image() -> Image {
-    let mips = checker_mips(256, 16);
-    let mut image = Image::new(
-        Extent3d {
-            width: 256,
-            height: 256,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        mips.concat(),
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::RENDER_WORLD,
-    );
-    image.texture_descriptor.mip_level_count = mips.len() as u32;
-    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
-        address_mode_u: ImageAddressMode::ClampToEdge,
-        address_mode_v: ImageAddressMode::ClampToEdge,
-        mag_filter: ImageFilterMode::Linear,
-        min_filter: ImageFilterMode::Linear,
-        mipmap_filter: ImageFilterMode::Linear,
-        ..default()
-    });
-    image
-}
-
-/// Spawns the quad with our material (unlit checkerboard, or the hit as
-/// data) into `app`.
+/// Spawns the quad with our material (unlit, or the hit as data) into
+/// `app`.
 fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, output: Output) {
     let world = app.world_mut();
     let mesh = world.resource_mut::<Assets<Mesh>>().add(shell_top(scene));
-    let (mapping, checker) = {
+    let mapping = {
         let mut images = world.resource_mut::<Assets<Image>>();
-        let mapping = DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap();
-        (mapping, images.add(checker_image()))
+        DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap()
     };
     let material = world
         .resource_mut::<Assets<DistanceMappedMaterial>>()
         .add(DistanceMappedMaterial {
             base: StandardMaterial {
-                base_color_texture: Some(checker),
                 unlit: true,
                 ..default()
             },
@@ -174,7 +230,8 @@ fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, out
                 .with_output(output),
         });
     world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
-    world.insert_resource(ClearColor(Color::linear_rgb(0.02, 0.02, 0.03)));
+    // Alpha 0 where nothing is drawn: a hit writes alpha 1.
+    world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
 }
 
 /// One little-endian binary16 channel.
@@ -183,85 +240,64 @@ fn half(bytes: &[u8]) -> f32 {
 }
 
 #[test]
-fn displaced_uv_and_image_agree_with_displace_gpu() {
+fn displaced_uv_agrees_with_the_exact_hit() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let Some(ctx) = displace_gpu::test_support::test_context() else {
-        return;
-    };
     let map = map("gen:studded");
-    let scene = gpu_scene(&map);
-    let reference = Renderer::new(ctx, &map, DistanceTexture::R8Linear)
-        .unwrap()
-        .render(ctx, &scene)
-        .unwrap();
-
+    let scene = PlaneScene::for_map(&map);
     // The hit as data, in a float target.
     let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
     spawn_quad(&mut app, &map, &scene, Output::Hit);
     let target = app.target();
     app.world_mut().spawn((camera(&scene, target), Hdr));
-    let hits = app.capture().expect("a frame");
+    let Some(hits) = frame(&mut app) else { return };
     drop(app);
     let data = hits.data.as_ref().unwrap();
     assert_eq!(data.len(), (W * H * 8) as usize);
-    let (mut both, mut agree, mut only_one) = (0usize, 0usize, 0usize);
-    for (i, aov) in reference.uv.iter().enumerate() {
-        let px = &data[i * 8..i * 8 + 8];
-        let bevy_hit = half(&px[6..8]) > 0.5;
-        let gpu_hit = aov[2] != 0.0;
-        if bevy_hit != gpu_hit {
-            only_one += 1;
-        }
-        if bevy_hit && gpu_hit {
-            both += 1;
-            let du = (half(&px[0..2]) - aov[0]).abs();
-            let dv = (half(&px[2..4]) - aov[1]).abs();
-            // Half a height texel (64 texels), well above binary16's
-            // resolution below 1 (2^-11).
-            if du.max(dv) <= 0.5 / 64.0 {
-                agree += 1;
+    let opts = TraceOptions {
+        method: Method::Exact,
+        ..Default::default()
+    };
+    let [ax, ay] = map.aspect();
+    let (mut both, mut agree, mut only_bevy, mut only_exact, mut missed) = (0, 0, 0, 0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let i = (y * W + x) as usize * 8;
+            let px = &data[i..i + 8];
+            let bevy_hit = half(&px[6..8]) > 0.5;
+            let ray = scene.pixel_ray(&map, x, y);
+            let exact = map.trace(&ray, &opts);
+            match (bevy_hit, exact) {
+                (true, Some(h)) => {
+                    both += 1;
+                    let du = (half(&px[0..2]) - h.position.x / ax).abs();
+                    let dv = (half(&px[2..4]) - h.position.y / ay).abs();
+                    // Half a height texel (64 texels), well above binary16's
+                    // resolution below 1 (2^-11).
+                    if du.max(dv) <= 0.5 / 64.0 {
+                        agree += 1;
+                    }
+                }
+                (true, None) => only_bevy += 1,
+                (false, Some(_)) => {
+                    only_exact += 1;
+                    missed += usize::from(enters_through_top(&map, &ray));
+                }
+                (false, None) => {}
             }
         }
     }
-    let covered = reference.uv.iter().filter(|a| a[2] != 0.0).count();
-    assert!(covered > (W * H / 4) as usize, "the face covers {covered} pixels");
     let ratio = agree as f64 / both as f64;
     eprintln!(
-        "uv: {agree}/{both} agree ({:.3}%), {only_one} pixels covered by one renderer only",
+        "uv: {agree}/{both} agree ({:.3}%); covered by Bevy only {only_bevy}, by the exact trace only {only_exact} ({missed} of them entering through the top)",
         100.0 * ratio
     );
+    assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
     assert!(ratio >= 0.99, "displaced uv agrees on {:.3}% of the pixels both cover", 100.0 * ratio);
-    // displace-gpu draws the shell's whole box; the material draws the
-    // mesh (the top face), so rays entering through the box's near wall
-    // are displace-gpu's alone: a strip along the near edge.
-    assert!(
-        (only_one as f64) <= 0.1 * covered as f64,
-        "{only_one} pixels are covered by one renderer only"
-    );
-
-    // The checkerboard at the displaced coordinate, sRGB.
-    let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
-    spawn_quad(&mut app, &map, &scene, Output::Shaded);
-    let target = app.target();
-    app.world_mut().spawn(camera(&scene, target));
-    let shaded = app.capture().expect("a frame");
-    drop(app);
-    let rgb = |rgba: &[u8]| -> Vec<u8> {
-        rgba.chunks_exact(4)
-            .flat_map(|p| [p[0], p[1], p[2]])
-            .collect()
-    };
-    let err = nv_flip::flip(
-        nv_flip::FlipImageRgb8::with_data(W, H, &rgb(&reference.rgba8)),
-        nv_flip::FlipImageRgb8::with_data(W, H, &rgb(shaded.data.as_ref().unwrap())),
-        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
-    );
-    let mean = nv_flip::FlipPool::from_image(&err).mean();
-    eprintln!("FLIP mean {mean:.4}");
-    // Same texels, same coordinates, same mips: what differs is the
-    // derivatives' source (the shell box's faces against the mesh) and a
-    // pixel's worth of coverage at the silhouette.
-    assert!(mean < 0.05, "FLIP mean {mean}");
+    // The material draws the mesh (the shell's top face): the trace's own
+    // pixels are rays entering through the shell's sides (the strips along
+    // the near edges), bar the rasteriser's edge pixels.
+    assert!(only_bevy as f64 <= 0.01 * both as f64, "{only_bevy} pixels covered by Bevy only");
+    assert!(missed as f64 <= 0.01 * both as f64, "{missed} rays through the top face missed");
 }
 
 /// The prepass depth copied out before the main pass, as in Bevy's
@@ -304,12 +340,8 @@ fn copy_prepass_depth(
 #[test]
 fn prepass_depth_is_the_depth_of_the_displaced_point() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    // The adapter policy of the other GPU tests.
-    if displace_gpu::test_support::test_context().is_none() {
-        return;
-    }
     let map = map("gen:studded");
-    let scene = gpu_scene(&map);
+    let scene = PlaneScene::for_map(&map);
     let mut app = Headless::with(W, H, TextureFormat::Rgba8UnormSrgb, |app| {
         app.add_plugins(ExtractResourcePlugin::<DepthCopy>::default());
         app.sub_app_mut(RenderApp).add_systems(
@@ -337,8 +369,10 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
     let target = app.target();
     app.world_mut()
         .spawn((camera(&scene, target), DepthPrepass));
-    app.update();
-    app.update();
+    // The first frame, through the adapter policy; then the read-back.
+    if frame(&mut app).is_none() {
+        return;
+    }
     let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
     let sink = slot.clone();
     app.world_mut()
@@ -361,8 +395,6 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
     // along the camera axis.
     let near = 0.01f32;
     let forward = (scene.target - scene.eye).normalize();
-    let [ax, ay] = map.aspect();
-    let n = scene.normal();
     let opts = TraceOptions {
         method: Method::Exact,
         ..Default::default()
@@ -377,11 +409,7 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
             match (hit, d > 0.0) {
                 (Some(hit), true) => {
                     both += 1;
-                    let p = hit.position;
-                    let world = scene.origin
-                        + scene.tangent * (p.x / ax)
-                        + scene.bitangent * (p.y / ay)
-                        + n * (p.z * scene.depth);
+                    let world = scene.world(&map, Vec3::from_array(hit.position.to_array()));
                     let exact = (world - scene.eye).dot(forward);
                     let written = near / d;
                     // In shell depths.
@@ -390,6 +418,8 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
                     }
                 }
                 (None, false) => {}
+                // Through the shell's sides: the trace's alone (uv test).
+                (Some(_), false) if !enters_through_top(&map, &ray) => {}
                 _ => coverage_differs += 1,
             }
         }
@@ -401,12 +431,12 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
     );
     assert!(both > (W * H / 4) as usize, "{both} pixels hit");
     assert!(ratio >= 0.99, "{:.3}% within 1e-3 shell depths", 100.0 * ratio);
-    assert!(coverage_differs as f64 <= 0.01 * both as f64);
+    assert!(coverage_differs as f64 <= 0.01 * both as f64, "coverage differs on {coverage_differs}");
 }
 
 /// Renders the quad lit white by a low directional light, with or without
 /// its shadow map, and returns the sRGB pixels.
-fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: bool) -> Vec<u8> {
+fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: bool) -> Option<Vec<u8>> {
     use bevy::light::{CascadeShadowConfigBuilder, DirectionalLightShadowMap};
     let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
     {
@@ -454,36 +484,22 @@ fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: 
     }
     let target = app.target();
     app.world_mut().spawn(camera(scene, target));
-    let image = app.capture().expect("a frame");
-    image.data.unwrap()
+    frame(&mut app).and_then(|image| image.data)
 }
 
 #[test]
 fn a_displaced_bump_casts_its_own_shadow() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    if displace_gpu::test_support::test_context().is_none() {
-        return;
-    }
     // One tall bump on a flat floor: a flat quad casts no shadow on itself;
     // the displaced one shadows the floor behind the bump.
     let map = map("gen:gaussian");
-    let mut scene = gpu_scene(&map);
+    let mut scene = PlaneScene::for_map(&map);
     scene.depth = 0.3;
     // Low light from -x: the bump's shadow falls towards +x.
     let to_light = Vec3::new(-1.0, 0.15, 0.45).normalize();
-    let lit = lit_quad(&map, &scene, to_light * 3.0, true);
-    let unshadowed = lit_quad(&map, &scene, to_light * 3.0, false);
-
-    let [ax, ay] = map.aspect();
-    let n = scene.normal();
-    let to_map = |v: Vec3| {
-        Vec3::new(
-            v.dot(scene.tangent) / scene.tangent.length_squared() * ax,
-            v.dot(scene.bitangent) / scene.bitangent.length_squared() * ay,
-            v.dot(n) / scene.depth,
-        )
-    };
-    let l_map = to_map(to_light).normalize();
+    let Some(lit) = lit_quad(&map, &scene, to_light * 3.0, true) else { return };
+    let Some(unshadowed) = lit_quad(&map, &scene, to_light * 3.0, false) else { return };
+    let l_map = scene.to_map(&map, to_light).normalize();
     let opts = TraceOptions {
         method: Method::Exact,
         ..Default::default()
@@ -503,7 +519,7 @@ fn a_displaced_bump_casts_its_own_shadow() {
             }
             both += 1;
             let start = hit.position + hit.normal * 1e-3;
-            let exact = map.occluded(&displace_core::MapRay::new(start, l_map), &opts);
+            let exact = map.occluded(&MapRay::new(start, l_map.to_array().into()), &opts);
             let bevy = luma(&lit[i..i + 4]) < 0.5 * off;
             exact_shadowed += usize::from(exact);
             bevy_shadowed += usize::from(bevy);

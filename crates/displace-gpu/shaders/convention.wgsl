@@ -76,15 +76,15 @@ struct MapParams {
     iterations: u32,
     t_min: f32,
     t_max: f32,
-    _pad: u32,
+    pad_end: u32,
 }
 
 // One map-space ray of a batch query (Rust: `trace::RayIn`).
 struct RayIn {
     origin: vec3f,
-    _pad0: f32,
+    pad_origin: f32,
     dir: vec3f,
-    _pad1: f32,
+    pad_dir: f32,
 }
 
 fn wrap_index(i: i32, n: u32, address: u32) -> i32 {

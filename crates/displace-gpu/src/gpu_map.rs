@@ -27,7 +27,7 @@ pub struct MapParams {
     pub iterations: u32,
     pub t_min: f32,
     pub t_max: f32,
-    pub _pad: u32,
+    pub pad_end: u32,
 }
 
 /// The map's textures and bind group (group 0 of every pipeline).
