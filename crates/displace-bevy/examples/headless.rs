@@ -79,7 +79,7 @@ fn main() -> ExitCode {
         "ours-fixed" => {
             let mut ours = world.resource_mut::<Assets<DistanceMappedMaterial>>();
             for handle in [&stone.floor_material, &stone.sphere_material] {
-                if let Some(m) = ours.get_mut(handle) {
+                if let Some(mut m) = ours.get_mut(handle) {
                     m.extension = m.extension.clone().with_method(MarchMethod::Fixed);
                 }
             }

@@ -111,7 +111,7 @@ fn switch_method(world: &mut World) {
                 };
                 let mut ours = world.resource_mut::<Assets<DistanceMappedMaterial>>();
                 for handle in [&demo.stone.floor_material, &demo.stone.sphere_material] {
-                    if let Some(m) = ours.get_mut(handle) {
+                    if let Some(mut m) = ours.get_mut(handle) {
                         m.extension = m.extension.clone().with_method(method).with_iterations(16);
                     }
                 }
@@ -125,7 +125,7 @@ fn switch_method(world: &mut World) {
                 };
                 let mut theirs = world.resource_mut::<Assets<StandardMaterial>>();
                 for handle in &demo.bevy {
-                    if let Some(m) = theirs.get_mut(handle) {
+                    if let Some(mut m) = theirs.get_mut(handle) {
                         m.parallax_mapping_method = method;
                     }
                 }

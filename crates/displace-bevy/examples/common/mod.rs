@@ -121,7 +121,7 @@ pub fn bevy_parallax(
 ) -> [Handle<StandardMaterial>; 2] {
     for entity in [stone.floor, stone.sphere] {
         let handle = world.get::<Mesh3d>(entity).expect("a mesh").0.clone();
-        if let Some(mesh) = world.resource_mut::<Assets<Mesh>>().get_mut(&handle) {
+        if let Some(mut mesh) = world.resource_mut::<Assets<Mesh>>().get_mut(&handle) {
             if !mesh.contains_attribute(Mesh::ATTRIBUTE_TANGENT) {
                 mesh.generate_tangents().expect("meshes with normals and UVs");
             }
