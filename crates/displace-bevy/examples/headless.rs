@@ -38,17 +38,28 @@ fn parse_args() -> Result<Args, String> {
             "--method" => args.method = it.next().ok_or("--method needs a value")?,
             "--frames" => {
                 let v = it.next().ok_or("--frames needs a value")?;
-                args.frames = v.parse().map_err(|_| format!("--frames {v}: not a count"))?;
+                args.frames = v
+                    .parse()
+                    .map_err(|_| format!("--frames {v}: not a count"))?;
             }
             s if args.out.is_empty() => args.out = s.to_string(),
-            s => args.size = parse_size(s).ok_or(format!("size `{s}`: expected WIDTHxHEIGHT, 1 to 8192 each"))?,
+            s => {
+                args.size = parse_size(s)
+                    .ok_or(format!("size `{s}`: expected WIDTHxHEIGHT, 1 to 8192 each"))?
+            }
         }
     }
     if args.out.is_empty() {
-        return Err("usage: headless OUT.png [WxH] [--method ours|ours-fixed|pom|relief] [--frames N]".into());
+        return Err(
+            "usage: headless OUT.png [WxH] [--method ours|ours-fixed|pom|relief] [--frames N]"
+                .into(),
+        );
     }
     if !["ours", "ours-fixed", "pom", "relief"].contains(&args.method.as_str()) {
-        return Err(format!("--method {}: expected ours, ours-fixed, pom or relief", args.method));
+        return Err(format!(
+            "--method {}: expected ours, ours-fixed, pom or relief",
+            args.method
+        ));
     }
     Ok(args)
 }
@@ -114,7 +125,11 @@ fn main() -> ExitCode {
         .flat_map(|p| [p[0], p[1], p[2]])
         .collect();
     let Some(buffer) = image::RgbImage::from_raw(image.width(), image.height(), rgb) else {
-        eprintln!("headless: the frame is not {}x{} RGBA8", image.width(), image.height());
+        eprintln!(
+            "headless: the frame is not {}x{} RGBA8",
+            image.width(),
+            image.height()
+        );
         return ExitCode::FAILURE;
     };
     if let Err(e) = buffer.save(&args.out) {

@@ -43,8 +43,8 @@ use bevy::render::render_resource::{
     AsBindGroup, Extent3d, ShaderType, TextureDimension, TextureFormat,
 };
 use bevy::shader::{Shader, ShaderRef};
-use displace_core::BakeOptions;
 use displace_core::distance_map::{FilteredTexels, Format};
+use displace_core::BakeOptions;
 use displace_core::{Address, DisplacementMap, DistanceMap, HeightMap, Method};
 
 /// The material a Bevy user puts on a mesh: Bevy's `StandardMaterial` (its
@@ -88,10 +88,18 @@ impl Plugin for DistanceMappingPlugin {
         let mut shaders = app.world_mut().resource_mut::<Assets<Shader>>();
         for (handle, source, path) in [
             (&CONVENTION_HANDLE, CONVENTION, "displace/convention.wgsl"),
-            (&DISTANCE_HANDLE, DISTANCE, "displace/distance_filtered.wgsl"),
+            (
+                &DISTANCE_HANDLE,
+                DISTANCE,
+                "displace/distance_filtered.wgsl",
+            ),
             (&SURFACE_HANDLE, SURFACE, "displace/surface.wgsl"),
             (&BINDINGS_HANDLE, BINDINGS, "displace/bindings.wgsl"),
-            (&MATERIAL_SHADER_HANDLE, MATERIAL, "displace/distance_mapping.wgsl"),
+            (
+                &MATERIAL_SHADER_HANDLE,
+                MATERIAL,
+                "displace/distance_mapping.wgsl",
+            ),
         ] {
             shaders
                 .insert(handle, Shader::from_wgsl(source, path))

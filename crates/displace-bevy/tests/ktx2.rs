@@ -10,8 +10,8 @@ use bevy::image::{CompressedImageFormats, ImageLoader, ImageLoaderSettings, Imag
 use bevy::prelude::*;
 use bevy::render::render_resource::{TextureDimension, TextureFormat};
 use displace_bevy::{DistanceMapping, Encoding};
-use displace_core::{bake, BakeOptions};
 use displace_core::distance_map::Format;
+use displace_core::{bake, BakeOptions};
 use displace_core::{Address, DisplacementMap, Extent, HeightMap};
 use std::path::Path;
 use std::time::Duration;
@@ -106,7 +106,11 @@ fn our_ktx2_loads_through_bevys_image_loader_as_a_3d_texture() {
         assert_eq!(desc.dimension, TextureDimension::D3, "{name}");
         assert_eq!(desc.format, wgpu_format, "{name}");
         assert_eq!(
-            [desc.size.width, desc.size.height, desc.size.depth_or_array_layers],
+            [
+                desc.size.width,
+                desc.size.height,
+                desc.size.depth_or_array_layers
+            ],
             [32, 32, 8],
             "{name}"
         );
@@ -213,8 +217,8 @@ fn r32f_and_mismatched_addressing_are_refused() {
         .unwrap_err();
     assert!(err.to_string().contains("r32f"), "{err}");
     let repeat = HeightMap::new(32, 32, map.height.data().to_vec(), Address::Repeat).unwrap();
-    let err = DistanceMapping::from_ktx2(&ktx2(&map, Format::R8), &repeat, &mut images)
-        .unwrap_err();
+    let err =
+        DistanceMapping::from_ktx2(&ktx2(&map, Format::R8), &repeat, &mut images).unwrap_err();
     assert!(err.to_string().contains("addressing"), "{err}");
 }
 

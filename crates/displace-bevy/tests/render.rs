@@ -132,7 +132,10 @@ impl PlaneScene {
     /// World point of a map-space point.
     fn world(&self, map: &DisplacementMap, p: Vec3) -> Vec3 {
         let [ax, ay] = map.aspect();
-        self.origin + self.tangent * (p.x / ax) + self.bitangent * (p.y / ay) + self.normal() * (p.z * self.depth)
+        self.origin
+            + self.tangent * (p.x / ax)
+            + self.bitangent * (p.y / ay)
+            + self.normal() * (p.z * self.depth)
     }
 }
 
@@ -176,17 +179,20 @@ fn shell_top(scene: &PlaneScene) -> Mesh {
     let o = scene.origin + n * scene.depth;
     let (t, b) = (scene.tangent, scene.bitangent);
     let positions = vec![o, o + t, o + t + b, o + b];
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD)
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-        )
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![n.to_array(); 4])
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_UV_0,
-            vec![[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
-        )
-        .with_inserted_indices(Indices::U32(vec![0, 1, 2, 0, 2, 3]))
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::RENDER_WORLD,
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![n.to_array(); 4])
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_UV_0,
+        vec![[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+    )
+    .with_inserted_indices(Indices::U32(vec![0, 1, 2, 0, 2, 3]))
 }
 
 /// The scene's pinhole camera in Bevy: same eye, target, up and vertical
@@ -217,18 +223,19 @@ fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, out
         let mut images = world.resource_mut::<Assets<Image>>();
         DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap()
     };
-    let material = world
-        .resource_mut::<Assets<DistanceMappedMaterial>>()
-        .add(DistanceMappedMaterial {
-            base: StandardMaterial {
-                unlit: true,
-                ..default()
-            },
-            extension: mapping
-                .with_depth(scene.depth)
-                .with_iterations(scene.iterations)
-                .with_output(output),
-        });
+    let material =
+        world
+            .resource_mut::<Assets<DistanceMappedMaterial>>()
+            .add(DistanceMappedMaterial {
+                base: StandardMaterial {
+                    unlit: true,
+                    ..default()
+                },
+                extension: mapping
+                    .with_depth(scene.depth)
+                    .with_iterations(scene.iterations)
+                    .with_output(output),
+            });
     world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
     // Alpha 0 where nothing is drawn: a hit writes alpha 1.
     world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
@@ -292,12 +299,22 @@ fn displaced_uv_agrees_with_the_exact_hit() {
         100.0 * ratio
     );
     assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
-    assert!(ratio >= 0.99, "displaced uv agrees on {:.3}% of the pixels both cover", 100.0 * ratio);
+    assert!(
+        ratio >= 0.99,
+        "displaced uv agrees on {:.3}% of the pixels both cover",
+        100.0 * ratio
+    );
     // The material draws the mesh (the shell's top face): the trace's own
     // pixels are rays entering through the shell's sides (the strips along
     // the near edges), bar the rasteriser's edge pixels.
-    assert!(only_bevy as f64 <= 0.01 * both as f64, "{only_bevy} pixels covered by Bevy only");
-    assert!(missed as f64 <= 0.01 * both as f64, "{missed} rays through the top face missed");
+    assert!(
+        only_bevy as f64 <= 0.01 * both as f64,
+        "{only_bevy} pixels covered by Bevy only"
+    );
+    assert!(
+        missed as f64 <= 0.01 * both as f64,
+        "{missed} rays through the top face missed"
+    );
 }
 
 /// The prepass depth copied out before the main pass, as in Bevy's
@@ -389,7 +406,11 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
         }
     }
     let bytes = bytes.expect("the depth read-back came back");
-    assert_eq!(bytes.len(), (W * H * 4) as usize, "rows of {W} f32 are 256-byte aligned");
+    assert_eq!(
+        bytes.len(),
+        (W * H * 4) as usize,
+        "rows of {W} f32 are 256-byte aligned"
+    );
 
     // Bevy's reverse-Z infinite perspective: depth = near / view distance
     // along the camera axis.
@@ -430,13 +451,25 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
         100.0 * ratio
     );
     assert!(both > (W * H / 4) as usize, "{both} pixels hit");
-    assert!(ratio >= 0.99, "{:.3}% within 1e-3 shell depths", 100.0 * ratio);
-    assert!(coverage_differs as f64 <= 0.01 * both as f64, "coverage differs on {coverage_differs}");
+    assert!(
+        ratio >= 0.99,
+        "{:.3}% within 1e-3 shell depths",
+        100.0 * ratio
+    );
+    assert!(
+        coverage_differs as f64 <= 0.01 * both as f64,
+        "coverage differs on {coverage_differs}"
+    );
 }
 
 /// Renders the quad lit white by a low directional light, with or without
 /// its shadow map, and returns the sRGB pixels.
-fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: bool) -> Option<Vec<u8>> {
+fn lit_quad(
+    map: &DisplacementMap,
+    scene: &PlaneScene,
+    to_light: Vec3,
+    shadows: bool,
+) -> Option<Vec<u8>> {
     use bevy::light::{CascadeShadowConfigBuilder, DirectionalLightShadowMap};
     let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
     {
@@ -446,19 +479,20 @@ fn lit_quad(map: &DisplacementMap, scene: &PlaneScene, to_light: Vec3, shadows: 
             let mut images = world.resource_mut::<Assets<Image>>();
             DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap()
         };
-        let material = world
-            .resource_mut::<Assets<DistanceMappedMaterial>>()
-            .add(DistanceMappedMaterial {
-                base: StandardMaterial {
-                    base_color: Color::WHITE,
-                    perceptual_roughness: 1.0,
-                    reflectance: 0.0,
-                    ..default()
-                },
-                extension: mapping
-                    .with_depth(scene.depth)
-                    .with_iterations(scene.iterations),
-            });
+        let material =
+            world
+                .resource_mut::<Assets<DistanceMappedMaterial>>()
+                .add(DistanceMappedMaterial {
+                    base: StandardMaterial {
+                        base_color: Color::WHITE,
+                        perceptual_roughness: 1.0,
+                        reflectance: 0.0,
+                        ..default()
+                    },
+                    extension: mapping
+                        .with_depth(scene.depth)
+                        .with_iterations(scene.iterations),
+                });
         world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
         world.insert_resource(GlobalAmbientLight {
             brightness: 0.0,
@@ -497,8 +531,12 @@ fn a_displaced_bump_casts_its_own_shadow() {
     scene.depth = 0.3;
     // Low light from -x: the bump's shadow falls towards +x.
     let to_light = Vec3::new(-1.0, 0.15, 0.45).normalize();
-    let Some(lit) = lit_quad(&map, &scene, to_light * 3.0, true) else { return };
-    let Some(unshadowed) = lit_quad(&map, &scene, to_light * 3.0, false) else { return };
+    let Some(lit) = lit_quad(&map, &scene, to_light * 3.0, true) else {
+        return;
+    };
+    let Some(unshadowed) = lit_quad(&map, &scene, to_light * 3.0, false) else {
+        return;
+    };
     let l_map = scene.to_map(&map, to_light).normalize();
     let opts = TraceOptions {
         method: Method::Exact,
@@ -531,11 +569,18 @@ fn a_displaced_bump_casts_its_own_shadow() {
         "shadow: {agree}/{both} lit pixels agree ({:.2}%); shadowed: exact {exact_shadowed}, Bevy {bevy_shadowed}",
         100.0 * ratio
     );
-    assert!(exact_shadowed > 200, "the bump shadows {exact_shadowed} pixels");
+    assert!(
+        exact_shadowed > 200,
+        "the bump shadows {exact_shadowed} pixels"
+    );
     assert!(
         bevy_shadowed as f64 > 0.5 * exact_shadowed as f64,
         "the shadow map holds no bump: {bevy_shadowed} shadowed pixels against {exact_shadowed}"
     );
     // A shadow map's texels, filter and biases blur the edge.
-    assert!(ratio >= 0.9, "shadowed where the exact trace says on {:.2}%", 100.0 * ratio);
+    assert!(
+        ratio >= 0.9,
+        "shadowed where the exact trace says on {:.2}%",
+        100.0 * ratio
+    );
 }

@@ -689,7 +689,8 @@ mod tests {
         let data: Vec<f32> = (0..w * h * d)
             .map(|k| ((k * 7919) % 113) as f32 * 0.01 - 0.3)
             .collect();
-        let map = DistanceMap::from_raw([w, h, d], [2.0, 2.0], Address::Repeat, data, 0.05).unwrap();
+        let map =
+            DistanceMap::from_raw([w, h, d], [2.0, 2.0], Address::Repeat, data, 0.05).unwrap();
         assert!(map.filtered_texels(Format::R32F, 8).is_none());
         for format in [Format::R8, Format::R16F] {
             let t = map.filtered_texels(format, 8).unwrap();
@@ -703,7 +704,10 @@ mod tests {
                 };
                 let decoded = t.offset + t.scale * s;
                 assert!(decoded <= v, "{format:?} voxel {i}: {decoded} > {v}");
-                assert!(v - decoded <= t.underestimate, "{format:?} voxel {i}: {v} - {decoded}");
+                assert!(
+                    v - decoded <= t.underestimate,
+                    "{format:?} voxel {i}: {v} - {decoded}"
+                );
             }
         }
     }

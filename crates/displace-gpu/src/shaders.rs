@@ -220,18 +220,26 @@ mod tests {
             ("surface", SURFACE),
         ] {
             assert!(
-                src.lines().next().unwrap_or("").starts_with("#define_import_path displace::"),
+                src.lines()
+                    .next()
+                    .unwrap_or("")
+                    .starts_with("#define_import_path displace::"),
                 "{name}: first line is its import path"
             );
-            for line in src.lines().filter(|l| l.trim_start().starts_with("#import")) {
+            for line in src
+                .lines()
+                .filter(|l| l.trim_start().starts_with("#import"))
+            {
                 assert_eq!(
                     line.matches('{').count(),
                     line.matches('}').count(),
                     "{name}: `{line}` continues on the next line"
                 );
             }
-            assert!(!join(&[src]).contains('#'), "{name}: a directive survived the join");
+            assert!(
+                !join(&[src]).contains('#'),
+                "{name}: a directive survived the join"
+            );
         }
     }
 }
-

@@ -44,8 +44,10 @@ pub fn spawn(world: &mut World) -> Stone {
             address: Address::Repeat,
             ..Default::default()
         };
-        let height = displace_core::io::height::load(HEIGHT, &height_opts).expect("built-in height");
-        let mapping = DistanceMapping::bake(&height, &opts, Encoding::R8, &mut images).expect("bake");
+        let height =
+            displace_core::io::height::load(HEIGHT, &height_opts).expect("built-in height");
+        let mapping =
+            DistanceMapping::bake(&height, &opts, Encoding::R8, &mut images).expect("bake");
         let depth_image = bevy_depth_map(&height);
         (
             mapping.clone().with_depth(FLOOR_DEPTH),
@@ -123,7 +125,8 @@ pub fn bevy_parallax(
         let handle = world.get::<Mesh3d>(entity).expect("a mesh").0.clone();
         if let Some(mut mesh) = world.resource_mut::<Assets<Mesh>>().get_mut(&handle) {
             if !mesh.contains_attribute(Mesh::ATTRIBUTE_TANGENT) {
-                mesh.generate_tangents().expect("meshes with normals and UVs");
+                mesh.generate_tangents()
+                    .expect("meshes with normals and UVs");
             }
         }
     }
@@ -147,7 +150,11 @@ pub fn bevy_parallax(
     let mut materials = world.resource_mut::<Assets<StandardMaterial>>();
     [
         materials.add(parallax(floor_base, FLOOR_DEPTH, 4.0)),
-        materials.add(parallax(sphere_base, SPHERE_DEPTH, 2.0 * std::f32::consts::PI * 0.6)),
+        materials.add(parallax(
+            sphere_base,
+            SPHERE_DEPTH,
+            2.0 * std::f32::consts::PI * 0.6,
+        )),
     ]
 }
 
@@ -163,7 +170,10 @@ pub fn show_bevy(world: &mut World, stone: &Stone, materials: &[Handle<StandardM
 
 /// Puts our materials back on floor and sphere.
 pub fn show_ours(world: &mut World, stone: &Stone) {
-    for (entity, m) in [(stone.floor, &stone.floor_material), (stone.sphere, &stone.sphere_material)] {
+    for (entity, m) in [
+        (stone.floor, &stone.floor_material),
+        (stone.sphere, &stone.sphere_material),
+    ] {
         world
             .entity_mut(entity)
             .remove::<MeshMaterial3d<StandardMaterial>>()
