@@ -119,8 +119,11 @@ pub struct MapParams {
     /// Tiles across the shell: 1 x 1 for a clamped map; "infinite" for a
     /// repeating one, whose shell has no sides to leave through.
     pub tiles: Vec2,
+    /// Distance-map voxels (section 8.4's W x H x D).
     pub dist_size: UVec3,
+    /// 0 clamp, 1 repeat across (convention.wgsl `ADDRESS_*`).
     pub address: u32,
+    /// Height texels, for the exact walk over the bilinear patches.
     pub height_size: UVec2,
     /// Early-out threshold (a quarter voxel) and the width of the exact walk
     /// after it (the map's underestimate bound, 1.5x, plus `tau`).
@@ -129,12 +132,16 @@ pub struct MapParams {
     /// A filtered fetch `s` decodes to `decode_offset + decode_scale * s`.
     pub decode_scale: f32,
     pub decode_offset: f32,
+    /// Bound on the cells one exact walk visits (a guard, never reached).
     pub max_cells: u32,
+    /// convention.wgsl `METHOD_*`: 0 early out, 1 Donnelly's fixed loop.
     pub method: u32,
     /// Donnelly's loop count (section 8.5.2: 16 in the chapter's demo).
     pub iterations: u32,
+    /// Ray interval in map units: the whole ray through the shell.
     pub t_min: f32,
     pub t_max: f32,
+    /// Padding to the WGSL struct's 16-byte size.
     pub pad_end: u32,
 }
 
@@ -157,7 +164,9 @@ pub struct DistanceMappingSettings {
     /// inverse bump depth factor, inverted; live, as the map is in shell
     /// depths.
     pub depth: f32,
+    /// 0 [`Output::Shaded`], 1 [`Output::Hit`].
     pub output: u32,
+    /// Padding to 16 bytes.
     pub pad_a: u32,
     pub pad_b: u32,
 }
