@@ -38,7 +38,7 @@ pub fn spawn(world: &mut World) -> Stone {
         },
         ..Default::default()
     };
-    let (floor_mapping, sphere_mapping, depth_image) = {
+    let (floor_mapping, sphere_mapping, depth_image, albedo) = {
         let mut images = world.resource_mut::<Assets<Image>>();
         let height_opts = displace_core::io::height::HeightOptions {
             address: Address::Repeat,
@@ -49,10 +49,12 @@ pub fn spawn(world: &mut World) -> Stone {
         let mapping =
             DistanceMapping::bake(&height, &opts, Encoding::R8, &mut images).expect("bake");
         let depth_image = bevy_depth_map(&height);
+        let albedo = images.add(albedo_map(&height));
         (
             mapping.clone().with_depth(FLOOR_DEPTH),
             mapping.with_depth(SPHERE_DEPTH),
             images.add(depth_image),
+            albedo,
         )
     };
     let floor_mesh = world
@@ -63,6 +65,7 @@ pub fn spawn(world: &mut World) -> Stone {
         .add(Sphere::new(0.6).mesh().uv(64, 32));
     let stone = StandardMaterial {
         base_color: Color::srgb(0.55, 0.5, 0.45),
+        base_color_texture: Some(albedo),
         perceptual_roughness: 0.8,
         uv_transform: Affine2::from_scale(Vec2::splat(2.0)),
         ..default()
@@ -184,6 +187,40 @@ pub fn show_ours(world: &mut World, stone: &Stone) {
 /// The camera of `scenes/stone.toml`.
 pub fn camera_transform() -> Transform {
     Transform::from_xyz(0.0, 2.2, -3.2).looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::Y)
+}
+
+/// A colour map from the heights (darker in the hollows), so that every
+/// method's displaced texture coordinate shows in the picture (and Bevy's
+/// parallax loop is not optimised away for want of a texture to read).
+fn albedo_map(height: &displace_core::HeightMap) -> Image {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+    let bytes: Vec<u8> = height
+        .data()
+        .iter()
+        .flat_map(|h| {
+            let g = ((0.45 + 0.55 * h.clamp(0.0, 1.0)) * 255.0).round() as u8;
+            [g, g, g, 255]
+        })
+        .collect();
+    let mut image = Image::new(
+        Extent3d {
+            width: height.width() as u32,
+            height: height.height() as u32,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        bytes,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: ImageAddressMode::Repeat,
+        address_mode_v: ImageAddressMode::Repeat,
+        ..ImageSamplerDescriptor::linear()
+    });
+    image
 }
 
 /// Bevy's parallax mapping reads a depth map (white = deepest) with a
