@@ -178,7 +178,7 @@ fn shell_top(scene: &PlaneScene) -> Mesh {
     let n = scene.normal();
     let o = scene.origin + n * scene.depth;
     let (t, b) = (scene.tangent, scene.bitangent);
-    let positions = vec![o, o + t, o + t + b, o + b];
+    let positions = [o, o + t, o + t + b, o + b];
     Mesh::new(
         PrimitiveTopology::TriangleList,
         RenderAssetUsages::RENDER_WORLD,
