@@ -193,46 +193,35 @@ pub fn camera_transform() -> Transform {
 /// method's displaced texture coordinate shows in the picture (and Bevy's
 /// parallax loop is not optimised away for want of a texture to read).
 fn albedo_map(height: &displace_core::HeightMap) -> Image {
-    use bevy::asset::RenderAssetUsages;
-    use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
-    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
-    let bytes: Vec<u8> = height
-        .data()
-        .iter()
-        .flat_map(|h| {
-            let g = ((0.45 + 0.55 * h.clamp(0.0, 1.0)) * 255.0).round() as u8;
-            [g, g, g, 255]
-        })
-        .collect();
-    let mut image = Image::new(
-        Extent3d {
-            width: height.width() as u32,
-            height: height.height() as u32,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        bytes,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::RENDER_WORLD,
-    );
-    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
-        address_mode_u: ImageAddressMode::Repeat,
-        address_mode_v: ImageAddressMode::Repeat,
-        ..ImageSamplerDescriptor::linear()
-    });
-    image
+    use bevy::render::render_resource::TextureFormat;
+    repeating_image(height, TextureFormat::Rgba8UnormSrgb, |h| {
+        let g = ((0.45 + 0.55 * h) * 255.0).round() as u8;
+        vec![g, g, g, 255]
+    })
 }
 
-/// Bevy's parallax mapping reads a depth map (white = deepest) with a
-/// linear sampler that repeats.
+/// Bevy's parallax mapping reads a depth map (white = deepest).
 fn bevy_depth_map(height: &displace_core::HeightMap) -> Image {
+    use bevy::render::render_resource::TextureFormat;
+    repeating_image(height, TextureFormat::R8Unorm, |h| {
+        vec![((1.0 - h) * 255.0).round() as u8]
+    })
+}
+
+/// One texel of `format` per height texel (heights clamped to [0, 1]),
+/// sampled linearly and repeating, as the map tiles.
+fn repeating_image(
+    height: &displace_core::HeightMap,
+    format: bevy::render::render_resource::TextureFormat,
+    texel: impl Fn(f32) -> Vec<u8>,
+) -> Image {
     use bevy::asset::RenderAssetUsages;
     use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
-    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+    use bevy::render::render_resource::{Extent3d, TextureDimension};
     let bytes: Vec<u8> = height
         .data()
         .iter()
-        .map(|h| ((1.0 - h.clamp(0.0, 1.0)) * 255.0).round() as u8)
+        .flat_map(|h| texel(h.clamp(0.0, 1.0)))
         .collect();
     let mut image = Image::new(
         Extent3d {
@@ -242,7 +231,7 @@ fn bevy_depth_map(height: &displace_core::HeightMap) -> Image {
         },
         TextureDimension::D2,
         bytes,
-        TextureFormat::R8Unorm,
+        format,
         RenderAssetUsages::RENDER_WORLD,
     );
     image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
