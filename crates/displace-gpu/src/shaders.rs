@@ -237,7 +237,9 @@ mod tests {
                 );
             }
             assert!(
-                !join(&[src]).contains('#'),
+                !join(&[src])
+                    .lines()
+                    .any(|l| l.trim_start().starts_with('#')),
                 "{name}: a directive survived the join"
             );
         }
