@@ -144,6 +144,20 @@ impl R8Range {
     }
 }
 
+/// A distance map as a linearly filtered GPU texture
+/// ([`DistanceMap::filtered_texels`]): a fetch `s` of the texture decodes to
+/// `offset + scale * s`, a lower bound on the true distance by at most
+/// `underestimate` (shell depths).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilteredTexels {
+    /// Level 0, `[k][j][i]`, little-endian: R8 unorm codes or R16 half floats.
+    pub bytes: Vec<u8>,
+    pub format: Format,
+    pub scale: f32,
+    pub offset: f32,
+    pub underestimate: f32,
+}
+
 /// 2^23: the smallest `f32` whose ulp is 1.
 const TWO_23: f32 = 8_388_608.0;
 
@@ -497,6 +511,80 @@ impl DistanceMap {
                 * ((self.range.max - self.range.min) / 255.0)
     }
 
+    /// Bound on how much a linear filter with `weight_bits`-bit fixed-point
+    /// weights can overshoot the exact trilinear value of this map's values
+    /// (GPU Gems 2 section 8.5.3 samples the map through the hardware
+    /// filter): each of the three lerps may be off by `2^-bits` of the
+    /// difference between neighbouring texels, which is at most the largest
+    /// such difference in the map, plus `quantum` per lerp when the values
+    /// are stored as codes of that size. A GPU user subtracts it from the
+    /// decoded distance so the filtered value stays a lower bound.
+    pub fn filter_margin(&self, weight_bits: u32, quantum: f32) -> f32 {
+        let [w, h, d] = self.size;
+        let mut diff = [0.0f32; 3];
+        for k in 0..d {
+            for j in 0..h {
+                for i in 0..w {
+                    let v = self.voxel(i, j, k);
+                    let n = [
+                        self.voxel(self.address.texel_index(i as i64 + 1, w), j, k),
+                        self.voxel(i, self.address.texel_index(j as i64 + 1, h), k),
+                        self.voxel(i, j, (k + 1).min(d - 1)),
+                    ];
+                    for (m, nv) in diff.iter_mut().zip(n) {
+                        *m = m.max((nv - v).abs());
+                    }
+                }
+            }
+        }
+        let weight_error = (-(weight_bits as f32)).exp2();
+        weight_error * (diff.iter().sum::<f32>() + 3.0 * quantum)
+    }
+
+    /// The texels and decoding of this map for a GPU's linear sampler
+    /// (GPU Gems 2 section 8.5.3; section 8.6's 8-bit maps): R16 half floats
+    /// or R8 codes, rounded down, with the worst fixed-point filter error of
+    /// `weight_bits`-bit weights ([`DistanceMap::filter_margin`]) taken off
+    /// the decoding so every filtered value stays a lower bound. `None` for
+    /// [`Format::R32F`], which GPUs need not filter.
+    pub fn filtered_texels(&self, format: Format, weight_bits: u32) -> Option<FilteredTexels> {
+        match format {
+            Format::R32F => None,
+            Format::R16F => {
+                let (q, _) = self.quantized(Format::R16F);
+                let bytes = q
+                    .data()
+                    .iter()
+                    .flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes())
+                    .collect();
+                let margin = q.filter_margin(weight_bits, 0.0);
+                Some(FilteredTexels {
+                    bytes,
+                    format,
+                    scale: 1.0,
+                    offset: -margin,
+                    underestimate: q.data_underestimate() + margin,
+                })
+            }
+            Format::R8 => {
+                let (q, range) = self.quantized(Format::R8);
+                let r = range.expect("R8 quantisation returns its range");
+                let mut bytes = vec![0u8; self.data.len()];
+                r.encoder().encode_into(&self.data, &mut bytes);
+                // 8-bit filter units (llvmpipe's among them) may round the
+                // filtered result to a code as well: one more quantum.
+                let margin = q.filter_margin(weight_bits, r.quantum()) + r.quantum();
+                Some(FilteredTexels {
+                    bytes,
+                    format,
+                    scale: r.max - r.min,
+                    offset: r.min - margin,
+                    underestimate: q.data_underestimate() + margin,
+                })
+            }
+        }
+    }
+
     /// The same map rounded down to what `format` can store: still
     /// conservative, with the largest rounding added to the underestimate
     /// bound. For R8 the range used is returned too.
@@ -617,6 +705,37 @@ mod tests {
                 h <= v && v - h <= (v.abs() / 1024.0).max(6e-8),
                 "f16 {v} -> {h}"
             );
+        }
+    }
+
+    /// Every texel `filtered_texels` stores decodes to at most the value it
+    /// stands for, by less than the margin it reports; R32F is refused.
+    #[test]
+    fn filtered_texels_decode_below_the_values() {
+        let (w, h, d) = (6usize, 5usize, 4usize);
+        let data: Vec<f32> = (0..w * h * d)
+            .map(|k| ((k * 7919) % 113) as f32 * 0.01 - 0.3)
+            .collect();
+        let map =
+            DistanceMap::from_raw([w, h, d], [2.0, 2.0], Address::Repeat, data, 0.05).unwrap();
+        assert!(map.filtered_texels(Format::R32F, 8).is_none());
+        for format in [Format::R8, Format::R16F] {
+            let t = map.filtered_texels(format, 8).unwrap();
+            assert_eq!(t.format, format);
+            assert_eq!(t.bytes.len(), map.data().len() * format.bytes_per_voxel());
+            assert!(t.underestimate >= map.data_underestimate());
+            for (i, &v) in map.data().iter().enumerate() {
+                let s = match format {
+                    Format::R8 => t.bytes[i] as f32 / 255.0,
+                    _ => half::f16::from_le_bytes([t.bytes[2 * i], t.bytes[2 * i + 1]]).to_f32(),
+                };
+                let decoded = t.offset + t.scale * s;
+                assert!(decoded <= v, "{format:?} voxel {i}: {decoded} > {v}");
+                assert!(
+                    v - decoded <= t.underestimate,
+                    "{format:?} voxel {i}: {v} - {decoded}"
+                );
+            }
         }
     }
 }

@@ -1,7 +1,15 @@
+#define_import_path displace::convention
+
 // Map-space conventions shared with the CPU (crates/displace-core/src/convention.rs,
 // sphere_trace.rs, exact.rs). Every constant here is parsed by the test
 // `convention_constants_match_rust` and compared with the Rust side: change
 // both together.
+//
+// A shader module (naga_oil `#import displace::convention::{...}` in Bevy;
+// displace-gpu joins the files and drops the directives, shaders.rs). The
+// resources the trace reads are declared by a `displace::bindings` module
+// of each user: bindings_load.wgsl / bindings_filtered.wgsl here, the
+// material's bind group in displace-bevy.
 //
 // Map space: x along the tangent (u), y along the bitangent (v), z along the
 // normal, lengths in shell depths; one tile is [0, ax] x [0, ay] x [0, 1].
@@ -68,19 +76,16 @@ struct MapParams {
     iterations: u32,
     t_min: f32,
     t_max: f32,
-    _pad: u32,
+    pad_end: u32,
 }
 
 // One map-space ray of a batch query (Rust: `trace::RayIn`).
 struct RayIn {
     origin: vec3f,
-    _pad0: f32,
+    pad_origin: f32,
     dir: vec3f,
-    _pad1: f32,
+    pad_dir: f32,
 }
-
-@group(0) @binding(0) var<uniform> params: MapParams;
-@group(0) @binding(1) var height_tex: texture_2d<f32>;
 
 fn wrap_index(i: i32, n: u32, address: u32) -> i32 {
     let m = i32(n);

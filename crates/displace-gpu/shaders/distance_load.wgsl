@@ -1,9 +1,11 @@
+#define_import_path displace::distance
+#import displace::convention::{ADDRESS_CLAMP, lerp, texel_lerp, wrap_index}
+#import displace::bindings::{params, distance_tex}
+
 // Distance lookups by textureLoad from an R32Float 3D texture, interpolated
 // by hand exactly as DistanceMap::sample does it on the CPU: same texel
 // centres, same addressing, same order of lerps, then decoded (the identity
 // for stored distances; `min + s * quantum` for the CPU tracer's 8-bit codes).
-
-@group(0) @binding(2) var distance_tex: texture_3d<f32>;
 
 fn distance_voxel(i: i32, j: i32, k: i32) -> f32 {
     return textureLoad(distance_tex, vec3i(i, j, k), 0).x;

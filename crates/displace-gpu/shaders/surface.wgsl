@@ -1,6 +1,12 @@
+#define_import_path displace::surface
+#import displace::convention::{BIG, HIT_NONE, HIT_SURFACE, HIT_WALL, INSIDE_EPS, LINEAR_EPS, METHOD_EXACT, METHOD_SPHERE_FIXED, ROOT_EPS, TEXEL_CENTRE, lerp, texel_lerp, wrap_index}
+#import displace::bindings::{params, height_tex}
+#import displace::distance::distance_at
+
 // The continuous height surface, the exact walk over its bilinear patches
 // (exact.rs) and the map-space trace (sphere_trace.rs), in single precision.
-// Needs convention.wgsl and one distance_*.wgsl before it.
+// Imports the conventions, the map bindings of its user and one distance
+// lookup (displace::distance, distance_*.wgsl).
 
 var<private> cell_cap_reached: bool = false;
 // A loop ended where its own exits cannot: the driver cut it short.

@@ -27,7 +27,7 @@ pub struct MapParams {
     pub iterations: u32,
     pub t_min: f32,
     pub t_max: f32,
-    pub _pad: u32,
+    pub pad_end: u32,
 }
 
 /// The map's textures and bind group (group 0 of every pipeline).
@@ -100,7 +100,6 @@ impl GpuMap {
                 Decode {
                     scale: 1.0,
                     offset: 0.0,
-                    margin: 0.0,
                     underestimate: 0.0,
                 },
                 glam::Vec3::ONE,
@@ -124,7 +123,7 @@ impl GpuMap {
             tau,
             band: BAND_FACTOR * decode.underestimate + tau,
             decode_scale: decode.scale,
-            decode_offset: decode.offset - decode.margin,
+            decode_offset: decode.offset,
             ..MapParams::default()
         };
         let sampler = texture.filtered().then(|| {
@@ -227,9 +226,9 @@ impl GpuMap {
 
 struct Decode {
     scale: f32,
+    /// Filtered formats: with the worst overestimate of a fixed-point filter
+    /// already taken off ([`DistanceMap::filtered_texels`]).
     offset: f32,
-    /// Worst overestimate a fixed-point filter can add.
-    margin: f32,
     /// Bound on how far the decoded values lie below the true distance,
     /// filter included: it sets the width of the exact walk after the
     /// early out.
@@ -245,7 +244,6 @@ fn encode_distance(
     let exact = Decode {
         scale: 1.0,
         offset: 0.0,
-        margin: 0.0,
         underestimate: map.data_underestimate(),
     };
     match texture {
@@ -261,7 +259,6 @@ fn encode_distance(
             let decode = Decode {
                 scale: (r.max - r.min) / 255.0,
                 offset: r.min,
-                margin: 0.0,
                 underestimate: map.max_underestimate(),
             };
             (
@@ -270,67 +267,23 @@ fn encode_distance(
                 decode,
             )
         }
-        DistanceTexture::R16Linear => {
-            let (q, _) = map.quantized(Format::R16F);
-            let bytes: Vec<u8> = q
-                .data()
-                .iter()
-                .flat_map(|&v| half::f16::from_f32(v).to_bits().to_le_bytes())
-                .collect();
-            let margin = filter_margin(&q, 0.0);
-            let underestimate = q.data_underestimate() + margin;
-            (
-                bytes,
-                wgpu::TextureFormat::R16Float,
-                Decode {
-                    margin,
-                    underestimate,
-                    ..exact
-                },
-            )
-        }
-        DistanceTexture::R8Linear => {
-            let (q, range) = map.quantized(Format::R8);
-            let r = range.expect("R8 quantisation returns its range");
-            let bytes: Vec<u8> = map.data().iter().map(|&v| r.encode(v)).collect();
-            // 8-bit filter units (llvmpipe's among them) may round the
-            // filtered result to a code as well: one more quantum.
-            let margin = filter_margin(&q, r.quantum()) + r.quantum();
-            let decode = Decode {
-                scale: r.max - r.min,
-                offset: r.min,
-                margin,
-                underestimate: q.data_underestimate() + margin,
+        DistanceTexture::R16Linear | DistanceTexture::R8Linear => {
+            let (format, wgpu_format) = if texture == DistanceTexture::R16Linear {
+                (Format::R16F, wgpu::TextureFormat::R16Float)
+            } else {
+                (Format::R8, wgpu::TextureFormat::R8Unorm)
             };
-            (bytes, wgpu::TextureFormat::R8Unorm, decode)
+            let t = map
+                .filtered_texels(format, FILTER_WEIGHT_BITS)
+                .expect("R16F and R8 filter");
+            let decode = Decode {
+                scale: t.scale,
+                offset: t.offset,
+                underestimate: t.underestimate,
+            };
+            (t.bytes, wgpu_format, decode)
         }
     }
-}
-
-/// Bound on how much a linear filter with [`FILTER_WEIGHT_BITS`]-bit weights
-/// can overshoot the exact trilinear value: each of the three lerps may be
-/// off by `2^-bits` of the difference between neighbouring texels, which is
-/// at most the largest such difference in the map.
-fn filter_margin(map: &DistanceMap, quantum: f32) -> f32 {
-    let [w, h, d] = map.size();
-    let mut diff = [0.0f32; 3];
-    for k in 0..d {
-        for j in 0..h {
-            for i in 0..w {
-                let v = map.voxel(i, j, k);
-                let n = [
-                    map.voxel(map.address().texel_index(i as i64 + 1, w), j, k),
-                    map.voxel(i, map.address().texel_index(j as i64 + 1, h), k),
-                    map.voxel(i, j, (k + 1).min(d - 1)),
-                ];
-                for (m, nv) in diff.iter_mut().zip(n) {
-                    *m = m.max((nv - v).abs());
-                }
-            }
-        }
-    }
-    let weight_error = (-(FILTER_WEIGHT_BITS as f32)).exp2();
-    weight_error * (diff.iter().sum::<f32>() + 3.0 * quantum)
 }
 
 pub(crate) fn upload(

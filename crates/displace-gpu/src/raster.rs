@@ -1169,7 +1169,11 @@ impl Targets {
 /// A two-tone checkerboard (`cells` squares a side) and its box-filtered
 /// mip chain, so derivative-driven sampling (section 8.5.3) has levels to
 /// choose from.
-fn checker_mips(size: u32, cells: u32) -> Vec<Vec<u8>> {
+/// Donnelly's checkerboard colour texture (RGBA8 sRGB, `size` texels with
+/// `cells` squares a side) and its box-filtered mips down to 1x1: the
+/// colour map of [`Renderer::new`], public so that another renderer of the
+/// same face (displace-bevy's comparison test) samples the very same texels.
+pub fn checker_mips(size: u32, cells: u32) -> Vec<Vec<u8>> {
     let cell = size / cells;
     let mut level: Vec<u8> = (0..size * size)
         .flat_map(|k| {

@@ -1,11 +1,22 @@
 //! WGSL sources, assembled from the files under `shaders/` (WGSL has no
-//! include): the conventions first, then one distance-lookup flavour, then
-//! the surface walk and trace, then the entry points.
+//! include): the conventions first, then the map's bindings and one
+//! distance-lookup flavour, then the surface walk and trace, then the entry
+//! points.
+//!
+//! `convention.wgsl`, `distance_*.wgsl` and `surface.wgsl` are also shader
+//! modules (`#define_import_path displace::...`, one-line `#import`s), which
+//! displace-bevy registers with Bevy's naga_oil composer, so both crates run
+//! the one trace. Joined here, they share one namespace: [`join`] drops the
+//! directives.
 
 pub const CONVENTION: &str = include_str!("../shaders/convention.wgsl");
 pub const DISTANCE_LOAD: &str = include_str!("../shaders/distance_load.wgsl");
 pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.wgsl");
 pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
+/// `displace::bindings` of this crate's group 0 (gpu_map.rs `map_layout`),
+/// one per distance-lookup flavour.
+pub const BINDINGS_LOAD: &str = include_str!("../shaders/bindings_load.wgsl");
+pub const BINDINGS_FILTERED: &str = include_str!("../shaders/bindings_filtered.wgsl");
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
@@ -72,12 +83,27 @@ impl std::str::FromStr for DistanceTexture {
 /// Conventions, distance lookup and the map-space trace: the part every
 /// entry point shares.
 pub fn map_trace_source(texture: DistanceTexture) -> String {
-    let distance = if texture.filtered() {
-        DISTANCE_FILTERED
+    let (bindings, distance) = if texture.filtered() {
+        (BINDINGS_FILTERED, DISTANCE_FILTERED)
     } else {
-        DISTANCE_LOAD
+        (BINDINGS_LOAD, DISTANCE_LOAD)
     };
-    [CONVENTION, distance, SURFACE].join("\n")
+    join(&[CONVENTION, bindings, distance, SURFACE])
+}
+
+/// The files one after another without their module directives
+/// (`#define_import_path`, `#import`: naga_oil's, which plain WGSL lacks);
+/// every item they import is then defined earlier in the same source.
+pub fn join(parts: &[&str]) -> String {
+    parts
+        .iter()
+        .flat_map(|p| p.lines())
+        .filter(|l| {
+            let l = l.trim_start();
+            !(l.starts_with("#define_import_path") || l.starts_with("#import"))
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// The batch ray query kernel.
@@ -109,12 +135,12 @@ pub fn mesh_source(texture: DistanceTexture) -> String {
 
 /// Non-displaced triangles beside the displaced draws (no map).
 pub fn plain_source() -> String {
-    [CONVENTION, PLAIN].join("\n")
+    join(&[CONVENTION, PLAIN])
 }
 
 /// The bare loop of dependent filtered fetches (benchmarks only).
 pub fn fetch_loop_source() -> String {
-    [CONVENTION, DISTANCE_FILTERED, FETCH_LOOP].join("\n")
+    join(&[CONVENTION, BINDINGS_FILTERED, DISTANCE_FILTERED, FETCH_LOOP])
 }
 
 /// Every complete shader module this crate builds, by name, for validation.
@@ -175,3 +201,47 @@ macro_rules! offsets {
 }
 #[cfg(test)]
 pub(crate) use offsets;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`join`] drops directives line by line: an `#import` spread over
+    /// several lines would leave its tail in the joined source. And every
+    /// shared module names its import path, which Bevy's composer needs.
+    #[test]
+    fn module_directives_are_one_line_each() {
+        for (name, src) in [
+            ("convention", CONVENTION),
+            ("bindings_load", BINDINGS_LOAD),
+            ("bindings_filtered", BINDINGS_FILTERED),
+            ("distance_load", DISTANCE_LOAD),
+            ("distance_filtered", DISTANCE_FILTERED),
+            ("surface", SURFACE),
+        ] {
+            assert!(
+                src.lines()
+                    .next()
+                    .unwrap_or("")
+                    .starts_with("#define_import_path displace::"),
+                "{name}: first line is its import path"
+            );
+            for line in src
+                .lines()
+                .filter(|l| l.trim_start().starts_with("#import"))
+            {
+                assert_eq!(
+                    line.matches('{').count(),
+                    line.matches('}').count(),
+                    "{name}: `{line}` continues on the next line"
+                );
+            }
+            assert!(
+                !join(&[src])
+                    .lines()
+                    .any(|l| l.trim_start().starts_with('#')),
+                "{name}: a directive survived the join"
+            );
+        }
+    }
+}

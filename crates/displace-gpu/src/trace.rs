@@ -25,9 +25,9 @@ pub type GpuHit = MapHit;
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub(crate) struct RayIn {
     origin: [f32; 3],
-    _pad0: f32,
+    pad_origin: f32,
     dir: [f32; 3],
-    _pad1: f32,
+    pad_dir: f32,
 }
 
 impl RayIn {
@@ -36,9 +36,9 @@ impl RayIn {
         rays.iter()
             .map(|r| RayIn {
                 origin: r.origin.to_array(),
-                _pad0: 0.0,
+                pad_origin: 0.0,
                 dir: r.dir.to_array(),
-                _pad1: 0.0,
+                pad_dir: 0.0,
             })
             .collect()
     }
@@ -250,9 +250,9 @@ mod layout_tests {
             std::mem::size_of::<RayIn>(),
             offsets!(RayIn {
                 origin,
-                _pad0,
+                pad_origin,
                 dir,
-                _pad1
+                pad_dir
             }),
         );
         assert_layout(

@@ -139,7 +139,7 @@ fn map_params_layout_matches_wgsl() {
         ("iterations", std::mem::offset_of!(MapParams, iterations)),
         ("t_min", std::mem::offset_of!(MapParams, t_min)),
         ("t_max", std::mem::offset_of!(MapParams, t_max)),
-        ("_pad", std::mem::offset_of!(MapParams, _pad)),
+        ("pad_end", std::mem::offset_of!(MapParams, pad_end)),
     ]
     .into_iter()
     .collect();

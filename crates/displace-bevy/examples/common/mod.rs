@@ -1,0 +1,243 @@
+//! The scene both examples draw: a displaced stone floor and a displaced
+//! sphere under a point light that casts shadows (Donnelly's figure 8-1
+//! surface, GPU Gems 2 ch. 8), with the same height map also set up as
+//! Bevy's own parallax mapping for the `stone` example's comparison.
+
+use bevy::math::Affine2;
+use bevy::prelude::*;
+use displace_bevy::{DistanceMappedMaterial, DistanceMapping, Encoding};
+use displace_core::BakeOptions;
+use displace_core::{Address, Extent};
+
+/// Height source: tiling fractal noise, as `scenes/stone.toml`.
+pub const HEIGHT: &str = "gen:noise?octaves=6&frequency=4";
+
+/// World depth of the floor's shell and of the sphere's.
+pub const FLOOR_DEPTH: f32 = 0.15;
+pub const SPHERE_DEPTH: f32 = 0.04;
+
+/// The floor and the sphere, their two materials.
+pub struct Stone {
+    pub floor: Entity,
+    pub sphere: Entity,
+    pub floor_material: Handle<DistanceMappedMaterial>,
+    pub sphere_material: Handle<DistanceMappedMaterial>,
+    /// The height map as an 8-bit image for Bevy's `StandardMaterial::depth_map`
+    /// (1 - height: Bevy's depth maps push in where ours are low).
+    pub bevy_depth_map: Handle<Image>,
+}
+
+/// Bakes the map (a second or two) and spawns floor, sphere and light.
+pub fn spawn(world: &mut World) -> Stone {
+    let opts = BakeOptions {
+        size: [128, 128, 16],
+        extent: Extent {
+            sx: 1.0,
+            sy: 1.0,
+            sz: 0.1,
+        },
+        ..Default::default()
+    };
+    let (floor_mapping, sphere_mapping, depth_image, albedo) = {
+        let mut images = world.resource_mut::<Assets<Image>>();
+        let height_opts = displace_core::io::height::HeightOptions {
+            address: Address::Repeat,
+            ..Default::default()
+        };
+        let height =
+            displace_core::io::height::load(HEIGHT, &height_opts).expect("built-in height");
+        let mapping =
+            DistanceMapping::bake(&height, &opts, Encoding::R8, &mut images).expect("bake");
+        let depth_image = bevy_depth_map(&height);
+        let albedo = images.add(albedo_map(&height));
+        (
+            mapping.clone().with_depth(FLOOR_DEPTH),
+            mapping.with_depth(SPHERE_DEPTH),
+            images.add(depth_image),
+            albedo,
+        )
+    };
+    let floor_mesh = world
+        .resource_mut::<Assets<Mesh>>()
+        .add(Plane3d::default().mesh().size(4.0, 4.0));
+    let sphere_mesh = world
+        .resource_mut::<Assets<Mesh>>()
+        .add(Sphere::new(0.6).mesh().uv(64, 32));
+    let stone = StandardMaterial {
+        base_color: Color::srgb(0.55, 0.5, 0.45),
+        base_color_texture: Some(albedo),
+        perceptual_roughness: 0.8,
+        uv_transform: Affine2::from_scale(Vec2::splat(2.0)),
+        ..default()
+    };
+    let mut materials = world.resource_mut::<Assets<DistanceMappedMaterial>>();
+    let floor_material = materials.add(DistanceMappedMaterial {
+        base: stone.clone(),
+        extension: floor_mapping,
+    });
+    let sphere_material = materials.add(DistanceMappedMaterial {
+        base: StandardMaterial {
+            base_color: Color::srgb(0.6, 0.55, 0.5),
+            uv_transform: Affine2::from_scale(Vec2::new(4.0, 2.0)),
+            ..stone
+        },
+        extension: sphere_mapping,
+    });
+    let floor = world
+        .spawn((Mesh3d(floor_mesh), MeshMaterial3d(floor_material.clone())))
+        .id();
+    let sphere = world
+        .spawn((
+            Mesh3d(sphere_mesh),
+            MeshMaterial3d(sphere_material.clone()),
+            Transform::from_xyz(0.4, 0.6, 0.5),
+        ))
+        .id();
+    world.spawn((
+        PointLight {
+            intensity: 2.0e6,
+            range: 40.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(2.0, 3.0, -3.0),
+    ));
+    world.insert_resource(GlobalAmbientLight {
+        brightness: 150.0,
+        ..default()
+    });
+    Stone {
+        floor,
+        sphere,
+        floor_material,
+        sphere_material,
+        bevy_depth_map: depth_image,
+    }
+}
+
+/// Bevy's own parallax mapping of the same height map at the same depths,
+/// as `StandardMaterial`s for floor and sphere (the comparison of the
+/// `stone` example and of BENCHMARKS.md): adds the tangents it needs to the
+/// meshes (ours derives its frame from screen-space derivatives).
+pub fn bevy_parallax(
+    world: &mut World,
+    stone: &Stone,
+    method: bevy::pbr::ParallaxMappingMethod,
+) -> [Handle<StandardMaterial>; 2] {
+    for entity in [stone.floor, stone.sphere] {
+        let handle = world.get::<Mesh3d>(entity).expect("a mesh").0.clone();
+        if let Some(mut mesh) = world.resource_mut::<Assets<Mesh>>().get_mut(&handle) {
+            if !mesh.contains_attribute(Mesh::ATTRIBUTE_TANGENT) {
+                mesh.generate_tangents()
+                    .expect("meshes with normals and UVs");
+            }
+        }
+    }
+    let (floor_base, sphere_base) = {
+        let m = world.resource::<Assets<DistanceMappedMaterial>>();
+        (
+            m.get(&stone.floor_material).expect("floor").base.clone(),
+            m.get(&stone.sphere_material).expect("sphere").base.clone(),
+        )
+    };
+    // Bevy's depth scale is in units of the texture coordinate: the world
+    // depth over the world size of one tile (4 m floor, 3.8 m sphere
+    // circumference, each over its uv_transform scale).
+    let parallax = |base: StandardMaterial, depth: f32, size: f32| StandardMaterial {
+        depth_map: Some(stone.bevy_depth_map.clone()),
+        parallax_depth_scale: depth / (size / base.uv_transform.matrix2.x_axis.x),
+        max_parallax_layer_count: 16.0,
+        parallax_mapping_method: method,
+        ..base
+    };
+    let mut materials = world.resource_mut::<Assets<StandardMaterial>>();
+    [
+        materials.add(parallax(floor_base, FLOOR_DEPTH, 4.0)),
+        materials.add(parallax(
+            sphere_base,
+            SPHERE_DEPTH,
+            2.0 * std::f32::consts::PI * 0.6,
+        )),
+    ]
+}
+
+/// Puts Bevy's parallax materials on floor and sphere in place of ours.
+pub fn show_bevy(world: &mut World, stone: &Stone, materials: &[Handle<StandardMaterial>; 2]) {
+    for (entity, m) in [stone.floor, stone.sphere].into_iter().zip(materials) {
+        world
+            .entity_mut(entity)
+            .remove::<MeshMaterial3d<DistanceMappedMaterial>>()
+            .insert(MeshMaterial3d(m.clone()));
+    }
+}
+
+/// Puts our materials back on floor and sphere.
+pub fn show_ours(world: &mut World, stone: &Stone) {
+    for (entity, m) in [
+        (stone.floor, &stone.floor_material),
+        (stone.sphere, &stone.sphere_material),
+    ] {
+        world
+            .entity_mut(entity)
+            .remove::<MeshMaterial3d<StandardMaterial>>()
+            .insert(MeshMaterial3d(m.clone()));
+    }
+}
+
+/// The camera of `scenes/stone.toml`.
+pub fn camera_transform() -> Transform {
+    Transform::from_xyz(0.0, 2.2, -3.2).looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::Y)
+}
+
+/// A colour map from the heights (darker in the hollows), so that every
+/// method's displaced texture coordinate shows in the picture (and Bevy's
+/// parallax loop is not optimised away for want of a texture to read).
+fn albedo_map(height: &displace_core::HeightMap) -> Image {
+    use bevy::render::render_resource::TextureFormat;
+    repeating_image(height, TextureFormat::Rgba8UnormSrgb, |h| {
+        let g = ((0.45 + 0.55 * h) * 255.0).round() as u8;
+        vec![g, g, g, 255]
+    })
+}
+
+/// Bevy's parallax mapping reads a depth map (white = deepest).
+fn bevy_depth_map(height: &displace_core::HeightMap) -> Image {
+    use bevy::render::render_resource::TextureFormat;
+    repeating_image(height, TextureFormat::R8Unorm, |h| {
+        vec![((1.0 - h) * 255.0).round() as u8]
+    })
+}
+
+/// One texel of `format` per height texel (heights clamped to [0, 1]),
+/// sampled linearly and repeating, as the map tiles.
+fn repeating_image(
+    height: &displace_core::HeightMap,
+    format: bevy::render::render_resource::TextureFormat,
+    texel: impl Fn(f32) -> Vec<u8>,
+) -> Image {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
+    use bevy::render::render_resource::{Extent3d, TextureDimension};
+    let bytes: Vec<u8> = height
+        .data()
+        .iter()
+        .flat_map(|h| texel(h.clamp(0.0, 1.0)))
+        .collect();
+    let mut image = Image::new(
+        Extent3d {
+            width: height.width() as u32,
+            height: height.height() as u32,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        bytes,
+        format,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: ImageAddressMode::Repeat,
+        address_mode_v: ImageAddressMode::Repeat,
+        ..ImageSamplerDescriptor::linear()
+    });
+    image
+}
