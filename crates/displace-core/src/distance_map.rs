@@ -152,9 +152,19 @@ impl R8Range {
 pub struct FilteredTexels {
     /// Level 0, `[k][j][i]`, little-endian: R8 unorm codes or R16 half floats.
     pub bytes: Vec<u8>,
+    /// The texel format of `bytes` (R8 unorm or R16 float).
     pub format: Format,
+    /// Depth units per unit of the fetched value (the R8 range's span; 1
+    /// for half floats).
     pub scale: f32,
+    /// Depth units a fetch of 0 stands for: the R8 range's minimum (0 for
+    /// half floats), lowered by the filtering margin so that the decoded
+    /// value stays a lower bound.
     pub offset: f32,
+    /// How far a decoded, linearly filtered fetch may fall below the true
+    /// distance, in shell depths (the stored values' bound plus the
+    /// filtering margin): what the tracer's stop band must cover (Donnelly,
+    /// GPU Gems 2 ch. 8, section 8.3).
     pub underestimate: f32,
 }
 
