@@ -342,18 +342,29 @@ fn run<const ANY: bool>(
         Ok(lane) => lane,
         Err(out) => return out,
     };
-    loop {
-        let next = lane.check();
-        if let Some(out) = lane.resolve::<ANY>(height, &c, next) {
-            return out;
-        }
-        if matches!(next, Next::Walk { .. }) {
-            continue;
-        }
-        let s = distance.cell_bound(lane.at());
-        let next = lane.take_step(&c, s);
-        if let Some(out) = lane.resolve::<ANY>(height, &c, next) {
-            return out;
+    lane.finish::<ANY>(height, distance, &c)
+}
+
+impl Lane {
+    /// The one-ray loop: steps and walks this lane to the end of its
+    /// trace. (A walk that [`Lane::check`] hands out is always the last,
+    /// so it ends the trace.)
+    fn finish<const ANY: bool>(
+        &mut self,
+        height: &HeightMap,
+        distance: &DistanceMap,
+        c: &Constants,
+    ) -> Outcome {
+        loop {
+            let next = self.check();
+            if let Some(out) = self.resolve::<ANY>(height, c, next) {
+                return out;
+            }
+            let s = distance.cell_bound(self.at());
+            let next = self.take_step(c, s);
+            if let Some(out) = self.resolve::<ANY>(height, c, next) {
+                return out;
+            }
         }
     }
 }

@@ -64,31 +64,11 @@ pub(super) fn run_all<const ANY: bool>(
         } else {
             for (l, lane) in lanes.iter_mut().enumerate() {
                 if let Some(lane) = lane {
-                    emit(k + l, scalar::<ANY>(height, distance, &c, lane));
+                    emit(k + l, lane.finish::<ANY>(height, distance, &c));
                 }
             }
         }
         k += n;
-    }
-}
-
-/// The scalar loop on one lane (the packet kernel's fallback).
-fn scalar<const ANY: bool>(
-    height: &HeightMap,
-    distance: &DistanceMap,
-    c: &Constants,
-    lane: &mut Lane,
-) -> Outcome {
-    loop {
-        let next = lane.check();
-        if let Some(out) = lane.resolve::<ANY>(height, c, next) {
-            return out;
-        }
-        let s = distance.cell_bound(lane.at());
-        let next = lane.take_step(c, s);
-        if let Some(out) = lane.resolve::<ANY>(height, c, next) {
-            return out;
-        }
     }
 }
 
