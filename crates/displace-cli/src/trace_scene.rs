@@ -40,16 +40,23 @@ fn world_ray(r: &[f32; 7]) -> (Ray, f32, f32) {
     (Ray::new(Vec3::new(r[0], r[1], r[2]), dir), r[6] * len, len)
 }
 
+/// [`world_ray`] of each ray of a batch, as the batch queries take them:
+/// the rays, their limits and their directions' lengths.
+fn world_rays(rays: &[[f32; 7]]) -> (Vec<Ray>, Vec<f32>, Vec<f32>) {
+    let mut out = (Vec::new(), Vec::new(), Vec::new());
+    for r in rays {
+        let (ray, t_max, len) = world_ray(r);
+        out.0.push(ray);
+        out.1.push(t_max);
+        out.2.push(len);
+    }
+    out
+}
+
 /// The first hits of a batch of world rays, each `[t, x, y, z, nx, ny,
 /// nz, shape]`, into `out` (8 values a ray).
 pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
-    let (mut world, mut limits, mut lens) = (Vec::new(), Vec::new(), Vec::new());
-    for r in rays {
-        let (ray, t_max, len) = world_ray(r);
-        world.push(ray);
-        limits.push(t_max);
-        lens.push(len);
-    }
+    let (world, limits, lens) = world_rays(rays);
     let mut hits = Vec::with_capacity(rays.len());
     scene.intersect_many(&world, 0.0, &limits, Detail::Geometry, batch, &mut hits);
     for ((o, hit), len) in out.chunks_mut(8).zip(hits).zip(lens) {
@@ -60,12 +67,7 @@ pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut
 /// Whether anything blocks each of a batch of world rays within `(0,
 /// t_max)`: 1 or 0 each, into `out`.
 pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
-    let (mut world, mut limits) = (Vec::new(), Vec::new());
-    for r in rays {
-        let (ray, t_max, _) = world_ray(r);
-        world.push(ray);
-        limits.push(t_max);
-    }
+    let (world, limits, _) = world_rays(rays);
     let mut blocked = Vec::with_capacity(rays.len());
     scene.occluded_many(&world, 0.0, &limits, batch, &mut blocked);
     for (o, b) in out.iter_mut().zip(blocked) {
