@@ -147,13 +147,7 @@ impl GpuContext {
                 during: "mapping a readback buffer".into(),
                 message: e.to_string(),
             })?;
-        let bytes = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Gpu {
-                during: "reading a mapped buffer".into(),
-                message: e.to_string(),
-            })?
-            .to_vec();
+        let bytes = slice.get_mapped_range().to_vec();
         buffer.unmap();
         Ok(bytes)
     }

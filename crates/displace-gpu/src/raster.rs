@@ -431,7 +431,7 @@ impl Renderer {
                         module: &module,
                         entry_point: Some("vs_plain"),
                         compilation_options: Default::default(),
-                        buffers: &[Some(PLAIN_VERTEX_LAYOUT)],
+                        buffers: &[PLAIN_VERTEX_LAYOUT],
                     },
                     // Two-sided, as the CPU renderer's surfaces.
                     primitive: wgpu::PrimitiveState {
@@ -588,7 +588,7 @@ impl Renderer {
                         compilation_options: Default::default(),
                         buffers: match shape {
                             Shape::Box { .. } => &[],
-                            Shape::Mesh(_) => &[Some(SHELL_VERTEX_LAYOUT)],
+                            Shape::Mesh(_) => &[SHELL_VERTEX_LAYOUT],
                         },
                     },
                     primitive: wgpu::PrimitiveState {

@@ -240,7 +240,6 @@ impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> App<E, F> {
             desired_maximum_frame_latency: 2,
             alpha_mode: caps.alpha_modes[0],
             view_formats: vec![],
-            color_space: wgpu::SurfaceColorSpace::Auto,
         };
         ctx.checked("configuring the window surface", || {
             surface.configure(&ctx.device, &config)
@@ -410,7 +409,7 @@ impl Running {
             .checked("finishing the frame", || encoder.finish())?;
         self.ctx.queue.submit([commands]);
         self.window.pre_present_notify();
-        self.ctx.queue.present(surface_texture);
+        surface_texture.present();
         self.frames += 1;
         let now = Instant::now();
         if let Some(prev) = self.last_frame {
