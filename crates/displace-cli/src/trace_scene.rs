@@ -37,40 +37,63 @@ const BATCH: usize = 64;
 fn world_ray(r: &[f32; 7]) -> (Ray, f32, f32) {
     let dir = Vec3::new(r[3], r[4], r[5]);
     let len = dir.length();
-    (Ray::new(Vec3::new(r[0], r[1], r[2]), dir), r[6] * len, len)
+    (
+        Ray::from_unit(Vec3::new(r[0], r[1], r[2]), dir / len),
+        r[6] * len,
+        len,
+    )
 }
 
-/// [`world_ray`] of each ray of a batch, as the batch queries take them:
-/// the rays, their limits and their directions' lengths.
-fn world_rays(rays: &[[f32; 7]]) -> (Vec<Ray>, Vec<f32>, Vec<f32>) {
-    let mut out = (Vec::new(), Vec::new(), Vec::new());
-    for r in rays {
-        let (ray, t_max, len) = world_ray(r);
-        out.0.push(ray);
-        out.1.push(t_max);
-        out.2.push(len);
+/// What one thread's batches reuse: the batch queries' buffers, the world
+/// rays of a batch ([`world_ray`]: rays, limits, directions' lengths) and
+/// their answers, so a batch allocates nothing after the first.
+#[derive(Default)]
+pub struct Scratch {
+    batch: Batch,
+    rays: Vec<Ray>,
+    limits: Vec<f32>,
+    lens: Vec<f32>,
+    hits: Vec<Option<(u32, displace_render::scene::Interaction)>>,
+    blocked: Vec<bool>,
+}
+
+impl Scratch {
+    fn load(&mut self, rays: &[[f32; 7]]) {
+        self.rays.clear();
+        self.limits.clear();
+        self.lens.clear();
+        for r in rays {
+            let (ray, t_max, len) = world_ray(r);
+            self.rays.push(ray);
+            self.limits.push(t_max);
+            self.lens.push(len);
+        }
     }
-    out
 }
 
 /// The first hits of a batch of world rays, each `[t, x, y, z, nx, ny,
 /// nz, shape]`, into `out` (8 values a ray).
-pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
-    let (world, limits, lens) = world_rays(rays);
-    let mut hits = Vec::with_capacity(rays.len());
-    scene.intersect_many(&world, 0.0, &limits, Detail::Geometry, batch, &mut hits);
-    for ((o, hit), len) in out.chunks_mut(8).zip(hits).zip(lens) {
+pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], sc: &mut Scratch, out: &mut [f32]) {
+    sc.load(rays);
+    scene.intersect_many(
+        &sc.rays,
+        0.0,
+        &sc.limits,
+        Detail::Geometry,
+        &mut sc.batch,
+        &mut sc.hits,
+    );
+    for ((o, hit), &len) in out.chunks_mut(8).zip(&sc.hits).zip(&sc.lens) {
         o.copy_from_slice(&row(scene, hit, len));
     }
 }
 
 /// Whether anything blocks each of a batch of world rays within `(0,
 /// t_max)`: 1 or 0 each, into `out`.
-pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &mut [f32]) {
-    let (world, limits, _) = world_rays(rays);
-    let mut blocked = Vec::with_capacity(rays.len());
-    scene.occluded_many(&world, 0.0, &limits, batch, &mut blocked);
-    for (o, b) in out.iter_mut().zip(blocked) {
+pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], sc: &mut Scratch, out: &mut [f32]) {
+    sc.load(rays);
+    scene.occluded_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.blocked);
+    for (o, &b) in out.iter_mut().zip(&sc.blocked) {
         *o = f32::from(u8::from(b));
     }
 }
@@ -78,11 +101,12 @@ pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], batch: &mut Batch, out: &m
 /// A hit as a row of the hits file.
 fn row(
     scene: &Scene,
-    hit: Option<(u32, displace_render::scene::Interaction)>,
+    hit: &Option<(u32, displace_render::scene::Interaction)>,
     len: f32,
 ) -> [f32; 8] {
     match hit {
         Some((prim, hit)) => {
+            let prim = *prim;
             let (p, n) = (hit.position, hit.geometric_normal);
             let shape = scene.shape_of(prim).map_or(LIGHT, |k| k as f32);
             [hit.t / len, p.x, p.y, p.z, n.x, n.y, n.z, shape]
@@ -131,11 +155,11 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     if any_hit {
         flat.par_chunks_mut(BATCH)
             .zip(rays.par_chunks(BATCH))
-            .for_each_init(Batch::default, |b, (o, r)| blocked_many(&scene, r, b, o));
+            .for_each_init(Scratch::default, |b, (o, r)| blocked_many(&scene, r, b, o));
     } else {
         flat.par_chunks_mut(8 * BATCH)
             .zip(rays.par_chunks(BATCH))
-            .for_each_init(Batch::default, |b, (o, r)| first_hits(&scene, r, b, o));
+            .for_each_init(Scratch::default, |b, (o, r)| first_hits(&scene, r, b, o));
     }
     let seconds = start.elapsed().as_secs_f64();
     let found = if any_hit {

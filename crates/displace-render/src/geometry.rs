@@ -20,6 +20,17 @@ impl Ray {
         }
     }
 
+    /// A ray whose direction is already unit length (normalising it again
+    /// would cost a square root and a division a ray).
+    #[inline]
+    pub fn from_unit(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+        }
+    }
+
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
