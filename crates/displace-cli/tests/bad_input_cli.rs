@@ -283,6 +283,59 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     failed(&o, &["DISPLACE_MEMORY_LIMIT=lots"], &[]);
 }
 
+/// A scene's textures count together in its memory estimate, each before
+/// it is decoded: two textures of 6 MiB each fit a 16 MiB limit (the
+/// same file twice is read once, and counted once), a third tips the scene
+/// over and is named, though each of them alone is far below any
+/// one-buffer check.
+#[test]
+fn a_scenes_textures_are_counted_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for name in ["t1.png", "t2.png", "t3.png"] {
+        image::RgbImage::from_pixel(512, 512, image::Rgb([200, 100, 50]))
+            .save(d.join(name))
+            .unwrap();
+    }
+    let scene = |textures: &[&str]| {
+        let mut text = SCENE.replace(
+            "color = [0.5, 0.5, 0.5]",
+            "color = [0.5, 0.5, 0.5]\ntexture = \"t1.png\"",
+        );
+        for (k, t) in textures.iter().enumerate() {
+            text.push_str(&format!(
+                "[materials.extra{k}]\ntype = \"lambert\"\ncolor = [1, 1, 1]\ntexture = \"{t}\"\n"
+            ));
+        }
+        std::fs::write(d.join("s.toml"), text).unwrap();
+    };
+    let render = |args: &[&str]| {
+        cmd(d)
+            .args(args)
+            .env("DISPLACE_MEMORY_LIMIT", "16M")
+            .output()
+            .unwrap()
+    };
+    scene(&["t1.png", "t2.png"]);
+    let o = render(&["render", "-q", "s.toml", "-o", "r.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(d.join("r.png")).unwrap();
+    scene(&["t1.png", "t2.png", "t3.png"]);
+    let before = files(d);
+    let o = render(&["render", "-q", "s.toml", "-o", "r.png"]);
+    failed(
+        &o,
+        &[
+            "s.toml",
+            "materials.extra2.texture = \"t3.png\": a 512x512 texture",
+            "needs about 18.0 MiB",
+            "DISPLACE_MEMORY_LIMIT",
+        ],
+        &[],
+    );
+    assert_eq!(files(d), before);
+}
+
 /// Outputs of one command are checked before the work and land together:
 /// no output replaces another, and a failing one leaves none behind.
 #[test]
