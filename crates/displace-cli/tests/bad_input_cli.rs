@@ -260,6 +260,31 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     );
     assert!(msg.contains("export-mesh of a 46000x46000"), "{msg}");
     assert!(start.elapsed() < Duration::from_secs(10));
+    // `compare` holds every map's heights, the one in work with its
+    // precomputations and bake (hundreds of GB here): refused as fast,
+    // before the generator runs or the output directory is made.
+    let start = Instant::now();
+    let compare = |extra: &[&str]| {
+        let mut args = vec![
+            "compare",
+            "--only-given",
+            "--height",
+            "gen:flat",
+            "--out",
+            "o",
+        ];
+        args.extend(extra);
+        refused("16G", &args)
+    };
+    let msg = compare(&["--height-size", "46000x46000"]);
+    assert!(
+        msg.contains("compare on 1 height maps (the largest 46000x46000)"),
+        "{msg}"
+    );
+    assert!(start.elapsed() < Duration::from_secs(10));
+    // So are rays by the billion (their hits are kept per elevation).
+    let msg = compare(&["--quick", "--rays", "4000000000"]);
+    assert!(msg.contains("4000000000 rays"), "{msg}");
     // A small bake under a smaller limit; then allowed.
     let small = ["bake", "gen:gaussian", "--size", "64x64x8", "-o", "m.npy"];
     refused("100K", &small);
