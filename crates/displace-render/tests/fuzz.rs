@@ -139,6 +139,7 @@ fn fuzz(
     text: bool,
     parse: &dyn Fn(&[u8], &Path) -> bool,
 ) -> Vec<String> {
+    write_seeds(parser, corpus);
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join(name);
     let seed = seed + seed_offset() * 1000;
@@ -166,6 +167,20 @@ fn fuzz(
         "{parser}: no mutated input was accepted"
     );
     crashes
+}
+
+/// With `DISPLACE_FUZZ_CORPUS=DIR`, writes `corpus` to `DIR/PARSER/`: the
+/// seed corpora of the cargo-fuzz targets (`fuzz/`, one per parser, named
+/// as here), so both fuzzers start from the same inputs.
+fn write_seeds(parser: &str, corpus: &[Vec<u8>]) {
+    let Some(out) = std::env::var_os("DISPLACE_FUZZ_CORPUS") else {
+        return;
+    };
+    let dir = Path::new(&out).join(parser);
+    std::fs::create_dir_all(&dir).unwrap();
+    for (k, input) in corpus.iter().enumerate() {
+        std::fs::write(dir.join(format!("seed-{k}")), input).unwrap();
+    }
 }
 
 fn small_map() -> displace_core::DisplacementMap {
