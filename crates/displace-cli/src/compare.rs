@@ -14,8 +14,11 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::{write_atomic, Batch};
+use displace_core::io::height::{self, HeightOptions};
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique};
-use displace_core::{bake, generators, Address, BakeOptions, Extent, MapRay, Method, TraceOptions};
+use displace_core::{
+    bake, generators, Address, BakeOptions, Extent, HeightMap, MapRay, Method, TraceOptions,
+};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -436,10 +439,140 @@ fn equal_error(rows: &[Row]) -> Vec<(&Row, Option<&Row>)> {
     out
 }
 
+/// Bytes per height texel every map holds from the start (the maps are
+/// all read before any work, so a bad file fails first): its heights.
+const LOADED_BYTES_PER_TEXEL: u128 = 4;
+
+/// Bytes per height texel of the map being compared, beyond its bake
+/// ([`displace_core::memory::bake_peak_bytes`] counts that): the heights
+/// the techniques sample (4) and, when the techniques need them, each cone
+/// map (4), the max pyramid (about 4/3 of 4, counted 6) and the scratch of
+/// a cone build (the footprints' height ranges and slopes, or the relaxed
+/// build's block maxima: 12).
+fn prepare_bytes_per_texel(techniques: &[Technique]) -> u128 {
+    use displace_core::techniques::Needs;
+    let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
+    let cones = needs(Needs::ConservativeCones) as u128 + needs(Needs::RelaxedCones) as u128;
+    4 + 4 * cones + if needs(Needs::Pyramid) { 6 } else { 0 } + if cones > 0 { 12 } else { 0 }
+}
+
+/// Estimated peak bytes of the whole comparison: every map's heights, read
+/// first; the map being compared with its precomputations and bake; the
+/// grid's map, kept from an earlier one when there are several; the rays
+/// of one elevation with their exact and measured hits; and with `--gpu`
+/// the repeated rays of a dispatch (the batch and its upload).
+fn compare_peak_bytes(
+    sizes: &[[usize; 2]],
+    depth: usize,
+    techniques: &[Technique],
+    rays: usize,
+    gpu_rays: Option<usize>,
+) -> u128 {
+    let texels = |s: &[usize; 2]| s[0] as u128 * s[1] as u128;
+    let loaded: u128 = sizes
+        .iter()
+        .map(|s| texels(s) * LOADED_BYTES_PER_TEXEL)
+        .sum();
+    let per_texel = prepare_bytes_per_texel(techniques);
+    let working = sizes
+        .iter()
+        .map(|s| {
+            texels(s) * per_texel
+                + displace_core::memory::bake_peak_bytes(*s, [s[0], s[1], depth], false)
+        })
+        .max()
+        .unwrap_or(0);
+    let grid = if sizes.len() > 1 { working } else { 0 };
+    let ray = std::mem::size_of::<MapRay>() as u128;
+    let hit = std::mem::size_of::<Option<Vec2>>() as u128;
+    let rays = rays as u128 * (ray + 2 * hit) + gpu_rays.map_or(0, |n| 2 * n as u128 * ray);
+    loaded + working + grid + rays
+}
+
+/// Refuses a comparison whose estimated peak ([`compare_peak_bytes`])
+/// exceeds the memory limit ([`displace_core::memory`]), from the height
+/// maps' headers alone, before any map is decoded or generated.
+fn check_memory(
+    args: &CompareArgs,
+    plan: &Plan,
+    sources: &[String],
+    opts: &HeightOptions,
+) -> Result<()> {
+    let sizes = sources
+        .iter()
+        .map(|s| {
+            let [w, h] =
+                height::dimensions(s, opts).with_context(|| format!("loading height map `{s}`"))?;
+            // One buffer too large says so first; then the whole job.
+            HeightMap::check_size(w, h).with_context(|| format!("height map `{s}`"))?;
+            Ok([w, h])
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let largest = sizes
+        .iter()
+        .max_by_key(|s| s[0] as u128 * s[1] as u128)
+        .expect("at least one map");
+    let gpu_rays = args.gpu.then(|| gpu_rays(args));
+    displace_core::memory::check(
+        &format!(
+            "compare on {} height maps (the largest {}x{}) with {} depth slices and {} rays",
+            sizes.len(),
+            largest[0],
+            largest[1],
+            args.depth,
+            plan.rays
+        ),
+        compare_peak_bytes(&sizes, args.depth, &plan.techniques, plan.rays, gpu_rays),
+    )?;
+    Ok(())
+}
+
+/// Rays per GPU dispatch: `--gpu-rays`, or its default.
+fn gpu_rays(args: &CompareArgs) -> usize {
+    args.gpu_rays
+        .unwrap_or(if args.quick { 4096 } else { 1 << 18 })
+}
+
+/// The output directory, created before the work so that a path that
+/// cannot be one fails first, and removed again (with any parents this run
+/// made) when the command fails, as every output of a failed command is:
+/// the outputs themselves land only at the end ([`Batch`]).
+struct OutputDir {
+    /// The directories this run created, deepest first.
+    created: Vec<PathBuf>,
+}
+
+impl OutputDir {
+    fn create(dir: &Path) -> Result<Self> {
+        let created: Vec<PathBuf> = dir
+            .ancestors()
+            .filter(|a| !a.as_os_str().is_empty())
+            .take_while(|a| !a.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the output directory {}", dir.display()))?;
+        Ok(Self { created })
+    }
+
+    /// The command succeeded: the directories stay.
+    fn keep(mut self) {
+        self.created.clear();
+    }
+}
+
+impl Drop for OutputDir {
+    fn drop(&mut self) {
+        // `remove_dir` removes only empty directories: nothing but what
+        // this run made and left empty goes.
+        for d in &self.created {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
+}
+
 pub fn run(args: CompareArgs) -> Result<()> {
     let plan = plan(&args)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating the output directory {}", args.out.display()))?;
     let mut sources: Vec<String> = if args.only_given {
         Vec::new()
     } else {
@@ -457,6 +590,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
         channel: None,
         address: Address::Clamp,
     };
+    let opts = HeightOptions {
+        channel: height_args.channel,
+        size: plan.size,
+        address: height_args.address,
+    };
+    check_memory(&args, &plan, &sources, &opts)?;
+    let out_dir = OutputDir::create(&args.out)?;
     // Read every map first: a bad file fails before minutes of work.
     let heights = sources
         .iter()
@@ -467,9 +607,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         if args.gpu_frames == 0 {
             bail!("--gpu-frames must be positive");
         }
-        let n = args
-            .gpu_rays
-            .unwrap_or(if args.quick { 4096 } else { 1 << 18 });
+        let n = gpu_rays(&args);
         if n == 0 {
             bail!("--gpu-rays must be positive");
         }
@@ -612,6 +750,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         if args.quick { 48 } else { 128 },
     )?;
     batch.commit().context("moving the outputs into place")?;
+    out_dir.keep();
 
     println!(
         "compared {} techniques on {} maps x {} elevations x {} rays in {:.1} s",
@@ -649,4 +788,41 @@ pub fn run(args: CompareArgs) -> Result<()> {
             .join(", ")
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One map, a height-only technique: the heights read first, their
+    /// copy beside the bake's peak, and the rays with their two hit lists.
+    #[test]
+    fn the_peak_counts_heights_bake_and_rays() {
+        let ray = std::mem::size_of::<MapRay>() as u128;
+        let hit = std::mem::size_of::<Option<Vec2>>() as u128;
+        let bake = displace_core::memory::bake_peak_bytes([10, 10], [10, 10, 4], false);
+        assert_eq!(
+            compare_peak_bytes(&[[10, 10]], 4, &[Technique::Pom], 3, None),
+            100 * 4 + 100 * 4 + bake + 3 * (ray + 2 * hit)
+        );
+        // Cones, pyramid and a second map (the grid's, kept) add to it.
+        let one = compare_peak_bytes(&[[10, 10]], 4, &Technique::ALL, 3, None);
+        assert_eq!(
+            one,
+            100 * 4 + 100 * (4 + 8 + 6 + 12) + bake + 3 * (ray + 2 * hit)
+        );
+        let two = compare_peak_bytes(&[[10, 10], [10, 10]], 4, &Technique::ALL, 3, None);
+        assert_eq!(two - one, 100 * 4 + 100 * (4 + 8 + 6 + 12) + bake);
+        // The GPU's repeated rays: the batch and its upload.
+        let gpu = compare_peak_bytes(&[[10, 10]], 4, &Technique::ALL, 3, Some(1000));
+        assert_eq!(gpu - one, 2 * 1000 * ray);
+    }
+
+    /// The size: a 46000x46000 map needs tens of gigabytes (every
+    /// buffer of which passes the one-buffer check).
+    #[test]
+    fn a_46000_texel_map_needs_tens_of_gigabytes() {
+        let b = compare_peak_bytes(&[[46000, 46000]], 16, &Technique::ALL, 2000, None);
+        assert!(b > 300_000_000_000 && b < 500_000_000_000, "{b}");
+    }
 }

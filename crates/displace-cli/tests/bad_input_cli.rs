@@ -260,6 +260,31 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     );
     assert!(msg.contains("export-mesh of a 46000x46000"), "{msg}");
     assert!(start.elapsed() < Duration::from_secs(10));
+    // `compare` holds every map's heights, the one in work with its
+    // precomputations and bake (hundreds of GB here): refused as fast,
+    // before the generator runs or the output directory is made.
+    let start = Instant::now();
+    let compare = |extra: &[&str]| {
+        let mut args = vec![
+            "compare",
+            "--only-given",
+            "--height",
+            "gen:flat",
+            "--out",
+            "o",
+        ];
+        args.extend(extra);
+        refused("16G", &args)
+    };
+    let msg = compare(&["--height-size", "46000x46000"]);
+    assert!(
+        msg.contains("compare on 1 height maps (the largest 46000x46000)"),
+        "{msg}"
+    );
+    assert!(start.elapsed() < Duration::from_secs(10));
+    // So are rays by the billion (their hits are kept per elevation).
+    let msg = compare(&["--quick", "--rays", "4000000000"]);
+    assert!(msg.contains("4000000000 rays"), "{msg}");
     // A small bake under a smaller limit; then allowed.
     let small = ["bake", "gen:gaussian", "--size", "64x64x8", "-o", "m.npy"];
     refused("100K", &small);
@@ -281,6 +306,59 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
         .output()
         .unwrap();
     failed(&o, &["DISPLACE_MEMORY_LIMIT=lots"], &[]);
+}
+
+/// A scene's textures count together in its memory estimate, each before
+/// it is decoded: two textures of 6 MiB each fit a 16 MiB limit (the
+/// same file twice is read once, and counted once), a third tips the scene
+/// over and is named, though each of them alone is far below any
+/// one-buffer check.
+#[test]
+fn a_scenes_textures_are_counted_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for name in ["t1.png", "t2.png", "t3.png"] {
+        image::RgbImage::from_pixel(512, 512, image::Rgb([200, 100, 50]))
+            .save(d.join(name))
+            .unwrap();
+    }
+    let scene = |textures: &[&str]| {
+        let mut text = SCENE.replace(
+            "color = [0.5, 0.5, 0.5]",
+            "color = [0.5, 0.5, 0.5]\ntexture = \"t1.png\"",
+        );
+        for (k, t) in textures.iter().enumerate() {
+            text.push_str(&format!(
+                "[materials.extra{k}]\ntype = \"lambert\"\ncolor = [1, 1, 1]\ntexture = \"{t}\"\n"
+            ));
+        }
+        std::fs::write(d.join("s.toml"), text).unwrap();
+    };
+    let render = |args: &[&str]| {
+        cmd(d)
+            .args(args)
+            .env("DISPLACE_MEMORY_LIMIT", "16M")
+            .output()
+            .unwrap()
+    };
+    scene(&["t1.png", "t2.png"]);
+    let o = render(&["render", "-q", "s.toml", "-o", "r.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(d.join("r.png")).unwrap();
+    scene(&["t1.png", "t2.png", "t3.png"]);
+    let before = files(d);
+    let o = render(&["render", "-q", "s.toml", "-o", "r.png"]);
+    failed(
+        &o,
+        &[
+            "s.toml",
+            "materials.extra2.texture = \"t3.png\": a 512x512 texture",
+            "needs about 18.0 MiB",
+            "DISPLACE_MEMORY_LIMIT",
+        ],
+        &[],
+    );
+    assert_eq!(files(d), before);
 }
 
 /// Outputs of one command are checked before the work and land together:
@@ -491,4 +569,199 @@ fn an_interrupted_bake_leaves_no_file() {
     );
     failed(&o, &["no/such", "does not exist"], &[]);
     assert!(start.elapsed() < Duration::from_secs(2));
+}
+
+/// How this machine mounts a small tmpfs for one command without touching
+/// any other process: in a private mount namespace as root (`unshare -m`),
+/// else in a user namespace (`unshare -r -m`, where unprivileged user
+/// namespaces are allowed). Probed once by mounting a 4 KiB tmpfs. The
+/// full-disk test needs one of them and fails (never skips) naming both
+/// errors when neither works: a test that silently did nothing would
+/// prove nothing.
+fn namespace_prefix() -> &'static [&'static str] {
+    static PREFIX: std::sync::OnceLock<Result<&'static [&'static str], String>> =
+        std::sync::OnceLock::new();
+    let probe = || {
+        let dir = tempfile::tempdir().unwrap();
+        let mut errors = Vec::new();
+        let ways: [&'static [&'static str]; 2] = [&["unshare", "-m"], &["unshare", "-r", "-m"]];
+        for prefix in ways {
+            let o = Command::new(prefix[0])
+                .args(&prefix[1..])
+                .args([
+                    "sh",
+                    "-c",
+                    r#"mount -t tmpfs -o size=4096 tmpfs "$1""#,
+                    "sh",
+                ])
+                .arg(dir.path())
+                .output();
+            match o {
+                Ok(o) if o.status.success() => return Ok(prefix),
+                Ok(o) => errors.push(format!("`{}`: {}", prefix.join(" "), stderr(&o).trim())),
+                Err(e) => errors.push(format!("`{}`: {e}", prefix.join(" "))),
+            }
+        }
+        Err(errors.join("; "))
+    };
+    match PREFIX.get_or_init(probe) {
+        Ok(prefix) => prefix,
+        Err(why) => panic!(
+            "the full-disk test mounts a small tmpfs in its own mount namespace: run it as \
+             root (`unshare -m`) or where user namespaces are allowed (`unshare -r -m`); \
+             both failed: {why}"
+        ),
+    }
+}
+
+/// The names under `dir`, as paths relative to it, sorted.
+fn tree(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            out.push(p.strip_prefix(dir).unwrap().to_string_lossy().into_owned());
+            if p.is_dir() {
+                stack.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Bytes `dir`'s files take on a tmpfs: each file's size in whole pages.
+fn pages_under(dir: &Path, page: u64) -> u64 {
+    tree(dir)
+        .iter()
+        .map(|p| dir.join(p))
+        .filter(|p| p.is_file())
+        .map(|p| std::fs::metadata(p).unwrap().len().div_ceil(page) * page)
+        .sum()
+}
+
+/// Runs `displace ARGS` in `dir` with a tmpfs of `bytes` mounted on
+/// `dir/disk` for that run only (its own mount namespace: the disk goes
+/// when the run ends), and returns what it did and what it left on the
+/// disk (paths under `disk`, from `find`, sorted).
+fn on_small_disk(dir: &Path, bytes: u64, args: &[&str]) -> (Output, Vec<String>) {
+    const SCRIPT: &str = r#"size=$1; shift
+mount -t tmpfs -o "size=$size" tmpfs disk || { echo "mounting the small disk failed" >&2; exit 97; }
+"$@"; rc=$?
+(cd disk && find . -mindepth 1) > left || exit 98
+exit $rc"#;
+    std::fs::create_dir_all(dir.join("disk")).unwrap();
+    let prefix = namespace_prefix();
+    let o = Command::new(prefix[0])
+        .args(&prefix[1..])
+        .args(["sh", "-c", SCRIPT, "sh", &bytes.to_string()])
+        .arg(env!("CARGO_BIN_EXE_displace"))
+        .args(args)
+        .current_dir(dir)
+        .env("DISPLACE_CACHE", "")
+        .output()
+        .unwrap();
+    assert!(
+        !matches!(o.status.code(), Some(97 | 98)),
+        "set-up: {}",
+        stderr(&o)
+    );
+    let left = std::fs::read_to_string(dir.join("left")).unwrap();
+    std::fs::remove_file(dir.join("left")).unwrap();
+    let mut left: Vec<String> = left
+        .lines()
+        .map(|l| l.trim_start_matches("./").to_string())
+        .collect();
+    left.sort();
+    (o, left)
+}
+
+/// The memory page, which tmpfs sizes and files are counted in.
+fn page_size() -> u64 {
+    let o = Command::new("getconf").arg("PAGESIZE").output().unwrap();
+    String::from_utf8_lossy(&o.stdout).trim().parse().unwrap()
+}
+
+/// `render -o r.exr --aov ...` and `compare --out` on a real full disk (a
+/// small tmpfs): whether the disk fills in the first output, in the middle
+/// or in the last, the command fails naming the disk's error and leaves
+/// nothing (the outputs are written under temporary names and renamed
+/// only when all are written); with room for all, all land.
+#[test]
+fn a_full_disk_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("s.toml"),
+        SCENE.replace("width = 8\nheight = 8", "width = 48\nheight = 48"),
+    )
+    .unwrap();
+    let page = page_size();
+    // Each command with the output it writes last: a disk that fills half
+    // way through that one has every other output written (under its
+    // temporary name) when the write fails.
+    let render = [
+        "render",
+        "-q",
+        "s.toml",
+        "-o",
+        "OUT/r.exr",
+        "--aov",
+        "depth,normal,position",
+    ];
+    let compare = [
+        "compare",
+        "--quick",
+        "--only-given",
+        "--height",
+        "gen:studded",
+        "--techniques",
+        "distance,pom",
+        "--out",
+        "OUT/o",
+    ];
+    for (command, last) in [
+        (&render[..], "r.position.png"),
+        (&compare[..], "o/grid.png"),
+    ] {
+        let on = |root: &str| -> Vec<String> {
+            command.iter().map(|a| a.replace("OUT", root)).collect()
+        };
+        // The outputs and the room they take, from a run on the real disk.
+        std::fs::create_dir_all(d.join("ref")).unwrap();
+        let args = on("ref");
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let outputs = tree(&d.join("ref"));
+        assert!(outputs.len() >= 5, "{outputs:?}");
+        let need = pages_under(&d.join("ref"), page);
+        let last_pages = std::fs::metadata(d.join("ref").join(last))
+            .unwrap()
+            .len()
+            .div_ceil(page);
+        std::fs::remove_dir_all(d.join("ref")).unwrap();
+        let args = on("disk");
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        // Full at the first write, half way, and half way through the last
+        // output (compare's CSVs and plots hold timings, so their sizes
+        // vary by a few bytes between runs; its last output, the grid, does
+        // not).
+        let mut sizes = vec![
+            page,
+            (need / 2).div_ceil(page) * page,
+            need - last_pages.div_ceil(2) * page,
+        ];
+        sizes.dedup();
+        for bytes in sizes {
+            let (o, left) = on_small_disk(d, bytes, &args);
+            failed(&o, &["No space left on device"], &[]);
+            assert!(left.is_empty(), "{args:?} on {bytes} bytes left {left:?}");
+        }
+        // With room, every output lands: the disk itself is not the fault.
+        let (o, left) = on_small_disk(d, need + need / 4 + 16 * page, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(left, outputs);
+    }
 }

@@ -38,6 +38,29 @@ pub struct EnvironmentMap {
 }
 
 impl EnvironmentMap {
+    /// Bytes a map holds per texel while it loads: the decoded float image
+    /// and the texels kept (a `Vec3` each), and the sampling distribution's
+    /// weights and tables (12 bytes).
+    pub const BYTES_PER_TEXEL: u128 = std::mem::size_of::<Vec3>() as u128 * 3;
+
+    /// The one format an environment map is read from, and what a file of
+    /// another is told.
+    const FORMAT: (image::ImageFormat, &'static str) = (
+        image::ImageFormat::OpenExr,
+        "not an OpenEXR file: an environment map is linear HDR radiance (.exr)",
+    );
+
+    /// The texel size [`EnvironmentMap::load`] would give, from the file's
+    /// header alone (with the same checks), for memory estimates.
+    pub fn dimensions(path: &Path) -> Result<[usize; 2]> {
+        crate::texture::image_dimensions(
+            path,
+            "environment map",
+            Self::BYTES_PER_TEXEL,
+            Some(Self::FORMAT),
+        )
+    }
+
     /// Loads an OpenEXR file. Refuses anything else (a PNG is 8-bit sRGB,
     /// not radiance), an image whose decoded size is too big, and texels
     /// that are negative or not finite (radiance is neither), each error
@@ -46,11 +69,8 @@ impl EnvironmentMap {
         let rgb = crate::texture::read_rgb32f(
             path,
             "environment map",
-            std::mem::size_of::<Vec3>() as u128 * 3,
-            Some((
-                image::ImageFormat::OpenExr,
-                "not an OpenEXR file: an environment map is linear HDR radiance (.exr)",
-            )),
+            Self::BYTES_PER_TEXEL,
+            Some(Self::FORMAT),
         )?;
         let err = |message: String| Error::Image {
             path: path.to_path_buf(),

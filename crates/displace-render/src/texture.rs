@@ -32,63 +32,87 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-/// Reads the image file `path` (a `kind` of input, as messages name it) as
-/// float RGB after the checks every image input gets: a regular file within
-/// the size limit, the decoded size from the header checked before decoding
-/// (a small file can hold a huge image; `bytes_per_texel` is what a texel
-/// will cost), not empty, and when `format` is given, of that format (else
-/// the message it carries). Errors name the file.
-pub(crate) fn read_rgb32f(
+/// The size of the image file `path` (a `kind` of input, as messages name
+/// it), from its header alone, after the checks every image input gets: a
+/// regular file within the size limit, the decoded size checked against one
+/// buffer's limit (a small file can hold a huge image; `bytes_per_texel` is
+/// what a texel will cost), and when `format` is given, of that format
+/// (else the message it carries). A scene counts this size in its memory
+/// estimate before anything is decoded. Errors name the file.
+pub(crate) fn image_dimensions(
     path: &Path,
     kind: &str,
     bytes_per_texel: u128,
     format: Option<(image::ImageFormat, &str)>,
-) -> Result<image::Rgb32FImage> {
+) -> Result<[usize; 2]> {
     use displace_core::io::{check_input, MAX_IMAGE_FILE_BYTES};
     check_input(path, kind, MAX_IMAGE_FILE_BYTES)?;
-    let image_err = |message: String| Error::Image {
-        path: path.to_path_buf(),
-        message,
-    };
-    let open = || {
-        image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| image_err(e.to_string()))
-    };
-    let reader = open()?;
+    let reader = open_image(path)?;
     if let Some((want, message)) = format {
         if reader.format() != Some(want) {
-            return Err(image_err(message.into()));
+            return Err(image_err(path, message.into()));
         }
     }
     let (w, h) = reader
         .into_dimensions()
-        .map_err(|e| image_err(e.to_string()))?;
+        .map_err(|e| image_err(path, e.to_string()))?;
     displace_core::convention::check_allocation(
         kind,
         &format!("{w}x{h}"),
         w as u128 * h as u128,
         bytes_per_texel,
     )
-    .map_err(|e| image_err(e.to_string()))?;
-    let img = open()?.decode().map_err(|e| image_err(e.to_string()))?;
+    .map_err(|e| image_err(path, e.to_string()))?;
+    Ok([w as usize, h as usize])
+}
+
+fn image_err(path: &Path, message: String) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {
+    image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| image_err(path, e.to_string()))
+}
+
+/// Reads the image file `path` as float RGB after the checks of
+/// [`image_dimensions`] (same arguments), refusing an empty image.
+pub(crate) fn read_rgb32f(
+    path: &Path,
+    kind: &str,
+    bytes_per_texel: u128,
+    format: Option<(image::ImageFormat, &str)>,
+) -> Result<image::Rgb32FImage> {
+    image_dimensions(path, kind, bytes_per_texel, format)?;
+    let img = open_image(path)?
+        .decode()
+        .map_err(|e| image_err(path, e.to_string()))?;
     let rgb = img.to_rgb32f();
     if rgb.width() == 0 || rgb.height() == 0 {
-        return Err(image_err("empty image".into()));
+        return Err(image_err(path, "empty image".into()));
     }
     Ok(rgb)
 }
 
 impl Texture {
+    /// Bytes a texture holds per texel while it loads: the decoded float
+    /// image and the texels kept (a `Vec3` each).
+    pub const BYTES_PER_TEXEL: u128 = std::mem::size_of::<Vec3>() as u128 * 2;
+
+    /// The texel size [`Texture::load`] would give, from the file's header
+    /// alone (with the same checks), for memory estimates.
+    pub fn dimensions(path: &Path) -> Result<[usize; 2]> {
+        image_dimensions(path, "texture", Self::BYTES_PER_TEXEL, None)
+    }
+
     /// Loads `path`; `srgb` decodes the sRGB transfer function (colour maps),
     /// otherwise values are kept as stored (normal maps).
     pub fn load(path: &Path, srgb: bool) -> Result<Self> {
-        let rgb = read_rgb32f(
-            path,
-            "texture",
-            std::mem::size_of::<Vec3>() as u128 * 2,
-            None,
-        )?;
+        let rgb = read_rgb32f(path, "texture", Self::BYTES_PER_TEXEL, None)?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
         let data = rgb

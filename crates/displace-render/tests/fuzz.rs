@@ -1,13 +1,13 @@
-//! Seeded mutation fuzzing of every parser, on stable Rust: the repository's
-//! scenes, a small OBJ, PNG and EXR height maps and the npy, KTX2 and DDS
-//! maps of a small bake are mutated (bytes flipped, inserted, deleted,
-//! duplicated, truncated, numbers replaced by extreme ones) and fed back.
-//! Every parser must answer `Ok` or `Err`, never panic, and the run's peak
-//! resident memory stays under a bound; a panic names the
-//! parser and the case and keeps its input under `target/fuzz-crashes` to
-//! reproduce. The seed is fixed, so a run is repeatable; `DISPLACE_FUZZ_CASES`
-//! sets the number of cases per corpus (default 1000) and `DISPLACE_FUZZ_SEED`
-//! picks other cases. See
+//! Seeded mutation fuzzing of every parser, on stable Rust: the
+//! repository's scenes, a small OBJ, PNG and EXR height maps, the npy, KTX2
+//! and DDS maps of a small bake and its bake-cache entry are mutated (bytes
+//! flipped, inserted, deleted, duplicated, truncated, numbers replaced by
+//! extreme ones) and fed back. Every parser must answer `Ok` or `Err`,
+//! never panic, and the run's peak resident memory stays under a bound; a
+//! panic names the parser and the case and keeps its input under
+//! `target/fuzz-crashes` to reproduce. The seed is fixed, so a run is
+//! repeatable; `DISPLACE_FUZZ_CASES` sets the number of cases per corpus
+//! (default 1000) and `DISPLACE_FUZZ_SEED` picks other cases. See
 //! docs/reliability.md for what was tried and found.
 
 mod common;
@@ -15,6 +15,7 @@ mod common;
 use common::*;
 use displace_core::io::{dds, height, ktx2, npy};
 use displace_core::{bake, Address, BakeOptions, Extent};
+use displace_render::bake_cache::BakeCache;
 use displace_render::{Scene, SceneOptions};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -138,6 +139,7 @@ fn fuzz(
     text: bool,
     parse: &dyn Fn(&[u8], &Path) -> bool,
 ) -> Vec<String> {
+    write_seeds(parser, corpus);
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join(name);
     let seed = seed + seed_offset() * 1000;
@@ -165,6 +167,20 @@ fn fuzz(
         "{parser}: no mutated input was accepted"
     );
     crashes
+}
+
+/// With `DISPLACE_FUZZ_CORPUS=DIR`, writes `corpus` to `DIR/PARSER/`: the
+/// seed corpora of the cargo-fuzz targets (`fuzz/`, one per parser, named
+/// as here), so both fuzzers start from the same inputs.
+fn write_seeds(parser: &str, corpus: &[Vec<u8>]) {
+    let Some(out) = std::env::var_os("DISPLACE_FUZZ_CORPUS") else {
+        return;
+    };
+    let dir = Path::new(&out).join(parser);
+    std::fs::create_dir_all(&dir).unwrap();
+    for (k, input) in corpus.iter().enumerate() {
+        std::fs::write(dir.join(format!("seed-{k}")), input).unwrap();
+    }
 }
 
 fn small_map() -> displace_core::DisplacementMap {
@@ -254,6 +270,42 @@ fn mutated_inputs_never_panic() {
     crashes.extend(fuzz("dds", 5, &[dds_bytes], "m.dds", false, &|_, p| {
         dds::read(p, extent, Address::Clamp).is_ok()
     }));
+
+    // Bake-cache entries: a mutated entry is read or refused and baked
+    // again, and either way the map handed back is the one baked: a
+    // corrupt entry trusted would hand the tracer wrong distances, which
+    // step through the surface. Accepted: read from the entry.
+    let cache_dir = tempfile::tempdir().unwrap();
+    let cached = |dir: &Path| {
+        let cache = BakeCache::new(Some(dir.to_path_buf()));
+        let got = cache.get(&map.height, [8, 8, 4], extent);
+        (got, cache.stats())
+    };
+    let (original, _) = cached(cache_dir.path());
+    let original = original.unwrap();
+    let entry = std::fs::read_dir(cache_dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "dmap"))
+        .expect("the bake wrote its cache entry");
+    let entry_name = entry.file_name().unwrap().to_string_lossy().into_owned();
+    let corpus = [std::fs::read(&entry).unwrap()];
+    crashes.extend(fuzz(
+        "bake-cache",
+        8,
+        &corpus,
+        &entry_name,
+        false,
+        &|_, p| {
+            let (got, stats) = cached(p.parent().unwrap());
+            let got = got.expect("a bad entry is baked again, not an error");
+            assert_eq!(
+                got.distance, original.distance,
+                "a corrupt entry was trusted"
+            );
+            stats.loaded == 1
+        },
+    ));
 
     // Height maps: a 16-bit PNG and an EXR written by our own writers.
     let dir = tempfile::tempdir().unwrap();

@@ -68,7 +68,9 @@ struct Ctx<'a> {
     method: Option<Method>,
     /// The bakes counted in `memory`: height source and map size.
     planned: HashSet<(HeightKey, [usize; 3])>,
-    /// Estimated bytes the scene holds: its image and its bakes' peaks.
+    /// Estimated bytes the scene holds: its image, its bakes' peaks, its
+    /// textures and environment map, all together (each also passes the
+    /// one-buffer check, but a scene of many can still exhaust the machine).
     memory: u128,
     /// Every file the scene reads besides itself, for its content hash.
     sources: Vec<PathBuf>,
@@ -127,19 +129,61 @@ impl Ctx<'_> {
         }
     }
 
-    /// The texture `file` that scene key `key` names; a failure to load it
-    /// names the key as well as the file.
+    /// Adds `bytes` for `what` to the scene's memory estimate and refuses
+    /// the scene when the whole so far exceeds the limit
+    /// ([`displace_core::memory::check`]): called before each large input
+    /// is decoded or baked, so the input that tips the scene over is named
+    /// and nothing of its size has been allocated.
+    fn reserve(&mut self, what: &str, bytes: u128) -> Result<()> {
+        self.memory += bytes;
+        displace_core::memory::check(
+            &format!("{what} (with the scene's image, bakes and textures before it)"),
+            self.memory,
+        )
+        .map_err(|e| self.err(e.to_string()))
+    }
+
+    /// The texture `file` that scene key `key` names, counted in the
+    /// memory estimate before it is decoded (once per file, as it is
+    /// loaded once); a failure to load it names the key as well as the
+    /// file.
     fn texture(&mut self, file: &str, srgb: bool, key: &str) -> Result<Arc<Texture>> {
         let path = self.base.join(file);
         if let Some(t) = self.textures.get(&(path.clone(), srgb)) {
             return Ok(t.clone());
         }
         self.source(path.clone());
-        let t = Arc::new(
-            Texture::load(&path, srgb).map_err(|e| self.err(format!("{key} = \"{file}\": {e}")))?,
-        );
+        let t = Arc::new(self.image(
+            key,
+            file,
+            ("texture", Texture::BYTES_PER_TEXEL),
+            Texture::dimensions,
+            |p| Texture::load(p, srgb),
+        )?);
         self.textures.insert((path, srgb), t.clone());
         Ok(t)
+    }
+
+    /// Reads the image input `file` that scene key `key` names, of `kind`
+    /// (a texture, an environment map) at `bytes_per_texel` held: its size
+    /// from the header by `dimensions`, counted in the memory estimate,
+    /// then decoded by `load`. A failure names the key as well as the file.
+    fn image<T>(
+        &mut self,
+        key: &str,
+        file: &str,
+        (kind, bytes_per_texel): (&str, u128),
+        dimensions: fn(&Path) -> Result<[usize; 2]>,
+        load: impl FnOnce(&Path) -> Result<T>,
+    ) -> Result<T> {
+        let path = self.base.join(file);
+        let named = |e: Error| format!("{key} = \"{file}\": {e}");
+        let [w, h] = dimensions(&path).map_err(|e| self.err(named(e)))?;
+        self.reserve(
+            &format!("{key} = \"{file}\": a {w}x{h} {kind}"),
+            w as u128 * h as u128 * bytes_per_texel,
+        )?;
+        load(&path).map_err(|e| self.err(named(e)))
     }
 }
 
@@ -217,10 +261,14 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
                     "image.background and image.environment both give the light of escaping rays: give one",
                 ));
             }
-            let path = cx.base.join(file);
-            let map = EnvironmentMap::load(&path)
-                .map_err(|e| cx.err(format!("image.environment = \"{file}\": {e}")))?;
-            cx.source(path);
+            let map = cx.image(
+                "image.environment",
+                file,
+                ("environment map", EnvironmentMap::BYTES_PER_TEXEL),
+                EnvironmentMap::dimensions,
+                EnvironmentMap::load,
+            )?;
+            cx.source(cx.base.join(file));
             Environment::Map(Arc::new(map))
         }
     };
@@ -734,16 +782,13 @@ impl DispBuild {
             // A new bake: its peak on top of what the scene holds already.
             let texels = crate::heights::dimensions(&d.height, size, address, cx.base)
                 .map_err(|e| core_err(cx, e))?;
-            let bytes = displace_core::memory::bake_peak_bytes(texels, map_size, false);
-            cx.memory += bytes;
-            displace_core::memory::check(
+            cx.reserve(
                 &format!(
-                    "{what}: baking the {}x{} height map into {}x{}x{} voxels (with the scene's other bakes and image)",
+                    "{what}: baking the {}x{} height map into {}x{}x{} voxels",
                     texels[0], texels[1], map_size[0], map_size[1], map_size[2]
                 ),
-                cx.memory,
-            )
-            .map_err(|e| cx.err(e.to_string()))?;
+                displace_core::memory::bake_peak_bytes(texels, map_size, false),
+            )?;
         }
         let height = match cx.heights.get(&key) {
             Some(h) => h.clone(),
