@@ -6,6 +6,7 @@ use crate::geometry::Ray;
 use crate::sampler::concentric_disk;
 use glam::{Vec2, Vec3};
 
+/// A perspective camera: pinhole, or a thin lens focused at a distance.
 #[derive(Clone, Debug)]
 pub struct Camera {
     position: Vec3,
@@ -23,9 +24,13 @@ pub struct Camera {
 /// Why a camera cannot be built.
 #[derive(Debug, PartialEq)]
 pub enum CameraError {
+    /// `position` equals `look_at`.
     LooksNowhere,
+    /// `up` is zero or parallel to the viewing direction.
     UpParallel,
+    /// The vertical field of view is not in `(0, 180)` degrees.
     BadFov(f32),
+    /// The aperture or focus distance is negative or not finite.
     BadLens(String),
 }
 
@@ -109,6 +114,7 @@ impl Camera {
         Ray::new(origin, focus - origin)
     }
 
+    /// The eye (the lens centre).
     pub fn position(&self) -> Vec3 {
         self.position
     }
