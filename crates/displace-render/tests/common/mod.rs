@@ -3,7 +3,7 @@
 
 pub mod scene_toml;
 
-use displace_render::{render, Image, RenderOptions, Rendered, Scene, SceneOptions};
+use displace_render::{render, Crop, Image, RenderOptions, Rendered, Scene, SceneOptions};
 use std::path::{Path, PathBuf};
 
 pub fn scenes_dir() -> PathBuf {
@@ -33,4 +33,26 @@ pub fn image(scene: &Scene) -> Image {
 
 pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
     render(scene, opts).unwrap()
+}
+
+/// A pool of `threads` threads, to render the same scene on different
+/// thread counts.
+pub fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
+/// Every pixel of `crop`, row by row, as its index in the full image
+/// (`width` wide) and in the crop's own image.
+pub fn crop_pixels(crop: Crop, width: u32) -> impl Iterator<Item = (usize, usize)> {
+    (0..crop.height).flat_map(move |y| {
+        (0..crop.width).map(move |x| {
+            (
+                ((crop.y + y) * width + crop.x + x) as usize,
+                (y * crop.width + x) as usize,
+            )
+        })
+    })
 }
