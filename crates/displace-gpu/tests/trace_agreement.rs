@@ -1,4 +1,4 @@
-//! Issue 4: GPU ray queries agree with the CPU's on random rays against
+//! GPU ray queries agree with the CPU's on random rays against
 //! random height maps: the same hit or miss on at least 99.9% of rays, hit
 //! points within 1e-3 shell depths.
 
@@ -253,7 +253,7 @@ fn r8_load_fixed_steps_clamp() {
     );
 }
 
-/// Issue 17: at 17000 fixed steps lavapipe ended the trace loop and every
+/// At 17000 fixed steps lavapipe (docs/reliability.md) ended the trace loop and every
 /// ray came back a miss. However long a trace, the GPU either agrees with
 /// the CPU on every ray or refuses the batch; it never answers a silent miss.
 #[test]
