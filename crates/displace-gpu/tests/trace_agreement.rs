@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{random_map, random_rays, Rng};
+use common::{clamped_case, random_map, random_rays, Rng};
 use displace_core::{Address, MapHit, Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, RayTracer};
@@ -137,10 +137,7 @@ fn r8_linear_sphere_clamp() {
 #[test]
 fn fixed_steps_agree_when_enough_and_stop_short_when_too_few() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(7);
-    let map = random_map(&mut rng, Address::Clamp);
-    let [ax, ay] = map.aspect();
-    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), 1500);
+    let (map, rays) = clamped_case(7, 1500);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     // Donnelly's fixed loop stops wherever its steps run out, and where that
     // is depends on the exact stored values (the CPU tracer reads an 8-bit
@@ -259,10 +256,7 @@ fn r8_load_fixed_steps_clamp() {
 #[test]
 fn long_fixed_traces_agree_or_are_refused() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(17);
-    let map = random_map(&mut rng, Address::Clamp);
-    let [ax, ay] = map.aspect();
-    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), 64);
+    let (map, rays) = clamped_case(17, 64);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     for iterations in [1000, 17000, 65536] {
         let opts = TraceOptions {
