@@ -15,8 +15,8 @@
 
 mod common;
 
-use common::{crop_pixels, opts, pool};
-use displace_render::{render, Crop, Image, Integrator, RenderOptions, Scene, SceneOptions};
+use common::{crop_pixels, opts, pool, render_crop};
+use displace_render::{render, Image, Integrator, RenderOptions, Scene, SceneOptions};
 use std::path::Path;
 
 fn build(text: &str, base: &Path) -> Scene {
@@ -555,21 +555,8 @@ fn path_renders_are_deterministic_and_crops_stitch() {
     let a = pool(1).install(|| image(&s));
     let b = pool(3).install(|| image(&s));
     assert_eq!(a, b);
-    let crop = Crop {
-        x: 5,
-        y: 3,
-        width: 13,
-        height: 17,
-    };
-    let part = render(
-        &s,
-        &RenderOptions {
-            crop: Some(crop),
-            ..Default::default()
-        },
-    )
-    .unwrap()
-    .image;
+    let (crop, part) = render_crop(&s, [5, 3, 13, 17], vec![]).unwrap();
+    let part = part.image;
     for (f, c) in crop_pixels(crop, a.width) {
         assert_eq!(a.pixels[f], part.pixels[c]);
     }

@@ -7,7 +7,7 @@ mod common;
 use common::scene_toml::SceneToml;
 use common::*;
 use displace_core::Method;
-use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
+use displace_render::{render, Aov, RenderOptions, Scene, SceneOptions};
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -219,20 +219,7 @@ fn a_crop_equals_the_same_region_of_the_full_render() {
             ..Default::default()
         },
     );
-    let crop = Crop {
-        x: 7,
-        y: 5,
-        width: 21,
-        height: 17,
-    };
-    let part = render_with(
-        &s,
-        &RenderOptions {
-            crop: Some(crop),
-            aovs: vec![Aov::Normal],
-            ..Default::default()
-        },
-    );
+    let (crop, part) = render_crop(&s, [7, 5, 21, 17], vec![Aov::Normal]).unwrap();
     for (f, c) in crop_pixels(crop, full.image.width) {
         assert_eq!(full.image.pixels[f], part.image.pixels[c]);
         assert_eq!(
@@ -240,20 +227,7 @@ fn a_crop_equals_the_same_region_of_the_full_render() {
             part.aovs[0].data[3 * c..3 * c + 3]
         );
     }
-    let outside = Crop {
-        x: 30,
-        y: 0,
-        width: 20,
-        height: 5,
-    };
-    assert!(render(
-        &s,
-        &RenderOptions {
-            crop: Some(outside),
-            ..Default::default()
-        }
-    )
-    .is_err());
+    assert!(render_crop(&s, [30, 0, 20, 5], vec![]).is_err());
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 pub mod scene_toml;
 
-use displace_render::{render, Crop, Image, RenderOptions, Rendered, Scene, SceneOptions};
+use displace_render::{render, Aov, Crop, Image, RenderOptions, Rendered, Scene, SceneOptions};
 use std::path::{Path, PathBuf};
 
 pub fn scenes_dir() -> PathBuf {
@@ -42,6 +42,27 @@ pub fn pool(threads: usize) -> rayon::ThreadPool {
         .num_threads(threads)
         .build()
         .unwrap()
+}
+
+/// `scene` rendered over the `width x height` pixels at `(x, y)` only, with
+/// `aovs`; an error where the rectangle leaves the image.
+pub fn render_crop(
+    scene: &Scene,
+    [x, y, width, height]: [u32; 4],
+    aovs: Vec<Aov>,
+) -> displace_render::Result<(Crop, Rendered)> {
+    let crop = Crop {
+        x,
+        y,
+        width,
+        height,
+    };
+    let opts = RenderOptions {
+        crop: Some(crop),
+        aovs,
+        ..Default::default()
+    };
+    render(scene, &opts).map(|r| (crop, r))
 }
 
 /// Every pixel of `crop`, row by row, as its index in the full image
