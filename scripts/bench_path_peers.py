@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Our path tracer against Mitsuba 3's on the seed's studded Cornell box
-(issue 12): `scenes/cornell_studded_shadows.toml`, its walls, its ceiling
+(BENCHMARKS.md): `scenes/cornell_studded_shadows.toml`, its walls, its ceiling
 area light and its displaced floor, rendered by `displace render
 --integrator path` (the displaced quad, sphere traced) and by Mitsuba 3
 (`llvm_ad_rgb`, `path`, the same bounce limit) on the floor tessellated at

@@ -30,6 +30,8 @@
 //! App::new().add_plugins((DefaultPlugins, DistanceMappingPlugin)).add_systems(Startup, setup).run();
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod headless;
 
 use bevy::asset::{uuid_handle, RenderAssetUsages};
@@ -125,12 +127,14 @@ pub struct MapParams {
     pub address: u32,
     /// Height texels, for the exact walk over the bilinear patches.
     pub height_size: UVec2,
-    /// Early-out threshold (a quarter voxel) and the width of the exact walk
-    /// after it (the map's underestimate bound, 1.5x, plus `tau`).
+    /// Early-out threshold of the march: a quarter voxel, in shell depths.
     pub tau: f32,
+    /// Width of the exact walk after the early out: the map's underestimate
+    /// bound, 1.5x, plus `tau`.
     pub band: f32,
     /// A filtered fetch `s` decodes to `decode_offset + decode_scale * s`.
     pub decode_scale: f32,
+    /// The offset of that decoding.
     pub decode_offset: f32,
     /// Bound on the cells one exact walk visits (a guard, never reached).
     pub max_cells: u32,
@@ -138,14 +142,16 @@ pub struct MapParams {
     pub method: u32,
     /// Donnelly's loop count (section 8.5.2: 16 in the chapter's demo).
     pub iterations: u32,
-    /// Ray interval in map units: the whole ray through the shell.
+    /// Start of the ray interval in map units (the whole ray through the
+    /// shell).
     pub t_min: f32,
+    /// End of the ray interval.
     pub t_max: f32,
     /// Padding to the WGSL struct's 16-byte size.
     pub pad_end: u32,
 }
 
-/// What the fragment stage writes ([`DistanceMapping::output`]).
+/// What the fragment stage writes ([`DistanceMapping::with_output`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 pub enum Output {
     /// Bevy's PBR shading of the displaced point.
@@ -168,6 +174,7 @@ pub struct DistanceMappingSettings {
     pub output: u32,
     /// Padding to 16 bytes.
     pub pad_a: u32,
+    /// Padding to 16 bytes.
     pub pad_b: u32,
 }
 
@@ -282,7 +289,21 @@ pub fn distance_sampler(address: Address) -> ImageSampler {
 /// The height map as the R32Float texture the exact walk reads texel by
 /// texel (no sampler: it interpolates by hand, as the CPU does).
 pub fn height_image(height: &HeightMap) -> Image {
-    let bytes: Vec<u8> = height.data().iter().flat_map(|v| v.to_le_bytes()).collect();
+    texel_image(height, TextureFormat::R32Float, |v| {
+        v.to_le_bytes().to_vec()
+    })
+}
+
+/// A 2D image of `format` with one texel per height texel, its bytes
+/// `texel(h)` of the height `h` there (rows as the height map's, `v = 0`
+/// first), with Bevy's default sampler: the height map itself, or what
+/// other materials read from it (a colour map, Bevy's parallax depth map).
+pub fn texel_image(
+    height: &HeightMap,
+    format: TextureFormat,
+    texel: impl Fn(f32) -> Vec<u8>,
+) -> Image {
+    let bytes: Vec<u8> = height.data().iter().flat_map(|&h| texel(h)).collect();
     Image::new(
         Extent3d {
             width: height.width() as u32,
@@ -291,7 +312,7 @@ pub fn height_image(height: &HeightMap) -> Image {
         },
         TextureDimension::D2,
         bytes,
-        TextureFormat::R32Float,
+        format,
         RenderAssetUsages::RENDER_WORLD,
     )
 }

@@ -5,14 +5,15 @@
 //! the loader is Bevy's `ImageLoader`, registered as its render plugin
 //! registers it.
 
+mod common;
+
 use bevy::asset::{AssetPlugin, LoadState};
 use bevy::image::{CompressedImageFormats, ImageLoader, ImageLoaderSettings, ImagePlugin};
 use bevy::prelude::*;
 use bevy::render::render_resource::{TextureDimension, TextureFormat};
 use displace_bevy::{DistanceMapping, Encoding};
 use displace_core::distance_map::Format;
-use displace_core::{bake, BakeOptions};
-use displace_core::{Address, DisplacementMap, Extent, HeightMap};
+use displace_core::{Address, BakeOptions, DisplacementMap, HeightMap};
 use std::path::Path;
 use std::time::Duration;
 
@@ -26,25 +27,7 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 }
 
 fn small_map(address: Address) -> DisplacementMap {
-    let opts = displace_core::io::height::HeightOptions {
-        size: [32, 32],
-        address,
-        ..Default::default()
-    };
-    let height = displace_core::io::height::load("gen:studded", &opts).unwrap();
-    bake(
-        &height,
-        &BakeOptions {
-            size: [32, 32, 8],
-            extent: Extent {
-                sx: 1.0,
-                sy: 1.0,
-                sz: 0.1,
-            },
-            ..Default::default()
-        },
-    )
-    .unwrap()
+    common::baked("gen:studded", [32, 32], address, [32, 32, 8], 0.1)
 }
 
 fn ktx2(map: &DisplacementMap, format: Format) -> Vec<u8> {

@@ -12,6 +12,8 @@
 //! tests in CI (`CI` set) and elsewhere unless `DISPLACE_ALLOW_NO_GPU=1`,
 //! the policy of displace-gpu's tests.
 
+mod common;
+
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{Hdr, RenderTarget};
 use bevy::core_pipeline::prepass::DepthPrepass;
@@ -34,8 +36,7 @@ use bevy::render::view::ViewDepthTexture;
 use bevy::render::RenderApp;
 use displace_bevy::headless::Headless;
 use displace_bevy::{DistanceMappedMaterial, DistanceMapping, Encoding, Output};
-use displace_core::{bake, BakeOptions};
-use displace_core::{Address, DisplacementMap, Extent, MapRay, Method, TraceOptions};
+use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
 use std::sync::{Arc, Mutex};
 
 const W: u32 = 192;
@@ -45,25 +46,7 @@ const H: u32 = 128;
 static SERIAL: Mutex<()> = Mutex::new(());
 
 fn map(source: &str) -> DisplacementMap {
-    let opts = displace_core::io::height::HeightOptions {
-        size: [64, 64],
-        address: Address::Clamp,
-        ..Default::default()
-    };
-    let height = displace_core::io::height::load(source, &opts).unwrap();
-    bake(
-        &height,
-        &BakeOptions {
-            size: [64, 64, 16],
-            extent: Extent {
-                sx: 1.0,
-                sy: 1.0,
-                sz: 0.15,
-            },
-            ..Default::default()
-        },
-    )
-    .unwrap()
+    common::baked(source, [64, 64], Address::Clamp, [64, 64, 16], 0.15)
 }
 
 /// displace-gpu's built-in plane (`PlaneScene::for_map`, what `displace
@@ -214,10 +197,15 @@ fn camera(scene: &PlaneScene, target: RenderTarget) -> impl Bundle {
     )
 }
 
-/// Spawns the quad with our material (unlit, or the hit as data) into
-/// `app`.
-fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, output: Output) {
-    let world = app.world_mut();
+/// Spawns the shell's top face into `world` with our material over `base`:
+/// the map at the scene's depth and iterations, then `configure`.
+fn spawn_displaced(
+    world: &mut World,
+    map: &DisplacementMap,
+    scene: &PlaneScene,
+    base: StandardMaterial,
+    configure: impl FnOnce(DistanceMapping) -> DistanceMapping,
+) {
     let mesh = world.resource_mut::<Assets<Mesh>>().add(shell_top(scene));
     let mapping = {
         let mut images = world.resource_mut::<Assets<Image>>();
@@ -227,16 +215,25 @@ fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, out
         world
             .resource_mut::<Assets<DistanceMappedMaterial>>()
             .add(DistanceMappedMaterial {
-                base: StandardMaterial {
-                    unlit: true,
-                    ..default()
-                },
-                extension: mapping
-                    .with_depth(scene.depth)
-                    .with_iterations(scene.iterations)
-                    .with_output(output),
+                base,
+                extension: configure(
+                    mapping
+                        .with_depth(scene.depth)
+                        .with_iterations(scene.iterations),
+                ),
             });
     world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
+}
+
+/// Spawns the quad with our material (unlit, or the hit as data) into
+/// `app`.
+fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, output: Output) {
+    let world = app.world_mut();
+    let base = StandardMaterial {
+        unlit: true,
+        ..default()
+    };
+    spawn_displaced(world, map, scene, base, |m| m.with_output(output));
     // Alpha 0 where nothing is drawn: a hit writes alpha 1.
     world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
 }
@@ -474,26 +471,13 @@ fn lit_quad(
     let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
     {
         let world = app.world_mut();
-        let mesh = world.resource_mut::<Assets<Mesh>>().add(shell_top(scene));
-        let mapping = {
-            let mut images = world.resource_mut::<Assets<Image>>();
-            DistanceMapping::from_map(map, Encoding::R8, &mut images).unwrap()
+        let base = StandardMaterial {
+            base_color: Color::WHITE,
+            perceptual_roughness: 1.0,
+            reflectance: 0.0,
+            ..default()
         };
-        let material =
-            world
-                .resource_mut::<Assets<DistanceMappedMaterial>>()
-                .add(DistanceMappedMaterial {
-                    base: StandardMaterial {
-                        base_color: Color::WHITE,
-                        perceptual_roughness: 1.0,
-                        reflectance: 0.0,
-                        ..default()
-                    },
-                    extension: mapping
-                        .with_depth(scene.depth)
-                        .with_iterations(scene.iterations),
-                });
-        world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
+        spawn_displaced(world, map, scene, base, |m| m);
         world.insert_resource(GlobalAmbientLight {
             brightness: 0.0,
             ..default()

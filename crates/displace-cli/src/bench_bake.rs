@@ -1,6 +1,6 @@
 //! `displace bench bake`: throughput of the bake next to the `edt` and
 //! `scipy` distance transforms on the same occupancy volume in the same run
-//! (issue 2, "Benchmarks"). A measurement, not a test.
+//! (BENCHMARKS.md). A measurement, not a test.
 //!
 //! The ratio that matters is against `edt.sdf`: a signed distance on both
 //! sides of the surface, which is what a distance map stores. `edt.edt` and

@@ -1,5 +1,5 @@
 //! `displace bench render`: primary and shadow rays per second on displaced
-//! surfaces, per scene, on one core and on all (issue 3, "Benchmarks").
+//! surfaces, per scene, on one core and on all (BENCHMARKS.md).
 //!
 //! The rays are the render's own ([`displace_render::probe`]): every camera
 //! ray whose nearest hit is on a displaced face, and the shadow rays shading

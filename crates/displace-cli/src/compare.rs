@@ -1,6 +1,6 @@
 //! `displace compare`: every technique of [`displace_core::techniques`]
 //! against the exact reference on seeded rays, over height maps, view
-//! elevations and budgets (issue 5). Writes `compare.csv` (one row per map,
+//! elevations and budgets (BENCHMARKS.md). Writes `compare.csv` (one row per map,
 //! elevation, technique and budget), `precompute.csv` (time and memory of
 //! each technique's precomputation per map), one plot of error against cost
 //! per map, and an image grid of one view rendered by each technique at
@@ -219,44 +219,22 @@ fn prepare(
     let mut maps = Maps::new(height.clone(), aspect);
     let mut report = Vec::new();
     let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
-    let timed = |f: &mut dyn FnMut()| {
-        let start = Instant::now();
-        f();
-        start.elapsed().as_secs_f64()
-    };
     if needs(Needs::ConservativeCones) {
-        let mut c = None;
-        let seconds =
-            timed(&mut || c = Some(ConeMap::build(&height, aspect, ConeKind::Conservative)));
-        let c = c.expect("built");
-        report.push(Precompute {
-            name: "cone map",
-            seconds,
-            bytes: c.bytes(),
-        });
-        maps.cones = Some(c);
+        let build = || ConeMap::build(&height, aspect, ConeKind::Conservative);
+        maps.cones = Some(timed(&mut report, "cone map", build, ConeMap::bytes));
     }
     if needs(Needs::RelaxedCones) {
-        let mut c = None;
-        let seconds = timed(&mut || c = Some(ConeMap::build(&height, aspect, ConeKind::Relaxed)));
-        let c = c.expect("built");
-        report.push(Precompute {
-            name: "relaxed cone map",
-            seconds,
-            bytes: c.bytes(),
-        });
-        maps.relaxed = Some(c);
+        let build = || ConeMap::build(&height, aspect, ConeKind::Relaxed);
+        maps.relaxed = Some(timed(
+            &mut report,
+            "relaxed cone map",
+            build,
+            ConeMap::bytes,
+        ));
     }
     if needs(Needs::Pyramid) {
-        let mut p = None;
-        let seconds = timed(&mut || p = Some(MaxPyramid::build(&height)));
-        let p = p.expect("built");
-        report.push(Precompute {
-            name: "max pyramid",
-            seconds,
-            bytes: p.bytes(),
-        });
-        maps.pyramid = Some(p);
+        let build = || MaxPyramid::build(&height);
+        maps.pyramid = Some(timed(&mut report, "max pyramid", build, MaxPyramid::bytes));
     }
     // The exact reference traces through the baked map's `Method::Exact`,
     // so the distance map is always built; it is reported only when a
@@ -278,6 +256,24 @@ fn prepare(
     }
     maps.displacement = Some(baked);
     Ok((maps, report))
+}
+
+/// Builds one precomputation and reports the time it took and its size.
+fn timed<T>(
+    report: &mut Vec<Precompute>,
+    name: &'static str,
+    build: impl FnOnce() -> T,
+    bytes: impl Fn(&T) -> usize,
+) -> T {
+    let start = Instant::now();
+    let built = build();
+    let seconds = start.elapsed().as_secs_f64();
+    report.push(Precompute {
+        name,
+        seconds,
+        bytes: bytes(&built),
+    });
+    built
 }
 
 /// `n` rays entering the top of the face at uniform random points,
@@ -415,7 +411,7 @@ fn time_on_gpu(
     Ok(())
 }
 
-/// Error bound of the equal-error table: issue 5's 99th percentile below
+/// Error bound of the equal-error table: a 99th percentile below
 /// half a texel, with at most 1% of rays getting hit/miss wrong.
 pub const EQUAL_ERROR_TEXELS: f64 = 0.5;
 

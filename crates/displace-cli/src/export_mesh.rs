@@ -1,9 +1,9 @@
 //! `displace export-mesh`: the displaced height field as a triangle grid, so
 //! that triangle ray tracers (Mitsuba 3, Embree) can render the surface we
-//! sphere trace (issue 3, "Benchmarks").
+//! sphere trace (BENCHMARKS.md).
 //!
 //! **Which grid.** Vertices sit on the texel-centre grid of the height map
-//! refined `--scale` times (`(i + 0.5) / n`, DESIGN.md "Texel centres"),
+//! refined `--scale` times (`(i + 0.5) / n`, `displace_core::convention`'s texel centres),
 //! plus a row and a column at each border (`u, v = 0` and `1`), each at the
 //! height of our continuous bilinear surface there. At scale 1 every vertex
 //! is a texel value, so the mesh is the height map at its own resolution;

@@ -189,7 +189,7 @@ fn check_render_args(args: &GpuRenderArgs) -> Result<ImageFile> {
 }
 
 /// Most steps the GPU paths trace a ray with (`--iterations`, a scene's
-/// `iterations`). The cause of issue 17's all-miss answer at 17000
+/// `iterations`). The cause of the all-miss answer at 17000
 /// sphere-fixed steps: lavapipe (llvmpipe) ends every loop of one shader
 /// invocation once the loops have run 65535 iterations in all (Mesa's
 /// `LP_MAX_TGSI_LOOP_ITERATIONS`), and the trace after the cut read as a

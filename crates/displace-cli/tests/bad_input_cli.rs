@@ -1,4 +1,4 @@
-//! Issue 17 end to end: inputs that are not regular files, counts and sizes
+//! Adversarial input end to end (docs/reliability.md): inputs that are not regular files, counts and sizes
 //! that would run for ever or exhaust memory, outputs that would collide or
 //! be left half done, and messages that misreport. Each case must exit
 //! non-zero, name the problem, not panic and leave nothing behind.

@@ -1,6 +1,6 @@
 //! `displace bake` and `displace trace` end to end: every output format read
 //! back, physical-frame ray queries against the exact reference, and every
-//! bad input of issue 2 giving a non-zero exit, a message naming the problem
+//! bad input giving a non-zero exit, a message naming the problem
 //! and no output file (nor a leftover temporary).
 
 mod cli_common;

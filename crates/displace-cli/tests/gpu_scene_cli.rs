@@ -1,7 +1,7 @@
 //! `displace gpu-render SCENE` against `displace render` on the same scene
-//! file (issue 4: "a small scene rendered by gpu-render and by the CPU
-//! renderer agrees within a stated tolerance; the UV AOV matches on at
-//! least 99.5% of pixels"), and bad scene input through gpu-render.
+//! file (a small scene rendered by gpu-render and by the CPU renderer
+//! agrees within a stated tolerance; the UV AOV matches on at least 99.5%
+//! of pixels), and bad scene input through gpu-render.
 
 mod bad_scenes;
 

@@ -47,23 +47,40 @@ fn write_scene(dir: &Path, shapes: &str) {
     std::fs::write(dir.join("s.toml"), format!("{HEADER}\n{shapes}")).unwrap();
 }
 
+/// `displace trace --scene s.toml --rays RAYS -o OUT EXTRA...` in `dir`,
+/// which must succeed.
+fn trace_scene(dir: &Path, rays: &str, out: &str, extra: &[&str]) {
+    let mut args = vec!["trace", "--scene", "s.toml", "--rays", rays, "-o", out];
+    args.extend_from_slice(extra);
+    ok(&args, dir);
+}
+
+/// A `[[shapes]]` quad `origin + a edge_u + b edge_v` of material `white`.
+fn quad(origin: &str, edge_u: &str, edge_v: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"white\"\n"
+    )
+}
+
+/// A `[[shapes]]` sphere of material `white`.
+fn sphere(center: &str, radius: f32) -> String {
+    format!(
+        "[[shapes]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius:?}\nmaterial = \"white\"\n"
+    )
+}
+
 /// The unit square at the origin in the xy plane (the frame of a lone face
 /// in `displace trace`), displaced by `height` (32x32 texels) to `depth`.
 fn displaced_unit_quad(height: &str, depth: f32, map: [u32; 3]) -> String {
-    format!(
-        "[[shapes]]
-type = \"quad\"
-origin = [0.0, 0.0, 0.0]
-edge_u = [1.0, 0.0, 0.0]
-edge_v = [0.0, 1.0, 0.0]
-material = \"white\"
-[shapes.displacement]
+    quad("[0.0, 0.0, 0.0]", "[1.0, 0.0, 0.0]", "[0.0, 1.0, 0.0]")
+        + &format!(
+            "[shapes.displacement]
 height = \"{height}\"
 height_size = [32, 32]
 depth = {depth}
 map_size = {map:?}
 "
-    )
+        )
 }
 
 /// A floor quad (shape 0) and a sphere of radius 0.5 at (3, 0, 1) (shape
@@ -75,18 +92,8 @@ fn plain_shapes_give_their_analytic_hits() {
     let d = dir.path();
     write_scene(
         d,
-        "[[shapes]]
-type = \"quad\"
-origin = [0.0, 0.0, 0.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 2.0, 0.0]
-material = \"white\"
-[[shapes]]
-type = \"sphere\"
-center = [3.0, 0.0, 1.0]
-radius = 0.5
-material = \"white\"
-",
+        &(quad("[0.0, 0.0, 0.0]", "[2.0, 0.0, 0.0]", "[0.0, 2.0, 0.0]")
+            + &sphere("[3.0, 0.0, 1.0]", 0.5)),
     );
     write_rays(
         &d.join("rays.npy"),
@@ -99,12 +106,7 @@ material = \"white\"
             vec![1.0, 1.0, 3.0, 0.0, 0.0, 1.0],
         ],
     );
-    ok(
-        &[
-            "trace", "--scene", "s.toml", "--rays", "rays.npy", "-o", "h.npy",
-        ],
-        d,
-    );
+    trace_scene(d, "rays.npy", "h.npy", &[]);
     let (shape, h) = read(&d.join("h.npy"));
     assert_eq!(shape, vec![3, 8]);
     let close = |a: f32, b: f32| (a - b).abs() < 1e-4;
@@ -145,18 +147,7 @@ fn displaced_faces_agree_with_the_face_query() {
         })
         .collect();
     write_rays(&d.join("rays.npy"), &rays);
-    ok(
-        &[
-            "trace",
-            "--scene",
-            "s.toml",
-            "--rays",
-            "rays.npy",
-            "-o",
-            "scene.npy",
-        ],
-        d,
-    );
+    trace_scene(d, "rays.npy", "scene.npy", &[]);
     ok(
         &[
             "trace",
@@ -214,13 +205,7 @@ fn any_hit_agrees_with_the_first_hit() {
     let d = dir.path();
     write_scene(
         d,
-        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8])
-            + "[[shapes]]
-type = \"sphere\"
-center = [0.5, 0.5, 0.6]
-radius = 0.1
-material = \"white\"
-"),
+        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8]) + &sphere("[0.5, 0.5, 0.6]", 0.1)),
     );
     let mut rng = displace_core::random::SplitMix64::new(11);
     let rays: Vec<Vec<f32>> = (0..3000)
@@ -242,31 +227,8 @@ material = \"white\"
     write_rays(&d.join("rays.npy"), &rays);
     let unbounded: Vec<Vec<f32>> = rays.iter().map(|r| r[..6].to_vec()).collect();
     write_rays(&d.join("first.npy"), &unbounded);
-    ok(
-        &[
-            "trace",
-            "--scene",
-            "s.toml",
-            "--rays",
-            "first.npy",
-            "-o",
-            "h.npy",
-        ],
-        d,
-    );
-    ok(
-        &[
-            "trace",
-            "--scene",
-            "s.toml",
-            "--rays",
-            "rays.npy",
-            "-o",
-            "b.npy",
-            "--any-hit",
-        ],
-        d,
-    );
+    trace_scene(d, "first.npy", "h.npy", &[]);
+    trace_scene(d, "rays.npy", "b.npy", &["--any-hit"]);
     let (_, h) = read(&d.join("h.npy"));
     let (shape, b) = read(&d.join("b.npy"));
     assert_eq!(shape, vec![rays.len(), 1]);
@@ -300,15 +262,7 @@ material = \"white\"
 fn bad_rays_are_refused_with_nothing_written() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_scene(
-        d,
-        "[[shapes]]
-type = \"sphere\"
-center = [0.0, 0.0, 0.0]
-radius = 1.0
-material = \"white\"
-",
-    );
+    write_scene(d, &sphere("[0.0, 0.0, 0.0]", 1.0));
     let cases: [(&str, Vec<Vec<f32>>, &str); 3] = [
         ("five.npy", vec![vec![0.0; 5]], "expected (n, 6)"),
         (

@@ -1,5 +1,6 @@
 //! The one source of truth for the conventions that CPU and GPU share
-//! (`shared/DESIGN.md`, "Conventions").
+//! (`docs/architecture.md`, "Conventions", says where each is used and
+//! which test checks it).
 //!
 //! **Map space.** `x` runs along the face tangent (texture `u`), `y` along the
 //! bitangent (`v`), `z` along the normal. Lengths are measured in units of the

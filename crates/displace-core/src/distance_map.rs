@@ -1,4 +1,5 @@
-//! The conservative 3D distance map (DESIGN.md "Conservative"): for every
+//! The conservative 3D distance map (Donnelly section 8.4, made safe for the
+//! continuous surface; `docs/architecture.md`, "Conventions"): for every
 //! point `p` of the shell, the trilinear interpolation of the stored values is
 //! at most the true signed distance from `p` to the continuous bilinear
 //! surface, so a sphere-tracing step can never cross the surface.

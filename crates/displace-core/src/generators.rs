@@ -3,11 +3,11 @@
 //!
 //! | name | what | parameters (defaults) |
 //! |------|------|------------------------|
-//! | `flat` | every texel at one height: seed 002's debugging map | `level` (1) |
-//! | `gaussian` | `h = exp(-pi (x^2 + y^2))`, seed 002 | `scale` (2: `x, y` in `[-2, 2]`) |
-//! | `studded` | alternating squares of two heights, sharp edges: seed 002 | `period` (W/8 texels), `low` (0), `high` (1) |
-//! | `grating` | parallel raised bars, optionally crossed: seed 000 fig. 8-6 | `period` (W/8 texels), `duty` (0.5), `crossed` (false) |
-//! | `text` | a string as raised letters: seed 000 fig. 8-3 | `text` (`displace`), `size` (fits the map) |
+//! | `flat` | every texel at one height: the ray-tracer paper's debugging map | `level` (1) |
+//! | `gaussian` | `h = exp(-pi (x^2 + y^2))`, the ray-tracer paper | `scale` (2: `x, y` in `[-2, 2]`) |
+//! | `studded` | alternating squares of two heights, sharp edges: the ray-tracer paper | `period` (W/8 texels), `low` (0), `high` (1) |
+//! | `grating` | parallel raised bars, optionally crossed: Donnelly fig. 8-6 | `period` (W/8 texels), `duty` (0.5), `crossed` (false) |
+//! | `text` | a string as raised letters: Donnelly fig. 8-3 | `text` (`displace`), `size` (fits the map) |
 //! | `noise` | fractal Perlin noise, tiling under repeat addressing | `seed` (0), `octaves` (5), `frequency` (4), `gain` (0.5) |
 //!
 //! Every generator is deterministic, evaluates the texel centres of

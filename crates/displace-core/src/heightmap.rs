@@ -170,7 +170,7 @@ impl HeightMap {
     /// over a rectangle at the rectangle's corners, so it is enough to look at
     /// the corners of every piece the texel-centre grid cuts the rectangle
     /// into. This is what makes the bake conservative against the continuous
-    /// surface, not just its texels (the flaw of seed 002, section 2.3).
+    /// surface, not just its texels (the flaw of the ray-tracer paper, section 2.3).
     pub fn range(&self, u0: f32, u1: f32, v0: f32, v1: f32) -> (f32, f32) {
         let us = grid_cuts(u0, u1, self.width);
         let vs = grid_cuts(v0, v1, self.height);

@@ -1,7 +1,7 @@
 //! Tangent-space normal maps of the continuous surface, for one face's
 //! physical proportions.
 //!
-//! Seed 002 (section 2.2) found that normals cannot be stored with the height
+//! The ray-tracer paper (section 2.2) found that normals cannot be stored with the height
 //! map once and for all: "differing depths and geometry of a face can change
 //! the normals". In map space ([`crate::convention`]) the surface is
 //! `z = h(x / ax, y / ay)` with `(ax, ay) = extent.aspect()`, so its normal is
@@ -11,7 +11,7 @@
 //! The slope at a texel centre is the symmetric derivative of the bilinear
 //! surface there: the central difference of the two neighbouring texels,
 //! i.e. the mean of the slopes of the two bilinear cells that meet at the
-//! centre. Seed 002 crossed the vectors to two neighbours, a one-sided
+//! centre. That paper crossed the vectors to two neighbours, a one-sided
 //! difference that shifts every normal by half a texel.
 
 use crate::convention::texel_lerp;
@@ -176,7 +176,7 @@ mod tests {
     }
 
     #[test]
-    fn depth_and_aspect_change_the_normals_as_seed_002_says() {
+    fn depth_and_aspect_change_the_normals_as_the_ray_tracer_paper_says() {
         let m = plane(16, 16, 0.2, 0.5, 0.25, Address::Clamp);
         let slopes = |e: Extent| {
             let n = NormalMap::from_height(&m, e).data[5 * 16 + 7];

@@ -5,8 +5,8 @@
 
 #![allow(dead_code)]
 
-use displace_core::{Address, HeightMap};
-use glam::{DVec2, DVec3};
+use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightMap};
+use glam::{DVec2, DVec3, Vec3};
 
 /// Surface point of cell `(ci, cj)` at local coordinates `(fx, fy)`, map
 /// space (depth units).
@@ -165,4 +165,62 @@ pub fn random_height(kind: u8, w: usize, h: usize, seed: u64, address: Address) 
         }
     };
     HeightMap::new(w, h, data, address).unwrap()
+}
+
+/// `height` baked to `size` voxels on a face of `sx x sy x sz`: the bake
+/// every test here makes, with the default options otherwise.
+pub fn bake_map(height: &HeightMap, size: [usize; 3], [sx, sy, sz]: [f32; 3]) -> DisplacementMap {
+    bake(
+        height,
+        &BakeOptions {
+            size,
+            extent: Extent::new(sx, sy, sz).unwrap(),
+            ..BakeOptions::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The face of the tracer's property tests: a random height map of `kind`
+/// (see [`random_height`]) baked to `size` on a face `sx` wide, `0.75 sx`
+/// high and `sz` deep; clamped, or repeating and traced over 2 x 2 tiles.
+/// Returns the map, its tiles and what they span in map space.
+pub fn random_face(
+    kind: u8,
+    [hw, hh]: [usize; 2],
+    size: [usize; 3],
+    [sx, sz]: [f32; 2],
+    repeat: bool,
+    seed: u64,
+) -> (DisplacementMap, [f32; 2], [f32; 2]) {
+    let address = if repeat {
+        Address::Repeat
+    } else {
+        Address::Clamp
+    };
+    let height = random_height(kind, hw, hh, seed, address);
+    let map = bake_map(&height, size, [sx, sx * 0.75, sz]);
+    let tiles = if repeat { [2.0, 2.0] } else { [1.0, 1.0] };
+    let aspect = map.aspect();
+    let span = [aspect[0] * tiles[0], aspect[1] * tiles[1]];
+    (map, tiles, span)
+}
+
+/// A uniform point of one tile of the shell, `x` first.
+pub fn random_point(rng: &mut Rng, aspect: [f32; 2]) -> DVec3 {
+    DVec3::new(
+        rng.next_f64() * aspect[0] as f64,
+        rng.next_f64() * aspect[1] as f64,
+        rng.next_f64(),
+    )
+}
+
+/// The direction of a ray coming down onto the face from `elevation`
+/// radians above it, at `azimuth`.
+pub fn downward(elevation: f32, azimuth: f32) -> Vec3 {
+    -Vec3::new(
+        elevation.cos() * azimuth.cos(),
+        elevation.cos() * azimuth.sin(),
+        elevation.sin(),
+    )
 }

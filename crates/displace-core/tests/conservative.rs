@@ -6,7 +6,7 @@
 
 mod common_ref;
 
-use common_ref::{random_height, true_signed_distance, Rng};
+use common_ref::{bake_map, random_height, random_point, true_signed_distance, Rng};
 use displace_core::distance_map::Format;
 use displace_core::{bake, Address, BakeOptions, Extent};
 use glam::{DVec3, Vec3};
@@ -26,17 +26,13 @@ proptest! {
     ) {
         let address = if repeat { Address::Repeat } else { Address::Clamp };
         let height = random_height(kind, hw, hh, seed, address);
-        let map = bake(&height, &BakeOptions {
-            size: [dw, dh, dd],
-            extent: Extent::new(sx, sy, sz).unwrap(),
-            ..BakeOptions::default()
-        }).unwrap();
+        let map = bake_map(&height, [dw, dh, dd], [sx, sy, sz]);
         let aspect = map.aspect();
         let tiles = if repeat { [-1, 2, -1, 2] } else { [0, 1, 0, 1] };
         let quantized = [Format::R8, Format::R16F].map(|f| map.distance.quantized(f).0);
         let mut rng = Rng(seed.wrapping_mul(31) | 1);
         for _ in 0..24 {
-            let p = DVec3::new(rng.next_f64() * aspect[0] as f64, rng.next_f64() * aspect[1] as f64, rng.next_f64());
+            let p = random_point(&mut rng, aspect);
             let truth = true_signed_distance(&height, aspect, p, tiles);
             let pf = p.as_vec3();
             let stored = map.distance.sample(pf) as f64;
@@ -63,7 +59,7 @@ proptest! {
     }
 }
 
-/// Seed 002's flaw: at a sharp step the interpolated surface passes closer
+/// The ray-tracer paper's flaw (section 2.3): at a sharp step the interpolated surface passes closer
 /// to a voxel than any texel does, and a map baked from texel points lets
 /// rays through. Points right next to the step must still be safe.
 #[test]
@@ -73,15 +69,7 @@ fn sharp_steps_are_safe() {
         .map(|k| if (k % w) / 4 % 2 == 0 { 1.0 } else { 0.0 })
         .collect();
     let height = displace_core::HeightMap::new(w, h, data, Address::Clamp).unwrap();
-    let map = bake(
-        &height,
-        &BakeOptions {
-            size: [16, 16, 8],
-            extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap();
+    let map = bake_map(&height, [16, 16, 8], [1.0, 1.0, 0.1]);
     let aspect = map.aspect();
     let mut worst = f64::INFINITY;
     for a in 0..200 {
@@ -143,7 +131,7 @@ fn repeat_bakes_are_periodic() {
     }
 }
 
-/// A map much coarser than its height map (issue 16: an 8K height map traced
+/// A map much coarser than its height map (an 8K height map traced
 /// with a 2K map that fits GPU 3D-texture limits) still bounds the distance
 /// to the full-resolution surface: column ranges are exact over each
 /// column's footprint, however many texels it covers. Eight texels per
@@ -153,15 +141,7 @@ fn a_coarse_map_is_conservative_against_the_full_resolution_surface() {
     for kind in 0..3u8 {
         for address in [Address::Clamp, Address::Repeat] {
             let height = random_height(kind, 32, 24, 7 + kind as u64, address);
-            let map = bake(
-                &height,
-                &BakeOptions {
-                    size: [4, 3, 4],
-                    extent: Extent::new(1.0, 0.75, 0.2).unwrap(),
-                    ..BakeOptions::default()
-                },
-            )
-            .unwrap();
+            let map = bake_map(&height, [4, 3, 4], [1.0, 0.75, 0.2]);
             let aspect = map.aspect();
             let tiles = if address == Address::Repeat {
                 [-1, 2, -1, 2]
@@ -171,11 +151,7 @@ fn a_coarse_map_is_conservative_against_the_full_resolution_surface() {
             let r8 = map.distance.quantized(Format::R8).0;
             let mut rng = Rng(99 + kind as u64);
             for _ in 0..24 {
-                let p = DVec3::new(
-                    rng.next_f64() * aspect[0] as f64,
-                    rng.next_f64() * aspect[1] as f64,
-                    rng.next_f64(),
-                );
+                let p = random_point(&mut rng, aspect);
                 let truth = true_signed_distance(&height, aspect, p, tiles);
                 let pf = p.as_vec3();
                 for (what, v) in [

@@ -5,8 +5,8 @@
 
 mod common_ref;
 
-use common_ref::{random_height, Rng};
-use displace_core::{bake, Address, BakeOptions, Extent, MapRay, Method, TraceOptions};
+use common_ref::{random_face, Rng};
+use displace_core::{MapRay, Method, TraceOptions};
 use glam::Vec3;
 use proptest::prelude::*;
 
@@ -45,16 +45,7 @@ proptest! {
         n in 1usize..70,
         seed in any::<u64>(),
     ) {
-        let address = if repeat { Address::Repeat } else { Address::Clamp };
-        let height = random_height(kind, hw, hh, seed, address);
-        let map = bake(&height, &BakeOptions {
-            size: [dw, dh, dd],
-            extent: Extent::new(sx, sx * 0.75, sz).unwrap(),
-            ..BakeOptions::default()
-        }).unwrap();
-        let tiles = if repeat { [2.0, 2.0] } else { [1.0, 1.0] };
-        let aspect = map.aspect();
-        let span = [aspect[0] * tiles[0], aspect[1] * tiles[1]];
+        let (map, tiles, span) = random_face(kind, [hw, hh], [dw, dh, dd], [sx, sz], repeat, seed);
         let mut rng = Rng(seed ^ 0x2545_f491_4f6c_dd1d);
         let rays: Vec<MapRay> = (0..n).map(|_| random_ray(&mut rng, span)).collect();
         let opts: Vec<TraceOptions> = (0..n)

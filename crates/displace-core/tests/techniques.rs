@@ -1,6 +1,6 @@
-//! The competing techniques (issue 5) against the exact reference: they
+//! The competing techniques against the exact reference: they
 //! converge on smooth maps as their budget grows, fixed-step searches miss a
-//! thin wall that distance mapping and maximum mipmaps find (seed 000 fig.
+//! thin wall that distance mapping and maximum mipmaps find (Donnelly fig.
 //! 8-2), conservative cones never step past the hit, and relaxed cones with
 //! their binary search converge.
 
@@ -123,11 +123,11 @@ fn score(maps: &Maps, tech: Technique, budget: u32, rays: &[MapRay]) -> (f64, f3
     (wrong as f64 / rays.len() as f64, p99)
 }
 
-/// The bound of issue 5: at the top budget (128) every technique with a
+/// The bound BENCHMARKS.md states: at the top budget (128) every technique with a
 /// budget has its 99th-percentile hit error below half a texel and at most
 /// 1% of rays with the wrong hit/miss, on smooth maps at 20 to 90 degrees;
 /// and a small budget (4) is no better, so the test sees convergence, not
-/// luck. The one exception is seed 000's fixed loop (`distance-fixed`): it
+/// luck. The one exception is Donnelly's fixed loop (`distance-fixed`): it
 /// stops where the stored distance vanishes, which a conservative map puts
 /// up to its underestimate above the surface, so more steps do not help
 /// (about 6-8 texels at p99 here, whatever the budget); it is only held to
@@ -162,7 +162,7 @@ fn every_technique_converges_on_smooth_maps() {
     }
 }
 
-/// Seed 000 fig. 8-2: a wall one texel wide on a flat floor, seen at 10
+/// Donnelly fig. 8-2: a wall one texel wide on a flat floor, seen at 10
 /// degrees. Eight layers step over it; distance mapping and maximum mipmaps
 /// find it on every ray.
 #[test]

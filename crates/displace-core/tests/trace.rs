@@ -2,9 +2,9 @@
 
 mod common_ref;
 
-use common_ref::{random_height, Rng};
+use common_ref::{bake_map, downward, random_face, random_height, Rng};
 use displace_core::sphere_trace::HitKind;
-use displace_core::{bake, Address, BakeOptions, Extent, MapRay, Method, TraceOptions};
+use displace_core::{Address, MapRay, Method, TraceOptions};
 use glam::Vec3;
 use proptest::prelude::*;
 
@@ -18,11 +18,7 @@ fn random_ray(rng: &mut Rng, extent: [f32; 2]) -> MapRay {
     );
     let elevation = (2.0 + rng.next_f64() * 88.0).to_radians() as f32;
     let azimuth = (rng.next_f64() * std::f64::consts::TAU) as f32;
-    let dir = -Vec3::new(
-        elevation.cos() * azimuth.cos(),
-        elevation.cos() * azimuth.sin(),
-        elevation.sin(),
-    );
+    let dir = downward(elevation, azimuth);
     MapRay::new(target - dir * 3.0, dir)
 }
 
@@ -38,16 +34,7 @@ proptest! {
         repeat: bool,
         seed in any::<u64>(),
     ) {
-        let address = if repeat { Address::Repeat } else { Address::Clamp };
-        let height = random_height(kind, hw, hh, seed, address);
-        let map = bake(&height, &BakeOptions {
-            size: [dw, dh, dd],
-            extent: Extent::new(sx, sx * 0.75, sz).unwrap(),
-            ..BakeOptions::default()
-        }).unwrap();
-        let tiles = if repeat { [2.0, 2.0] } else { [1.0, 1.0] };
-        let aspect = map.aspect();
-        let span = [aspect[0] * tiles[0], aspect[1] * tiles[1]];
+        let (map, tiles, span) = random_face(kind, [hw, hh], [dw, dh, dd], [sx, sz], repeat, seed);
         let mut rng = Rng(seed ^ 0x9e37_79b9_7f4a_7c15);
         let exact_opts = TraceOptions { method: Method::Exact, tiles, ..TraceOptions::default() };
         let mut agree = 0;
@@ -114,15 +101,7 @@ proptest! {
 #[test]
 fn rays_entering_below_the_surface_hit_the_wall() {
     let height = displace_core::HeightMap::new(8, 8, vec![1.0; 64], Address::Clamp).unwrap();
-    let map = bake(
-        &height,
-        &BakeOptions {
-            size: [8, 8, 4],
-            extent: Extent::new(1.0, 1.0, 0.5).unwrap(),
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap();
+    let map = bake_map(&height, [8, 8, 4], [1.0, 1.0, 0.5]);
     // From the side, at half height: the slab's wall at x = 0.
     let ray = MapRay::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
     let hit = map.trace(&ray, &TraceOptions::default()).unwrap();
@@ -137,21 +116,13 @@ fn rays_entering_below_the_surface_hit_the_wall() {
 #[test]
 fn thin_features_are_not_stepped_over() {
     // One raised texel line in a flat map: a fixed-step march at grazing
-    // angles jumps over it (seed 000, fig. 8-2); sphere tracing may not.
+    // angles jumps over it (Donnelly, fig. 8-2); sphere tracing may not.
     let n = 64;
     let data: Vec<f32> = (0..n * n)
         .map(|k| if k % n == 40 { 1.0 } else { 0.0 })
         .collect();
     let height = displace_core::HeightMap::new(n, n, data, Address::Clamp).unwrap();
-    let map = bake(
-        &height,
-        &BakeOptions {
-            size: [64, 64, 8],
-            extent: Extent::new(1.0, 1.0, 0.05).unwrap(),
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap();
+    let map = bake_map(&height, [64, 64, 8], [1.0, 1.0, 0.05]);
     let aspect = map.aspect();
     let mut hits = 0;
     for k in 0..50 {
@@ -194,15 +165,7 @@ fn hits_on_the_shell_floor_are_found() {
         })
         .collect();
     let height = displace_core::HeightMap::new(n, n, data, Address::Clamp).unwrap();
-    let map = bake(
-        &height,
-        &BakeOptions {
-            size: [64, 64, 8],
-            extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap();
+    let map = bake_map(&height, [64, 64, 8], [1.0, 1.0, 0.1]);
     let aspect = map.aspect();
     let mut rng = Rng(99);
     for _ in 0..20_000 {
@@ -213,11 +176,7 @@ fn hits_on_the_shell_floor_are_found() {
         );
         let elevation = (5.0 + rng.next_f64() * 85.0).to_radians() as f32;
         let azimuth = (rng.next_f64() * std::f64::consts::TAU) as f32;
-        let dir = -Vec3::new(
-            elevation.cos() * azimuth.cos(),
-            elevation.cos() * azimuth.sin(),
-            elevation.sin(),
-        );
+        let dir = downward(elevation, azimuth);
         let ray = MapRay::new(target - dir * (1.2 / elevation.sin()), dir);
         for method in [Method::Exact, Method::Sphere] {
             assert!(
@@ -242,15 +201,7 @@ fn hits_on_the_shell_floor_are_found() {
 fn a_coarse_map_traces_the_full_resolution_surface() {
     for kind in 0..3u8 {
         let height = random_height(kind, 64, 64, 5 + kind as u64, Address::Clamp);
-        let map = bake(
-            &height,
-            &BakeOptions {
-                size: [8, 8, 4],
-                extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let map = bake_map(&height, [8, 8, 4], [1.0, 1.0, 0.1]);
         let aspect = map.aspect();
         let mut rng = Rng(17 + kind as u64);
         let mut hits = 0;

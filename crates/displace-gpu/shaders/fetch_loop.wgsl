@@ -1,4 +1,4 @@
-// The roofline of distance mapping on a GPU (issue 4, `bench gpu`): per
+// The roofline of distance mapping on a GPU (`bench gpu`, BENCHMARKS.md): per
 // pixel, N dependent trilinear fetches of the distance texture and nothing
 // else. Needs convention.wgsl and distance_filtered.wgsl before it.
 

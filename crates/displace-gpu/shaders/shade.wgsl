@@ -93,7 +93,7 @@ fn shade_hit(h: TraceHit, start: vec3f, dir: vec3f, to_light_start: vec3f, to_ph
     if (h.kind == HIT_SURFACE) {
         n_map = normalize(textureSampleGrad(normal_tex, shade_sampler, uv, dx, dy).xyz * 2.0 - 1.0);
     }
-    // The normal map holds the baked proportions (seed 002, 2.2: normals
+    // The normal map holds the baked proportions (the ray-tracer paper, section 2.2: normals
     // change with depth); normals map by the inverse transpose of to_phys.
     let n = normalize(n_map / to_phys);
     let albedo = textureSampleGrad(color_tex, shade_sampler, uv, dx, dy).rgb;

@@ -1,4 +1,4 @@
-// Batch query of one technique (issue 5): one invocation per map-space ray,
+// Batch query of one technique (displace_core::techniques): one invocation per map-space ray,
 // technique and budget from a uniform, so one pipeline serves them all.
 // Rust mirrors: `TechniqueParams`, `TechniqueHitOut` (src/techniques.rs).
 

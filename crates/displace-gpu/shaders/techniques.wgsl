@@ -1,4 +1,4 @@
-// The per-pixel displacement techniques engines ship (issue 5), in map space,
+// The per-pixel displacement techniques engines ship (displace_core::techniques), in map space,
 // operation for operation as displace_core::techniques does them, with the
 // same budgets and the same fetch counting: one bilinear height sample = 1,
 // one trilinear distance sample = 1, one cone or pyramid texel = 1, one

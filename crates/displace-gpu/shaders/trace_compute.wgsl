@@ -1,5 +1,5 @@
-// Batch ray query: one invocation per map-space ray (issue 4, "A
-// compute-shader path for the march"). Rust mirrors: `RayIn`, `HitOut`.
+// Batch ray query: one invocation per map-space ray, the march of
+// Donnelly's listing 8-2 as a compute shader. Rust mirrors: `RayIn`, `HitOut`.
 
 struct HitOut {
     position: vec3f,

@@ -1,4 +1,4 @@
-//! `displace bench gpu` (issue 4): Donnelly's setting and larger frames,
+//! `displace bench gpu` (BENCHMARKS.md): Donnelly's setting (section 8.6) and larger frames,
 //! timed by GPU timestamps, for the raster path, the compute path and the
 //! bare loop of dependent trilinear fetches that bounds them both.
 
@@ -13,14 +13,23 @@ use wgpu::util::DeviceExt;
 /// One measured configuration.
 #[derive(Clone, Debug)]
 pub struct BenchRow {
+    /// Which path was timed: `raster` (section 8.5's fragment stage), `compute`
+    /// (the batch ray query) or `fetch-loop` (the bare dependent-fetch roofline).
     pub path: String,
+    /// The configuration within the path (distance texture, method), as the
+    /// benchmark table prints it.
     pub variant: String,
+    /// Frame size in pixels (for `compute`, the ray count laid out as a frame).
     pub size: [u32; 2],
+    /// Sphere-tracing steps per ray: Donnelly's fixed count (section 8.6 uses 16).
     pub iterations: u32,
+    /// What the frames cost.
     pub timing: Timing,
 }
 
 impl BenchRow {
+    /// Throughput in billions of pixels (or rays) per second, the figure
+    /// section 8.6 compares across GPUs.
     pub fn gpix_per_s(&self) -> f64 {
         self.size[0] as f64 * self.size[1] as f64 / (self.timing.ms_per_frame * 1e-3) / 1e9
     }

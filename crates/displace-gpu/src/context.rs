@@ -6,12 +6,19 @@ use crate::{Error, Result};
 
 /// An open GPU device and what we learnt about it.
 pub struct GpuContext {
+    /// The adapter the device was opened on.
     pub adapter: wgpu::Adapter,
+    /// The device every pipeline and texture of this crate is made on.
     pub device: wgpu::Device,
+    /// The device's one queue: uploads, passes and readbacks all go through it.
     pub queue: wgpu::Queue,
+    /// Name, driver and backend, printed with every benchmark so figures say
+    /// what they were measured on.
     pub info: wgpu::AdapterInfo,
     /// Whether the device was opened with timestamp queries (benchmarks).
     pub timestamps: bool,
+    /// The limits the device was opened with: the largest 3D texture bounds the
+    /// distance maps this device can take.
     pub limits: wgpu::Limits,
 }
 

@@ -13,26 +13,46 @@ use displace_core::{Address, DisplacementMap, DistanceMap, HeightMap, TraceOptio
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct MapParams {
+    /// Tile width and height in shell depths (the metric of
+    /// `displace_core::convention`, Donnelly's "normalization factor", 8.5.2).
     pub aspect: [f32; 2],
+    /// How many tiles the face spans; `[1, 1]` for a clamped map.
     pub tiles: [f32; 2],
+    /// Distance map size in voxels `W, H, D`.
     pub dist_size: [u32; 3],
+    /// Addressing across the face ([`address_code`]).
     pub address: u32,
+    /// Height map size in texels, for the exact walk's cells.
     pub height_size: [u32; 2],
+    /// Early-out threshold of sphere tracing in shell depths
+    /// ([`TAU_VOXELS`] of the smallest voxel side).
     pub tau: f32,
+    /// Length of the exact walk after the early out: [`BAND_FACTOR`] times the
+    /// map's underestimate, plus `tau`.
     pub band: f32,
+    /// Filtered textures store `(value - offset) / scale`: the scale.
     pub decode_scale: f32,
+    /// The offset of that encoding.
     pub decode_offset: f32,
+    /// Most cells the exact walk visits ([`GpuMap::params`] explains the count).
     pub max_cells: u32,
+    /// Trace method ([`method_code`]).
     pub method: u32,
+    /// Most sphere-tracing steps.
     pub iterations: u32,
+    /// Ray parameter where the query starts.
     pub t_min: f32,
+    /// Ray parameter where it ends (a shadow ray stops at its light).
     pub t_max: f32,
+    /// Pads the struct to WGSL's 16-byte uniform alignment.
     pub pad_end: u32,
 }
 
 /// The map's textures and bind group (group 0 of every pipeline).
 pub struct GpuMap {
+    /// How the shaders read the distance map (it picks the bindings module).
     pub texture: DistanceTexture,
+    /// Layout of bind group 0, which every pipeline tracing this map shares.
     pub layout: wgpu::BindGroupLayout,
     height_view: wgpu::TextureView,
     distance_view: wgpu::TextureView,

@@ -40,8 +40,11 @@ use std::collections::HashMap;
 /// unit vertex normals and texture coordinates in tiles of the map.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshTriangle {
+    /// World positions of the corners.
     pub positions: [Vec3; 3],
+    /// Unit vertex normals: the shell is extruded along them.
     pub normals: [Vec3; 3],
+    /// Texture coordinates, in tiles of the map.
     pub uvs: [Vec2; 3],
 }
 
@@ -54,7 +57,9 @@ pub struct ShellVertex {
     /// Height in the shell, 0 (base) to 1 (top): the vertex sits at
     /// `position + lift * depth * normal`.
     pub lift: f32,
+    /// Unit vertex normal, the direction the shell is extruded in.
     pub normal: [f32; 3],
+    /// Pads `normal` to WGSL's `vec3f` alignment.
     pub _pad: f32,
     /// MikkTSpace's unit tangent and bitangent sign:
     /// `bitangent = w * normal x tangent`.
@@ -69,10 +74,13 @@ pub struct ShellVertex {
 /// The tangent frame MikkTSpace gives one corner of a triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TangentFrame {
+    /// Unit tangent along `dP/du`.
     pub tangent: Vec3,
     /// +1 where `normal x tangent` is the bitangent, -1 where the texture is
     /// mirrored.
     pub sign: f32,
+    /// `|dP/du|`, `|dP/dv|`: world units per tile, which set the map-space
+    /// metric of this corner.
     pub scale: Vec2,
 }
 
@@ -144,6 +152,7 @@ pub fn tangent_frames(tris: &[MeshTriangle]) -> Result<Vec<[TangentFrame; 3]>> {
 /// tiles its rays are traced in.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShellMesh {
+    /// Triangle list: the base triangle, its top and the walls.
     pub vertices: Vec<ShellVertex>,
     /// Subtracted from the mesh's texture coordinates to put them in the
     /// window; added back to report a hit's coordinate.
@@ -157,6 +166,9 @@ pub struct ShellMesh {
 }
 
 impl ShellMesh {
+    /// Builds the shell of `tris` (tangent frames from MikkTSpace, walls on
+    /// boundary and crease edges), refusing empty meshes and non-finite or
+    /// degenerate triangles.
     pub fn new(tris: &[MeshTriangle], address: Address) -> Result<Self> {
         if tris.is_empty() {
             return Err(Error::InvalidOption("the mesh has no triangles".into()));

@@ -16,9 +16,13 @@ use std::f32::consts::{PI, TAU};
 /// of an area light's visible quad (seen from its front only).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PlainMaterial {
+    /// Diffuse weight: the CPU's `albedo / pi` times the light's intensity.
     pub diffuse: Vec3,
+    /// Normalised Blinn-Phong weight, in the units of `diffuse`.
     pub specular: f32,
+    /// Blinn-Phong exponent.
     pub shininess: f32,
+    /// Radiance of an emitting surface (an area light's visible quad).
     pub emission: Vec3,
 }
 
@@ -26,19 +30,26 @@ pub struct PlainMaterial {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PlainVertex {
+    /// World position.
     pub position: [f32; 3],
+    /// Unit shading normal.
     pub normal: [f32; 3],
     /// The CPU's texture coordinate of the shape here (its uv AOV).
     pub uv: [f32; 2],
+    /// The material's `diffuse`.
     pub diffuse: [f32; 3],
+    /// The material's `specular`.
     pub specular: f32,
+    /// The material's `emission`.
     pub emission: [f32; 3],
+    /// The material's `shininess`.
     pub shininess: f32,
 }
 
 /// Triangle list of every plain shape of a scene.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PlainMesh {
+    /// Three vertices per triangle.
     pub vertices: Vec<PlainVertex>,
 }
 

@@ -22,7 +22,11 @@ pub const MAX_IMAGE_EDGE: u32 = 16384;
 /// Self-shadowing variant (a second march towards the light).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Shadows {
+    /// No self-shadowing: the light reaches every point (the cheapest frame).
     None,
+    /// Hard occlusion: a second march from the hit towards the light through
+    /// the same distance map (the ray tracer's shadow ray, which Donnelly's
+    /// shaders leave out).
     #[default]
     Hard,
     /// Hard occlusion plus the distance field's penumbra estimate.
@@ -51,23 +55,42 @@ impl std::str::FromStr for Shadows {
 /// `tiles` and `mirrored` are not used there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlaneScene {
+    /// Image size in pixels.
     pub size: [u32; 2],
+    /// Camera position.
     pub eye: Vec3,
+    /// The point the camera looks at.
     pub target: Vec3,
+    /// Camera up direction.
     pub up: Vec3,
+    /// Vertical field of view.
     pub fov_y_degrees: f32,
+    /// Point light position.
     pub light: Vec3,
+    /// Light intensity (see `falloff`).
     pub light_intensity: f32,
+    /// Corner of the face at texture coordinate `(0, 0)`.
     pub origin: Vec3,
+    /// Edge of one tile along `u`.
     pub tangent: Vec3,
+    /// Edge of one tile along `v`.
     pub bitangent: Vec3,
+    /// Shell depth: world height of a texel of value 1.
     pub depth: f32,
+    /// How the fragment stage traces (listing 8-2's fixed loop, ours, exact).
     pub method: Method,
+    /// Most sphere-tracing steps per ray.
     pub iterations: u32,
+    /// Self-shadowing mode.
     pub shadows: Shadows,
+    /// Sharpness of the soft penumbra: the visibility is
+    /// `min(k * distance / t)` along the shadow march.
     pub penumbra_k: f32,
+    /// Ambient term added to the albedo, so unlit parts are not black.
     pub ambient: f32,
+    /// Blinn-Phong specular weight.
     pub specular: f32,
+    /// Blinn-Phong exponent.
     pub shininess: f32,
     /// Divide the light by the squared world distance (a point light of
     /// radiant intensity `light_intensity`, as the CPU renderer lights);
@@ -144,6 +167,7 @@ impl PlaneScene {
         }
     }
 
+    /// Unit face normal, `tangent x bitangent` (reversed for a mirrored face).
     pub fn normal(&self) -> Vec3 {
         let n = self.tangent.cross(self.bitangent).normalize();
         if self.mirrored {
@@ -153,6 +177,8 @@ impl PlaneScene {
         }
     }
 
+    /// The camera's view-projection matrix, with near and far planes from
+    /// `depth_range` or from this face's shell.
     pub fn view_proj(&self) -> Mat4 {
         let aspect = self.size[0] as f32 / self.size[1] as f32;
         let reach = (self.eye - self.target).length()
@@ -260,12 +286,18 @@ pub struct FrameUniform {
 /// (`kind` 0 where nothing was hit; [`crate::convention::HIT_PLAIN`] on a
 /// non-displaced shape, whose `t` is the world distance from the eye).
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// sRGB colour, four bytes a pixel, rows top to bottom.
     pub rgba8: Vec<u8>,
+    /// The AOV `[u, v, hit kind, t]` per pixel.
     pub uv: Vec<[f32; 4]>,
 }
 
+/// Format of the colour target: sRGB-encoded on store, so shading stays in
+/// linear RGB.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const AOV_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -1124,6 +1156,7 @@ pub struct Targets {
 }
 
 impl Targets {
+    /// Allocates the three targets at `w x h`.
     pub fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
         let make = |format, usage| {
             ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -1156,6 +1189,7 @@ impl Targets {
         }
     }
 
+    /// Size of the targets in pixels.
     pub fn size(&self) -> [u32; 2] {
         self.size
     }

@@ -9,22 +9,40 @@
 //! the one trace. Joined here, they share one namespace: [`join`] drops the
 //! directives.
 
+/// `displace::convention`: map-space constants, `MapParams` and the ray
+/// structs, mirrored by [`crate::convention`].
 pub const CONVENTION: &str = include_str!("../shaders/convention.wgsl");
+/// `displace::distance` by `textureLoad` with hand interpolation (R32 and
+/// R8 codes, the CPU's order of operations).
 pub const DISTANCE_LOAD: &str = include_str!("../shaders/distance_load.wgsl");
+/// `displace::distance` through a linear sampler (Donnelly's way, 8.5.2).
 pub const DISTANCE_FILTERED: &str = include_str!("../shaders/distance_filtered.wgsl");
+/// `displace::surface`: the bilinear height surface, the exact walk and the
+/// trace (sphere tracing, then refinement).
 pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 /// `displace::bindings` of this crate's group 0 (gpu_map.rs `map_layout`),
 /// one per distance-lookup flavour.
 pub const BINDINGS_LOAD: &str = include_str!("../shaders/bindings_load.wgsl");
+/// The same for the filtered distance textures (with the sampler).
 pub const BINDINGS_FILTERED: &str = include_str!("../shaders/bindings_filtered.wgsl");
+/// The batch ray query's compute entry point.
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+/// Normal-mapped Blinn-Phong shading with self-shadowing, texture lookups
+/// with the base coordinate's derivatives (section 8.5.3).
 pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
+/// The face's vertex and fragment stages (listings 8-1 and 8-2).
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
+/// The shell of a mesh: vertex and fragment stages with per-vertex frames.
 pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
+/// Non-displaced triangles, shaded like the CPU's direct light.
 pub const PLAIN: &str = include_str!("../shaders/plain.wgsl");
+/// The roofline: dependent trilinear fetches and nothing else.
 pub const FETCH_LOOP: &str = include_str!("../shaders/fetch_loop.wgsl");
+/// The viewer's present pass (frame and overlay).
 pub const PRESENT: &str = include_str!("../shaders/present.wgsl");
+/// The techniques engines ship beside distance mapping, in map space.
 pub const TECHNIQUES: &str = include_str!("../shaders/techniques.wgsl");
+/// The batch query of one technique.
 pub const TECHNIQUE_COMPUTE: &str = include_str!("../shaders/technique_compute.wgsl");
 
 /// How the shaders read the distance map.
@@ -49,9 +67,11 @@ pub enum DistanceTexture {
 }
 
 impl DistanceTexture {
+    /// Every variant, in the order benchmarks print them.
     pub const ALL: [DistanceTexture; 4] =
         [Self::R32Load, Self::R8Load, Self::R16Linear, Self::R8Linear];
 
+    /// The name [`str::parse`] accepts, as the CLI's `--texture` takes it.
     pub fn name(self) -> &'static str {
         match self {
             Self::R32Load => "r32-load",
@@ -61,6 +81,8 @@ impl DistanceTexture {
         }
     }
 
+    /// Whether the texture is read through a linear sampler, which needs the
+    /// filter-error allowance of [`crate::convention::FILTER_WEIGHT_BITS`].
     pub fn filtered(self) -> bool {
         matches!(self, Self::R16Linear | Self::R8Linear)
     }

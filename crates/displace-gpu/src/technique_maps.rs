@@ -1,4 +1,4 @@
-//! The precomputations of issue 5's techniques as textures: cone maps
+//! The precomputations of the techniques ([`crate::techniques`]) as textures: cone maps
 //! (R32Float, one ratio per height texel, read nearest with `textureLoad`)
 //! and the max pyramid of maximum mipmaps as a real mip chain (Tevs et al.
 //! 2008 store it as the height map's mipmaps). A precomputation the maps
@@ -19,6 +19,7 @@ pub struct TechniqueTextures {
 }
 
 impl TechniqueTextures {
+    /// Uploads the precomputations `maps` holds, with placeholders for the rest.
     pub fn new(ctx: &GpuContext, maps: &Maps) -> Result<Self> {
         let size = [maps.height.width(), maps.height.height()];
         let cones = cone_view(ctx, maps.cones.as_ref(), size, "cones")?;

@@ -1,4 +1,5 @@
-//! Issue 5's techniques on the GPU: one compute pipeline
+//! The techniques engines ship beside distance mapping
+//! ([`displace_core::techniques`]) on the GPU: one compute pipeline
 //! (`shaders/techniques.wgsl`) that runs any [`Technique`] with any budget
 //! on a batch of map-space rays and returns the CPU's own [`Traced`], so
 //! `displace compare` can put the two side by side and time the GPU.
@@ -304,9 +305,13 @@ fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
 /// GPU cost of one technique at one budget over a batch of rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TechniqueCost {
+    /// The technique timed.
     pub technique: Technique,
+    /// Its step budget.
     pub budget: u32,
+    /// Rays in the batch.
     pub rays: usize,
+    /// What a batch cost.
     pub timing: Timing,
 }
 

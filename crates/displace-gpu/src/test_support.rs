@@ -1,6 +1,6 @@
 //! One GPU device shared by every test of a test binary, and the policy for
-//! machines without one (issue 4: "A GPU test that finds no adapter fails in
-//! CI"): with `CI` set, a missing adapter fails the test; elsewhere it fails
+//! machines without one (a GPU test that finds no adapter must not pass
+//! quietly in CI): with `CI` set, a missing adapter fails the test; elsewhere it fails
 //! too, loudly, unless `DISPLACE_ALLOW_NO_GPU=1` lets the GPU tests pass
 //! without running.
 

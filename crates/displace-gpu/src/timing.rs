@@ -5,8 +5,10 @@
 
 use crate::{GpuContext, Result};
 
+/// The cost of one frame (or batch), with how it was measured.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Timing {
+    /// Milliseconds per frame, by timestamps where the device has them.
     pub ms_per_frame: f64,
     /// True when timed by GPU timestamps, false for the wall clock.
     pub gpu_timestamps: bool,

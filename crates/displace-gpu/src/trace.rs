@@ -79,7 +79,9 @@ struct HitOut {
 /// Options of the GPU query beyond the CPU's [`TraceOptions`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GpuTraceOptions {
+    /// What the CPU would take: method, iterations, tiles, ray bounds.
     pub trace: TraceOptions,
+    /// How the shader reads the distance map.
     pub texture: DistanceTexture,
 }
 
@@ -91,6 +93,7 @@ pub struct RayTracer {
 }
 
 impl RayTracer {
+    /// Uploads `map` and compiles the query for `texture`.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
         let rays_layout = ctx

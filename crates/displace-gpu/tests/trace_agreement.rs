@@ -1,10 +1,10 @@
-//! Issue 4: GPU ray queries agree with the CPU's on random rays against
+//! GPU ray queries agree with the CPU's on random rays against
 //! random height maps: the same hit or miss on at least 99.9% of rays, hit
 //! points within 1e-3 shell depths.
 
 mod common;
 
-use common::{random_map, random_rays, Rng};
+use common::{clamped_case, random_map, random_rays, Rng};
 use displace_core::{Address, MapHit, Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, RayTracer};
@@ -137,10 +137,7 @@ fn r8_linear_sphere_clamp() {
 #[test]
 fn fixed_steps_agree_when_enough_and_stop_short_when_too_few() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(7);
-    let map = random_map(&mut rng, Address::Clamp);
-    let [ax, ay] = map.aspect();
-    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), 1500);
+    let (map, rays) = clamped_case(7, 1500);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     // Donnelly's fixed loop stops wherever its steps run out, and where that
     // is depends on the exact stored values (the CPU tracer reads an 8-bit
@@ -253,16 +250,13 @@ fn r8_load_fixed_steps_clamp() {
     );
 }
 
-/// Issue 17: at 17000 fixed steps lavapipe ended the trace loop and every
+/// At 17000 fixed steps lavapipe (docs/reliability.md) ended the trace loop and every
 /// ray came back a miss. However long a trace, the GPU either agrees with
 /// the CPU on every ray or refuses the batch; it never answers a silent miss.
 #[test]
 fn long_fixed_traces_agree_or_are_refused() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(17);
-    let map = random_map(&mut rng, Address::Clamp);
-    let [ax, ay] = map.aspect();
-    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), 64);
+    let (map, rays) = clamped_case(17, 64);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     for iterations in [1000, 17000, 65536] {
         let opts = TraceOptions {

@@ -1,5 +1,5 @@
 //! One bake per height source, resolution and proportions, shared by every
-//! face that asks for it (seed 002 had to bake per face, section 2.3), kept
+//! face that asks for it (the ray-tracer paper had to bake per face, its section 2.3), kept
 //! in memory for the scene and on disk across runs, keyed by a hash of
 //! everything the bake depends on.
 //!
@@ -7,7 +7,7 @@
 //! height, depth, `f32` aspect x, aspect y, `u8` addressing (0 clamp, 1
 //! repeat), `f32` bound on the stored values' underestimate, then `width * height * depth` `f32`
 //! values in the core's `[k][j][i]` order, then a `u64` checksum of the bound
-//! and the values ([`checksum`]): a corrupt entry (a flipped bit on disk) is
+//! and the values (`checksum`): a corrupt entry (a flipped bit on disk) is
 //! baked again rather than trusted, since a wrong distance would make the
 //! tracer step through the surface. The normal map is rebuilt from the
 //! height map (cheap); only the distance transform is cached.
@@ -49,6 +49,10 @@ pub fn default_cache_dir() -> Option<PathBuf> {
     std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache").join("displace"))
 }
 
+/// Bakes by key, in memory for one scene and on disk across runs: the
+/// ray-tracer paper baked the distance map anew for every face (its
+/// section 2.3), while faces of one height source and one aspect can share
+/// a bake (the metric convention of `displace_core::convention`).
 #[derive(Default)]
 pub struct BakeCache {
     dir: Option<PathBuf>,
@@ -78,6 +82,8 @@ fn aspect_key(a: f32) -> u64 {
 }
 
 impl BakeCache {
+    /// A cache writing to `dir` (see [`default_cache_dir`]); `None` keeps bakes
+    /// in memory only.
     pub fn new(dir: Option<PathBuf>) -> Self {
         Self {
             dir,
@@ -85,6 +91,7 @@ impl BakeCache {
         }
     }
 
+    /// What the cache has done so far.
     pub fn stats(&self) -> CacheStats {
         CacheStats {
             baked: self.baked.load(Ordering::Relaxed),

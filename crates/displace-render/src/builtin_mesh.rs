@@ -1,5 +1,5 @@
-//! Built-in meshes for scenes and the GPU mesh path (issue 4: "plane, cube,
-//! sphere, torus built in"), named `builtin:NAME` where a scene gives an
+//! Built-in meshes for scenes and the GPU mesh path (plane, cube, sphere
+//! and torus, so a curved shell can be tested without an OBJ file), named `builtin:NAME` where a scene gives an
 //! OBJ path. Each is generated with texture coordinates in `[0, 1]` and
 //! analytic vertex normals, wound counter-clockwise seen from outside, and
 //! parameterised so that `dP/du x dP/dv` points outwards: the tangent frame

@@ -20,6 +20,8 @@ struct Node {
     axis: u8,
 }
 
+/// A flattened BVH over the primitives of a scene (pbrt-v4 section 7.3's
+/// linear layout: a node's first child follows it).
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
     nodes: Vec<Node>,
@@ -33,6 +35,8 @@ struct Item {
 }
 
 impl Bvh {
+    /// Builds the hierarchy over `bounds` (primitive `i` has box `bounds[i]`)
+    /// with the binned SAH.
     pub fn build(bounds: &[Aabb]) -> Self {
         let mut items: Vec<Item> = bounds
             .iter()
@@ -86,6 +90,7 @@ impl Bvh {
         id
     }
 
+    /// The box of everything in the hierarchy ([`Aabb::EMPTY`] when empty).
     pub fn bounds(&self) -> Aabb {
         self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
     }

@@ -6,6 +6,7 @@ use crate::geometry::Ray;
 use crate::sampler::concentric_disk;
 use glam::{Vec2, Vec3};
 
+/// A perspective camera: pinhole, or a thin lens focused at a distance.
 #[derive(Clone, Debug)]
 pub struct Camera {
     position: Vec3,
@@ -23,9 +24,13 @@ pub struct Camera {
 /// Why a camera cannot be built.
 #[derive(Debug, PartialEq)]
 pub enum CameraError {
+    /// `position` equals `look_at`.
     LooksNowhere,
+    /// `up` is zero or parallel to the viewing direction.
     UpParallel,
+    /// The vertical field of view is not in `(0, 180)` degrees.
     BadFov(f32),
+    /// The aperture or focus distance is negative or not finite.
     BadLens(String),
 }
 
@@ -109,6 +114,7 @@ impl Camera {
         Ray::new(origin, focus - origin)
     }
 
+    /// The eye (the lens centre).
     pub fn position(&self) -> Vec3 {
         self.position
     }
@@ -129,18 +135,15 @@ impl Camera {
 mod tests {
     use super::*;
 
+    /// A square camera at the origin looking down -z at `distance`, +y up.
+    fn down_z(distance: f32, vfov: f32, aperture: f32, focus: Option<f32>) -> Camera {
+        let target = Vec3::new(0.0, 0.0, -distance);
+        Camera::new(Vec3::ZERO, target, Vec3::Y, vfov, 1.0, aperture, focus).unwrap()
+    }
+
     #[test]
     fn centre_ray_looks_at_target() {
-        let c = Camera::new(
-            Vec3::ZERO,
-            Vec3::new(0.0, 0.0, -5.0),
-            Vec3::Y,
-            60.0,
-            1.0,
-            0.0,
-            None,
-        )
-        .unwrap();
+        let c = down_z(5.0, 60.0, 0.0, None);
         let r = c.ray(Vec2::splat(0.5), Vec2::ZERO);
         assert!((r.dir - Vec3::NEG_Z).length() < 1e-6);
         // Top edge of the film is vfov/2 above the axis.
@@ -164,16 +167,7 @@ mod tests {
 
     #[test]
     fn thin_lens_rays_meet_on_the_focal_plane() {
-        let c = Camera::new(
-            Vec3::ZERO,
-            Vec3::new(0.0, 0.0, -10.0),
-            Vec3::Y,
-            40.0,
-            1.0,
-            1.0,
-            Some(4.0),
-        )
-        .unwrap();
+        let c = down_z(10.0, 40.0, 1.0, Some(4.0));
         let film = Vec2::new(0.3, 0.6);
         let a = c.ray(film, Vec2::new(0.1, 0.9));
         let b = c.ray(film, Vec2::new(0.8, 0.2));

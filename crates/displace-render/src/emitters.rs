@@ -33,21 +33,41 @@ const NONE: u32 = u32::MAX;
 #[derive(Clone, Debug)]
 pub enum Emitter {
     /// Radiant intensity from a point (a delta light).
-    Point { position: Vec3, intensity: Vec3 },
+    Point {
+        /// Where the light is.
+        position: Vec3,
+        /// Radiant intensity (W/sr per channel).
+        intensity: Vec3,
+    },
     /// A parallelogram emitting `radiance` from its front (`[[lights]]`
     /// area light) or from both sides (an emitting quad); `visible`: rays
     /// can hit it (else BSDF sampling never finds it and light sampling
     /// takes its whole weight).
     Quad {
+        /// The emitting parallelogram.
         quad: Quad,
+        /// Emitted radiance.
         radiance: Vec3,
+        /// Emits from both sides (an emitting shape) or from the front only
+        /// (an area light).
         two_sided: bool,
+        /// Rays can hit it.
         visible: bool,
     },
     /// An emitting triangle, both sides.
-    Triangle { tri: Triangle, radiance: Vec3 },
+    Triangle {
+        /// The emitting triangle.
+        tri: Triangle,
+        /// Emitted radiance.
+        radiance: Vec3,
+    },
     /// An emitting sphere, sampled uniformly over its area.
-    Sphere { sphere: Sphere, radiance: Vec3 },
+    Sphere {
+        /// The emitting sphere.
+        sphere: Sphere,
+        /// Emitted radiance.
+        radiance: Vec3,
+    },
     /// The light of escaping rays.
     Environment,
 }

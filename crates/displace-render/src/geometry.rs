@@ -2,15 +2,19 @@
 
 use glam::Vec3;
 
+/// A ray `origin + t dir`, with the reciprocal direction the slab test needs.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
+    /// Where the ray starts.
     pub origin: Vec3,
     /// Unit length.
     pub dir: Vec3,
+    /// `1 / dir` per component (infinite where `dir` is 0), for [`Aabb::hit`].
     pub inv_dir: Vec3,
 }
 
 impl Ray {
+    /// A ray from `origin` along `dir` (normalised here).
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         let dir = dir.normalize();
         Self {
@@ -31,28 +35,35 @@ impl Ray {
         }
     }
 
+    /// The point at distance `t`.
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
     }
 }
 
+/// An axis-aligned box, the bounding volume of the BVH.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// Lower corner.
     pub min: Vec3,
+    /// Upper corner.
     pub max: Vec3,
 }
 
 impl Aabb {
+    /// The box of nothing: the identity of [`Aabb::union`] and [`Aabb::grow`].
     pub const EMPTY: Aabb = Aabb {
         min: Vec3::splat(f32::INFINITY),
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
+    /// The smallest box holding `points`.
     pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
         points.into_iter().fold(Self::EMPTY, Self::grow)
     }
 
+    /// This box grown to hold `p`.
     #[inline]
     pub fn grow(self, p: Vec3) -> Self {
         Self {
@@ -61,6 +72,7 @@ impl Aabb {
         }
     }
 
+    /// The smallest box holding both.
     #[inline]
     pub fn union(self, o: Aabb) -> Self {
         Self {
@@ -69,6 +81,7 @@ impl Aabb {
         }
     }
 
+    /// Centre of the box, which the SAH bins by.
     #[inline]
     pub fn centroid(&self) -> Vec3 {
         0.5 * (self.min + self.max)
@@ -81,6 +94,7 @@ impl Aabb {
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 
+    /// True for [`Aabb::EMPTY`] (and any box with `min > max`).
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x
     }
@@ -111,6 +125,7 @@ pub fn basis(n: Vec3) -> (Vec3, Vec3) {
     )
 }
 
+/// `d` mirrored about unit normal `n` (Whitted's reflection ray).
 #[inline]
 pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n

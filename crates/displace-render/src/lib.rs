@@ -1,10 +1,12 @@
 //! # displace-render
 //!
-//! A CPU ray tracer after seed 002: Whitted ray tracing with the distributed
-//! soft shadows and glossy reflections of Cook, Porter and Carpenter (1984),
-//! whose intersection routine knows displaced faces. A displaced quad or
-//! triangle is a shell (seed 002, section 2.4): a ray that meets it is carried
-//! into the face's map space and sphere traced through the conservative
+//! A CPU ray tracer after the distance-map ray-tracer paper
+//! (`docs/architecture.md`, "References"): Whitted ray tracing with the
+//! distributed soft shadows and glossy reflections of Cook, Porter and
+//! Carpenter (1984), whose intersection routine knows displaced faces. A
+//! displaced quad or triangle is a shell (that paper's section 2.4, the
+//! extruded bounding box): a ray that meets it is carried into the face's
+//! map space and sphere traced through the conservative
 //! distance map of `displace-core`, so shadows and reflections on and of
 //! displaced surfaces come for free.
 //!
@@ -12,7 +14,7 @@
 //! construction), [`camera`], [`shapes`], [`displaced`], [`bvh`],
 //! [`material`], [`light`], [`sampler`], [`integrator`] (Whitted), [`path`]
 //! (path tracing with MIS) with [`bsdf`], [`emitters`], [`environment`] and
-//! [`distribution`], [`render`] (tiles,
+//! [`distribution`], [`render`](mod@render) (tiles,
 //! threads, crops, AOVs), [`probe`] (ray sets for benchmarks), [`output`]
 //! (PNG/EXR/npy, atomic), [`bake_cache`].
 //!
@@ -23,12 +25,17 @@
 //! displace_render::output::write_image(std::path::Path::new("out.png"), &out.image).unwrap();
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod bake_cache;
 pub mod bake_lock;
 pub mod bsdf;
 pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
+// Not yet held to missing_docs: its public items get their docs with the
+// rewrite of this module now under way.
+#[allow(missing_docs)]
 pub mod displaced;
 pub mod distribution;
 pub mod emitters;
@@ -36,6 +43,9 @@ pub mod environment;
 pub mod error;
 pub mod geometry;
 mod heights;
+// Not yet held to missing_docs: its public items get their docs with the
+// rewrite of this module now under way.
+#[allow(missing_docs)]
 pub mod integrator;
 pub mod light;
 pub mod material;
@@ -44,6 +54,9 @@ pub mod mesh;
 pub mod output;
 pub mod path;
 pub mod probe;
+// Not yet held to missing_docs: its public items get their docs with the
+// rewrite of this module now under way.
+#[allow(missing_docs)]
 pub mod render;
 pub mod sampler;
 pub mod scene;

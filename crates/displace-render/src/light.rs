@@ -5,12 +5,23 @@ use crate::sampler::{jittered, Rng};
 use crate::shapes::Quad;
 use glam::Vec3;
 
+/// A light of the Whitted integrator: it casts shadow rays towards it.
 #[derive(Clone, Debug)]
 pub enum Light {
     /// Radiant intensity `intensity` (W/sr per channel).
-    Point { position: Vec3, intensity: Vec3 },
+    Point {
+        /// Where the light is.
+        position: Vec3,
+        /// Radiant intensity.
+        intensity: Vec3,
+    },
     /// Emits radiance `radiance` from the side `edge_u x edge_v` points to.
-    Area { quad: Quad, radiance: Vec3 },
+    Area {
+        /// The emitting parallelogram.
+        quad: Quad,
+        /// Emitted radiance.
+        radiance: Vec3,
+    },
 }
 
 /// One shadow-ray sample: where to aim and the radiance it brings, already
@@ -18,6 +29,7 @@ pub enum Light {
 /// estimate of irradiance-weighted radiance `Li cos_l / r^2 dA`).
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
+    /// The point on the light to aim the shadow ray at.
     pub point: Vec3,
     /// `Li * G / pdf` without the receiver's cosine.
     pub weight: Vec3,

@@ -10,13 +10,17 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
 
+/// A Whitted material: Lambert plus Blinn-Phong plus a reflection lobe,
+/// each term optional.
 #[derive(Clone, Debug, Default)]
 pub struct Material {
     /// Lambertian albedo (multiplied by `texture` when present).
     pub diffuse: Vec3,
+    /// Colour map (linear RGB), sampled at the hit's texture coordinate.
     pub texture: Option<Arc<Texture>>,
     /// Blinn-Phong specular colour and exponent.
     pub specular: Vec3,
+    /// Blinn-Phong exponent (0: no highlight).
     pub shininess: f32,
     /// Reflectance of the mirror/glossy lobe.
     pub reflect: Vec3,
@@ -32,6 +36,8 @@ pub struct Material {
 }
 
 impl Material {
+    /// The Lambertian albedo at `uv`: `diffuse` times the texture times `tint`
+    /// (a displaced face's own colour texture).
     pub fn albedo(&self, uv: Vec2, tint: Vec3) -> Vec3 {
         let t = self.texture.as_ref().map_or(Vec3::ONE, |t| t.sample(uv));
         self.diffuse * t * tint
@@ -51,6 +57,7 @@ impl Material {
         f
     }
 
+    /// Whether the material casts a reflection ray.
     pub fn reflects(&self) -> bool {
         self.reflect != Vec3::ZERO
     }

@@ -23,27 +23,42 @@ pub enum Problem {
     /// A tile of another render: other scene, seed, files, overrides, size
     /// or tile count than the others.
     #[error("{path}: a tile of another render: {why}")]
-    Foreign { path: PathBuf, why: String },
+    Foreign {
+        /// The tile file.
+        path: PathBuf,
+        /// What differs.
+        why: String,
+    },
     /// The same tile in two files.
     #[error("tile {tile} is given twice: {first} and {second}")]
     Duplicate {
+        /// The tile.
         tile: TileIndex,
+        /// The first file holding it.
         first: PathBuf,
+        /// The second.
         second: PathBuf,
     },
     /// A tile whose rectangle is not the grid's rectangle for its index.
     #[error("{path}: tile {tile} covers {got}, but tile {tile} of this image is {want}")]
     WrongRect {
+        /// The tile file.
         path: PathBuf,
+        /// The tile it claims to be.
         tile: TileIndex,
+        /// The rectangle it covers.
         got: String,
+        /// The rectangle that tile has.
         want: String,
     },
     /// A tile of the grid that no file holds.
     #[error("tile {tile} (rows {first_row}..{end_row}) is missing")]
     Missing {
+        /// The tile.
         tile: TileIndex,
+        /// Its first row.
         first_row: u32,
+        /// The row after its last.
         end_row: u32,
     },
     /// Tiles that claim a grid no image has (more tiles than its rows of
@@ -59,6 +74,7 @@ pub enum Problem {
 #[derive(Debug, thiserror::Error)]
 #[error("{}", summary(.problems))]
 pub struct MergeError {
+    /// Every problem found, so a farm run can fix them all at once.
     pub problems: Vec<Problem>,
 }
 

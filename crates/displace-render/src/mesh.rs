@@ -7,20 +7,30 @@ use std::path::Path;
 /// Triangles above this count are refused before building anything.
 pub const MAX_TRIANGLES: usize = 1 << 26;
 
+/// One triangle of an OBJ mesh, in the file's coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct MeshTriangle {
+    /// Corner positions.
     pub positions: [Vec3; 3],
+    /// Vertex normals, when the file has them (the flat normal is used
+    /// otherwise).
     pub normals: Option<[Vec3; 3]>,
     /// `(0, 0)` everywhere when the file has none.
     pub uvs: [Vec2; 3],
 }
 
+/// The triangles of an OBJ file, every object and group together.
 #[derive(Clone, Debug)]
 pub struct Mesh {
+    /// The triangles.
     pub triangles: Vec<MeshTriangle>,
+    /// Whether the file gives texture coordinates (a displaced mesh needs them).
     pub has_uvs: bool,
 }
 
+/// Reads an OBJ file, refusing files that are not regular, too large, have
+/// indices out of range or more than [`MAX_TRIANGLES`] triangles; errors
+/// name the line and column where `tobj` says.
 pub fn load(path: &Path) -> Result<Mesh> {
     displace_core::io::check_input(path, "mesh", displace_core::io::MAX_MESH_FILE_BYTES)?;
     let opts = tobj::LoadOptions {

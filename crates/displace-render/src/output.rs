@@ -13,11 +13,14 @@ use std::path::{Path, PathBuf};
 /// The image file types, by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageFile {
+    /// `.png`: 8-bit sRGB.
     Png,
+    /// `.exr`: linear half floats.
     Exr,
 }
 
 impl ImageFile {
+    /// The type `path`'s extension names; other extensions are refused.
     pub fn from_path(path: &Path) -> Result<Self> {
         match path
             .extension()
@@ -53,6 +56,7 @@ pub fn srgb8(img: &Image) -> Vec<u8> {
         .collect()
 }
 
+/// Writes 8-bit RGB rows (already sRGB-encoded) as a PNG, atomically.
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
     write_atomic(path, |w| {
         image::codecs::png::PngEncoder::new(w)
@@ -94,6 +98,8 @@ pub fn aov_paths(output: &Path, aov: Aov) -> (PathBuf, PathBuf) {
     )
 }
 
+/// Writes `aov` beside `output` as `STEM.NAME.npy` (float32, `(H, W, C)`)
+/// and a false-colour `STEM.NAME.png`.
 pub fn write_aov(output: &Path, aov: &AovImage) -> Result<()> {
     let (npy, png) = aov_paths(output, aov.aov);
     let shape = [aov.height as usize, aov.width as usize, aov.aov.channels()];

@@ -1,10 +1,11 @@
-//! Ray sets for throughput benchmarks (issue 3, "Benchmarks"): the camera
+//! Ray sets for throughput benchmarks (BENCHMARKS.md): the camera
 //! rays of a render whose nearest hit lies on a displaced face, and the
-//! shadow rays those hits cast, generated exactly as [`crate::render`] and
+//! shadow rays those hits cast, generated exactly as [`crate::render()`] and
 //! [`crate::integrator`] generate them (same jitter, same light strata, same
 //! offsets). Timing [`Scene::intersect`] and [`Scene::occluded`] on them
 //! apart from shading gives the speed of the intersection routine on
-//! displaced surfaces, the figure seed 002 reports as rays per second.
+//! displaced surfaces, as rays per second (the ray-tracer paper reports only
+//! whole rendering times, its section 4).
 
 use crate::error::{Error, Result};
 use crate::geometry::Ray;
@@ -16,7 +17,9 @@ use rayon::prelude::*;
 /// A shadow ray and the distance past which occluders do not count.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowRay {
+    /// The ray from the shaded point towards the light.
     pub ray: Ray,
+    /// Distance to the light: occluders beyond it do not shadow.
     pub t_max: f32,
 }
 

@@ -1,7 +1,7 @@
 //! Deterministic randomness: every pixel sample owns a generator seeded from
 //! a hash of `(seed, x, y, sample)`, so a render is identical whatever the
-//! thread count or tiling, and crops stitch bit-exactly (DESIGN.md,
-//! "Randomness").
+//! thread count or tiling, and crops stitch bit-exactly (the randomness
+//! convention of `docs/architecture.md`).
 
 use glam::Vec2;
 
@@ -13,6 +13,8 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Hashes `words` into one seed: the per-sample seed of
+/// [`Rng::for_sample`], and the bake cache's keys.
 pub fn hash(words: &[u64]) -> u64 {
     hash_iter(words.iter().copied())
 }
@@ -33,6 +35,7 @@ pub struct Rng {
 }
 
 impl Rng {
+    /// A generator on `stream` from `seed` (PCG's seeding procedure).
     pub fn new(seed: u64, stream: u64) -> Self {
         let mut r = Self {
             state: 0,
@@ -50,6 +53,7 @@ impl Rng {
         Self::new(h, mix(h))
     }
 
+    /// The next 32 random bits.
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
@@ -67,6 +71,7 @@ impl Rng {
         (self.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
+    /// Two uniform numbers in `[0, 1)`.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         Vec2::new(self.next_f32(), self.next_f32())

@@ -6,8 +6,11 @@ use glam::{Vec2, Vec3};
 /// A parallelogram `origin + a edge_u + b edge_v`, `a, b` in `[0, 1]`.
 #[derive(Clone, Copy, Debug)]
 pub struct Quad {
+    /// Corner at parameter `(0, 0)`.
     pub origin: Vec3,
+    /// Edge along `u` (texture `u` on a displaced quad).
     pub edge_u: Vec3,
+    /// Edge along `v`.
     pub edge_v: Vec3,
     /// Unit normal, `edge_u x edge_v` normalised.
     pub normal: Vec3,
@@ -33,10 +36,12 @@ impl Quad {
         })
     }
 
+    /// Area, for sampling an area light by area.
     pub fn area(&self) -> f32 {
         self.edge_u.cross(self.edge_v).length()
     }
 
+    /// Bounding box of the four corners.
     pub fn bounds(&self) -> Aabb {
         let (o, u, v) = (self.origin, self.edge_u, self.edge_v);
         Aabb::from_points([o, o + u, o + v, o + u + v])
@@ -59,6 +64,7 @@ impl Quad {
         ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some((t, Vec2::new(a, b)))
     }
 
+    /// The point at parameter `uv`.
     pub fn point(&self, uv: Vec2) -> Vec3 {
         self.origin + uv.x * self.edge_u + uv.y * self.edge_v
     }
@@ -67,12 +73,16 @@ impl Quad {
 /// A triangle `p0, p0 + e1, p0 + e2`.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle {
+    /// First corner.
     pub p0: Vec3,
+    /// Edge from `p0` to the second corner.
     pub e1: Vec3,
+    /// Edge from `p0` to the third corner.
     pub e2: Vec3,
 }
 
 impl Triangle {
+    /// The triangle with corners `p0, p1, p2`.
     pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
         Self {
             p0,
@@ -81,10 +91,12 @@ impl Triangle {
         }
     }
 
+    /// Bounding box of the three corners.
     pub fn bounds(&self) -> Aabb {
         Aabb::from_points([self.p0, self.p0 + self.e1, self.p0 + self.e2])
     }
 
+    /// Unit normal `e1 x e2` (zero for a degenerate triangle).
     pub fn normal(&self) -> Vec3 {
         self.e1.cross(self.e2).normalize_or_zero()
     }
@@ -113,13 +125,17 @@ impl Triangle {
     }
 }
 
+/// A sphere, shaded with its analytic normal.
 #[derive(Clone, Copy, Debug)]
 pub struct Sphere {
+    /// Centre.
     pub center: Vec3,
+    /// Radius (positive).
     pub radius: f32,
 }
 
 impl Sphere {
+    /// Bounding box.
     pub fn bounds(&self) -> Aabb {
         Aabb {
             min: self.center - Vec3::splat(self.radius),
@@ -127,6 +143,8 @@ impl Sphere {
         }
     }
 
+    /// Nearest hit distance within `[t_min, t_max]`, by the stable quadratic
+    /// of Haines et al. (Ray Tracing Gems ch. 7), far from the origin too.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<f32> {
         let oc = ray.origin - self.center;

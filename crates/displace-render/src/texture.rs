@@ -1,10 +1,12 @@
-//! Image textures: colour maps (sRGB decoded to linear on load, DESIGN.md
-//! "Colour") and data maps (normal maps, read as stored).
+//! Image textures: colour maps (sRGB decoded to linear on load: the colour
+//! convention of `docs/architecture.md`) and data maps (normal maps, read
+//! as stored).
 
 use crate::error::{Error, Result};
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
+/// An RGB image sampled bilinearly with repeat addressing, in linear RGB.
 #[derive(Clone, Debug)]
 pub struct Texture {
     width: usize,
@@ -23,6 +25,8 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
+/// The sRGB transfer function, encoded (IEC 61966-2-1), clamped to
+/// `[0, 1]`: PNG output is sRGB while the renderer works in linear RGB.
 pub fn linear_to_srgb(c: f32) -> f32 {
     let c = c.clamp(0.0, 1.0);
     if c <= 0.003_130_8 {
@@ -126,6 +130,7 @@ impl Texture {
         })
     }
 
+    /// A texture of `width x height` linear pixels, row 0 at `v = 0`.
     pub fn from_pixels(width: usize, height: usize, data: Vec<Vec3>) -> Self {
         assert_eq!(data.len(), width * height);
         Self {

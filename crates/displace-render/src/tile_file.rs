@@ -44,7 +44,9 @@ pub struct TileMeta {
 /// `meta.rect`).
 #[derive(Clone, Debug)]
 pub struct TileImage {
+    /// The tile's header.
     pub meta: TileMeta,
+    /// Linear RGB, row-major over `meta.rect`.
     pub pixels: Vec<Vec3>,
 }
 

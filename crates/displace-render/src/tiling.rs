@@ -13,7 +13,9 @@ use crate::render::{Crop, TILE};
 /// and Kubernetes completion indices are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct TileIndex {
+    /// Zero-based index of this tile.
     pub index: u32,
+    /// How many tiles the image is cut into.
     pub count: u32,
 }
 
@@ -27,8 +29,13 @@ impl std::fmt::Display for TileIndex {
 /// resolved by the caller from its environment).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TileArg {
+    /// `--tile I/N`.
     Fixed(TileIndex),
-    Auto { count: u32 },
+    /// `--tile auto/N`: the index comes from the scheduler.
+    Auto {
+        /// How many tiles the image is cut into.
+        count: u32,
+    },
 }
 
 impl std::str::FromStr for TileArg {

@@ -1,4 +1,4 @@
-//! Scene input of issue 17: vectors with extra components, counts past
+//! Adversarial scene input (docs/reliability.md): vectors with extra components, counts past
 //! their bounds, coordinates that overflow, textures named by their key,
 //! and the deepest reflection the bound allows rendered without
 //! overflowing the stack.

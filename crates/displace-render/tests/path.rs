@@ -1,4 +1,4 @@
-//! The path integrator (issue 12) against closed forms and against itself:
+//! The path integrator (pbrt-v4 section 13.4, with Veach 1997's MIS) against closed forms and against itself:
 //! the furnace (`Le / (1 - a)`), the albedo of each BSDF under a uniform
 //! sky, light sampling alone against BSDF sampling alone against MIS,
 //! direct light against the Whitted integrator's, environment maps against
@@ -15,8 +15,8 @@
 
 mod common;
 
-use common::opts;
-use displace_render::{render, Crop, Image, Integrator, RenderOptions, Scene, SceneOptions};
+use common::{crop_pixels, opts, pool, render_crop};
+use displace_render::{render, Image, Integrator, RenderOptions, Scene, SceneOptions};
 use std::path::Path;
 
 fn build(text: &str, base: &Path) -> Scene {
@@ -97,6 +97,20 @@ fn agree(what: &str, a: (f64, f64), b: (f64, f64), tol: f64) {
     );
 }
 
+/// A `[[shapes]]` quad `origin + a edge_u + b edge_v` of `material`.
+fn quad(origin: &str, edge_u: &str, edge_v: &str, material: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"{material}\"\n"
+    )
+}
+
+/// A `[[lights]]` area light shining towards `edge_u x edge_v`.
+fn area_light(origin: &str, edge_u: &str, edge_v: &str, radiance: &str) -> String {
+    format!(
+        "[[lights]]\ntype = \"area\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nradiance = {radiance}\n"
+    )
+}
+
 /// A closed cube `[-1, 1]^3` of six inward-facing quads of material `m`,
 /// seen from its centre.
 fn furnace(material: &str) -> String {
@@ -114,9 +128,7 @@ fn furnace(material: &str) -> String {
         ("[-1, -1, -1]", "[2, 0, 0]", "[0, 2, 0]"), // z = -1: x x y = +z
         ("[-1, -1, 1]", "[0, 2, 0]", "[2, 0, 0]"),  // z = 1: y x x = -z
     ] {
-        t += &format!(
-            "[[shapes]]\ntype = \"quad\"\norigin = {o}\nedge_u = {u}\nedge_v = {v}\nmaterial = \"m\"\n"
-        );
+        t += &quad(o, u, v, "m");
     }
     t
 }
@@ -267,14 +279,18 @@ fn white_furnace_albedo_of_every_material() {
 
 /// A room of a glossy floor and a Lambert wall, lit by a small bright and
 /// a large dim area light, both visible.
-const TWO_LIGHTS: &str = "
+/// The glossy floor and the wall lit by a small bright area light and a
+/// large dim one, with the path integrator's `sampling`.
+fn two_lights(sampling: &str) -> String {
+    format!(
+        "
 [image]
 width = 24
 height = 24
 spp = SPP
 max_depth = 3
 integrator = \"path\"
-sampling = \"SAMPLING\"
+sampling = \"{sampling}\"
 [camera]
 position = [0, 2, -4]
 look_at = [0, 0.4, 0]
@@ -287,31 +303,17 @@ diffuse = [0.1, 0.1, 0.1]
 [materials.wall]
 type = \"lambert\"
 color = [0.3, 0.25, 0.2]
-[[shapes]]
-type = \"quad\"
-origin = [-3, 0, -3]
-edge_u = [0, 0, 6]
-edge_v = [6, 0, 0]
-material = \"floor\"
-[[shapes]]
-type = \"quad\"
-origin = [-3, 0, 2]
-edge_u = [6, 0, 0]
-edge_v = [0, 3, 0]
-material = \"wall\"
-[[lights]]
-type = \"area\"
-origin = [-1.2, 1.2, 0.5]
-edge_u = [0.35, 0, 0]
-edge_v = [0, 0, 0.35]
-radiance = [20, 20, 20]
-[[lights]]
-type = \"area\"
-origin = [0, 2.5, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-radiance = [1.5, 1.5, 1.5]
-";
+"
+    ) + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
+        + &quad("[-3, 0, 2]", "[6, 0, 0]", "[0, 3, 0]", "wall")
+        + &area_light(
+            "[-1.2, 1.2, 0.5]",
+            "[0.35, 0, 0]",
+            "[0, 0, 0.35]",
+            "[20, 20, 20]",
+        )
+        + &area_light("[0, 2.5, -1]", "[2, 0, 0]", "[0, 0, 2]", "[1.5, 1.5, 1.5]")
+}
 
 /// Light sampling alone, BSDF sampling alone and their MIS combination are
 /// three unbiased estimators of the same image (Veach 1997, figure 9.2):
@@ -320,7 +322,7 @@ radiance = [1.5, 1.5, 1.5]
 fn light_bsdf_and_mis_sampling_agree() {
     let base = Path::new(".");
     let run = |s: &str, spp| {
-        let (_, m, se) = converged(&TWO_LIGHTS.replace("SAMPLING", s), spp, base);
+        let (_, m, se) = converged(&two_lights(s), spp, base);
         (m, se)
     };
     let mis = run("mis", 2048);
@@ -402,12 +404,6 @@ type = \"sphere\"
 center = [0, 0.6, 0]
 radius = 0.6
 material = \"ball\"
-[[shapes]]
-type = \"quad\"
-origin = [-3, 0, -3]
-edge_u = [0, 0, 6]
-edge_v = [6, 0, 0]
-material = \"floor\"
 ";
 
 fn sky_scene(integrator: &str, sampling: &str, sky: &str) -> String {
@@ -415,6 +411,7 @@ fn sky_scene(integrator: &str, sampling: &str, sky: &str) -> String {
         .replace("INTEGRATOR", integrator)
         .replace("SAMPLING", sampling)
         .replace("SKY", sky)
+        + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
 }
 
 /// A constant environment map is the constant background: bit for bit
@@ -554,45 +551,18 @@ fn no_light_leaks_through_a_displaced_floor() {
 /// and a crop equal to its region of the full image.
 #[test]
 fn path_renders_are_deterministic_and_crops_stitch() {
-    let s = build(
-        &with_spp(&TWO_LIGHTS.replace("SAMPLING", "mis"), 2, 3),
-        Path::new("."),
-    );
-    let pool = |n| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap()
-    };
+    let s = build(&with_spp(&two_lights("mis"), 2, 3), Path::new("."));
     let a = pool(1).install(|| image(&s));
     let b = pool(3).install(|| image(&s));
     assert_eq!(a, b);
-    let crop = Crop {
-        x: 5,
-        y: 3,
-        width: 13,
-        height: 17,
-    };
-    let part = render(
-        &s,
-        &RenderOptions {
-            crop: Some(crop),
-            ..Default::default()
-        },
-    )
-    .unwrap()
-    .image;
-    for y in 0..crop.height {
-        for x in 0..crop.width {
-            assert_eq!(
-                a.pixels[((crop.y + y) * a.width + crop.x + x) as usize],
-                part.pixels[(y * crop.width + x) as usize]
-            );
-        }
+    let (crop, part) = render_crop(&s, [5, 3, 13, 17], vec![]).unwrap();
+    let part = part.image;
+    for (f, c) in crop_pixels(crop, a.width) {
+        assert_eq!(a.pixels[f], part.pixels[c]);
     }
     // `SceneOptions::integrator` (`--integrator`) overrides the file.
     let w = Scene::from_toml(
-        &with_spp(&TWO_LIGHTS.replace("SAMPLING", "mis"), 1, 3),
+        &with_spp(&two_lights("mis"), 1, 3),
         Path::new("t.toml"),
         Path::new("."),
         &SceneOptions {

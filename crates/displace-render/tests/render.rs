@@ -7,7 +7,7 @@ mod common;
 use common::scene_toml::SceneToml;
 use common::*;
 use displace_core::Method;
-use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
+use displace_render::{render, Aov, RenderOptions, Scene, SceneOptions};
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -58,7 +58,7 @@ fn small_area_light_approaches_its_point_limit() {
     assert!((c - want).abs() < 1e-3 * want, "{c} vs {want}");
 }
 
-/// Seed 002's hardest map: sharp-edged studs.
+/// The ray-tracer paper's hardest map: sharp-edged studs (its section 4).
 const STUDS: &str = "gen:studded?period=8";
 
 /// The body of a `[shapes.displacement]` table: `height` a quarter of the
@@ -105,9 +105,10 @@ fn depth_aov(text: &str, method: Option<Method>) -> Vec<f32> {
     r.aovs[0].data.clone()
 }
 
-/// Issue 3: sphere tracing and the exact intersector agree on hit/miss for
-/// at least 99.9% of pixels and on depth elsewhere; the studded map (whose
-/// sharp edges made seed 002's renders lose pixels) has no hole at all.
+/// Sphere tracing and the exact intersector agree on hit/miss for at least
+/// 99.9% of pixels and on depth elsewhere; the studded map (whose sharp
+/// edges made the ray-tracer paper's renders lose pixels, its section 2.3)
+/// has no hole at all.
 #[test]
 fn sphere_tracing_matches_the_exact_reference() {
     for map in ["gen:studded?period=8", "gen:gaussian", "gen:text?text=ab"] {
@@ -203,16 +204,8 @@ fn small_default() -> Scene {
 #[test]
 fn parallel_and_single_threaded_renders_are_bit_identical() {
     let s = small_default();
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let three = rayon::ThreadPoolBuilder::new()
-        .num_threads(3)
-        .build()
-        .unwrap();
-    let a = one.install(|| image(&s));
-    let b = three.install(|| image(&s));
+    let a = pool(1).install(|| image(&s));
+    let b = pool(3).install(|| image(&s));
     assert_eq!(a, b);
 }
 
@@ -226,45 +219,15 @@ fn a_crop_equals_the_same_region_of_the_full_render() {
             ..Default::default()
         },
     );
-    let crop = Crop {
-        x: 7,
-        y: 5,
-        width: 21,
-        height: 17,
-    };
-    let part = render_with(
-        &s,
-        &RenderOptions {
-            crop: Some(crop),
-            aovs: vec![Aov::Normal],
-            ..Default::default()
-        },
-    );
-    for y in 0..crop.height {
-        for x in 0..crop.width {
-            let f = ((crop.y + y) * full.image.width + crop.x + x) as usize;
-            let c = (y * crop.width + x) as usize;
-            assert_eq!(full.image.pixels[f], part.image.pixels[c]);
-            assert_eq!(
-                full.aovs[0].data[3 * f..3 * f + 3],
-                part.aovs[0].data[3 * c..3 * c + 3]
-            );
-        }
+    let (crop, part) = render_crop(&s, [7, 5, 21, 17], vec![Aov::Normal]).unwrap();
+    for (f, c) in crop_pixels(crop, full.image.width) {
+        assert_eq!(full.image.pixels[f], part.image.pixels[c]);
+        assert_eq!(
+            full.aovs[0].data[3 * f..3 * f + 3],
+            part.aovs[0].data[3 * c..3 * c + 3]
+        );
     }
-    let outside = Crop {
-        x: 30,
-        y: 0,
-        width: 20,
-        height: 5,
-    };
-    assert!(render(
-        &s,
-        &RenderOptions {
-            crop: Some(outside),
-            ..Default::default()
-        }
-    )
-    .is_err());
+    assert!(render_crop(&s, [30, 0, 20, 5], vec![]).is_err());
 }
 
 #[test]
@@ -414,7 +377,8 @@ fn two_triangles() -> String {
     s.text().to_string()
 }
 
-/// A displaced triangle is the prism over it (seed 002 has only quads):
+/// A displaced triangle is the prism over it (the ray-tracer paper has only
+/// quads):
 /// the quad cut into two displaced triangles renders the same surface,
 /// with the same silhouette.
 #[test]

@@ -215,25 +215,8 @@ fn repeating_image(
     format: bevy::render::render_resource::TextureFormat,
     texel: impl Fn(f32) -> Vec<u8>,
 ) -> Image {
-    use bevy::asset::RenderAssetUsages;
     use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
-    use bevy::render::render_resource::{Extent3d, TextureDimension};
-    let bytes: Vec<u8> = height
-        .data()
-        .iter()
-        .flat_map(|h| texel(h.clamp(0.0, 1.0)))
-        .collect();
-    let mut image = Image::new(
-        Extent3d {
-            width: height.width() as u32,
-            height: height.height() as u32,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        bytes,
-        format,
-        RenderAssetUsages::RENDER_WORLD,
-    );
+    let mut image = displace_bevy::texel_image(height, format, |h| texel(h.clamp(0.0, 1.0)));
     image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
         address_mode_u: ImageAddressMode::Repeat,
         address_mode_v: ImageAddressMode::Repeat,

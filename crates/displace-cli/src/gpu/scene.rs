@@ -1,5 +1,5 @@
 //! `displace gpu-render SCENE`: the CPU renderer's scene file drawn by the
-//! GPU raster path (issue 4: "the same scene TOML as the CPU renderer, with
+//! GPU raster path ("the same scene TOML as the CPU renderer, with
 //! the same camera conventions, so one scene renders on both and can be
 //! compared").
 //!

@@ -1,7 +1,7 @@
 //! Exact Euclidean distance transforms in linear time: the lower envelope of
 //! parabolas of Felzenszwalb and Huttenlocher ("Distance Transforms of
 //! Sampled Functions", Theory of Computing 8, 2012), applied one axis at a
-//! time. Seed 000 cites Danielsson's vector propagation (section 8.4); this
+//! time. Donnelly cites Danielsson's vector propagation (section 8.4); this
 //! transform is exact where Danielsson's can err by a fraction of a voxel, and
 //! it is linear in the number of voxels as well.
 //!

@@ -1,11 +1,11 @@
-//! The analytic maps of the seeds: `flat`, `gaussian` and `studded` (seed
-//! 002, section 4) and `grating` (seed 000, fig. 8-6).
+//! The analytic maps of the seeds: `flat`, `gaussian` and `studded` (the
+//! ray-tracer paper, section 4) and `grating` (Donnelly, fig. 8-6).
 
 use super::params::Params;
 use super::Grid;
 use crate::{HeightMap, Result};
 
-/// Seed 002's `flatmap`: the whole face at one height. With the default
+/// The ray-tracer paper's `flatmap`: the whole face at one height. With the default
 /// level 1 the displaced surface is the top of the shell, which is what made
 /// it useful for debugging the basic intersection.
 pub(super) fn flat(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
@@ -14,7 +14,7 @@ pub(super) fn flat(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
     grid.map(vec![level; grid.width * grid.height])
 }
 
-/// Seed 002's `gaussian`: `h(x, y) = exp(-pi (x^2 + y^2))`, maximum 1 at the
+/// The ray-tracer paper's `gaussian`: `h(x, y) = exp(-pi (x^2 + y^2))`, maximum 1 at the
 /// centre of the map, with `x = scale (2u - 1)` and `y = scale (2v - 1)`.
 /// The default `scale = 2` (`x, y` in `[-2, 2]`) leaves `exp(-4 pi) = 3.5e-6`
 /// at the middle of each edge, so under clamp addressing the bump meets a
@@ -30,11 +30,11 @@ pub(super) fn gaussian(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
     }))
 }
 
-/// Seed 002's `studded`: "a modulus function to create alternating areas of
+/// The ray-tracer paper's `studded`: "a modulus function to create alternating areas of
 /// maximum and minimum height", i.e. a checkerboard of `period x period`
 /// texel squares, `high` at texel (0, 0). Each texel is exactly `low` or
 /// `high`, so the continuous surface steps from one to the other within a
-/// single texel: the sharp edges that made the brute-force bake of seed 002
+/// single texel: the sharp edges that made the brute-force bake of the ray-tracer paper (section 2.3)
 /// miss the surface. It tiles under repeat addressing when the map size is a
 /// multiple of `2 period`.
 pub(super) fn studded(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
@@ -52,7 +52,7 @@ pub(super) fn studded(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
     }))
 }
 
-/// Seed 000's grating (fig. 8-6): parallel raised bars along `v`, one every
+/// Donnelly's grating (fig. 8-6): parallel raised bars along `v`, one every
 /// `period` texels (any real number >= 1), raised over the fraction `duty`
 /// of each period; with `crossed=true` a second set of bars along `u` makes
 /// a grid. Each texel holds the exact fraction of its area that is raised (a
@@ -104,7 +104,7 @@ mod tests {
     }
 
     #[test]
-    fn gaussian_is_seed_002_formula_centred() {
+    fn gaussian_is_the_ray_tracer_papers_formula_centred() {
         let (w, h) = (65, 33);
         let m = generate("gen:gaussian", w, h, Address::Clamp).unwrap();
         // Odd sizes put a texel centre at the middle of the map: exactly 1.

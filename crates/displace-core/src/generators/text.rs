@@ -1,4 +1,4 @@
-//! `text`: a string as raised letters, the case seed 000 (fig. 8-3) shows
+//! `text`: a string as raised letters, the case Donnelly's fig. 8-3 shows
 //! because fine detail and thin gaps defeat uniformly spaced sampling.
 //!
 //! Glyphs come from DejaVu Sans Bold (Bitstream Vera licence, see

@@ -162,8 +162,8 @@ impl MapFile {
 
 /// Writes `map` (one tile of `extent`) to `path` in the file type its
 /// extension names. `format` applies to KTX2 and DDS; npy is always float32
-/// in the physical units of `extent` (the layout issue 2 fixes for other
-/// tools), so asking for another format there is refused rather than ignored.
+/// in the physical units of `extent` (the layout Python tools read,
+/// `numpy.load`), so asking for another format there is refused rather than ignored.
 pub fn write_distance_map(
     path: &Path,
     map: &DistanceMap,
@@ -213,7 +213,7 @@ pub fn read_distance_map(path: &Path, extent: Extent, address: Address) -> Resul
     }
 }
 
-/// A map is valid for one aspect (DESIGN.md "Metric"): using it for another
+/// A map is valid for one aspect (the metric of [`crate::convention`]): using it for another
 /// would make its distances wrong, and unsafe.
 fn check_same_proportions(path: &Path, stored: Extent, wanted: Extent) -> Result<()> {
     let (a, b) = (stored.aspect(), wanted.aspect());

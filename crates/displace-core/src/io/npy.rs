@@ -1,7 +1,7 @@
 //! NumPy `.npy` arrays (format versions 1.0 to 3.0, as `numpy.lib.format`
 //! specifies them): the exchange format with Python tools. Reading accepts
-//! only little-endian C-order float32, the one layout issue 2 fixes for
-//! distance maps and rays; anything else is refused with its dtype named.
+//! only little-endian C-order float32, the one layout this project uses
+//! for distance maps and rays; anything else is refused with its dtype named.
 //! Writing emits version 1.0 with the header padded to 64 bytes, as numpy
 //! itself does, for float32 and (for occupancy volumes) uint8.
 
@@ -258,7 +258,7 @@ pub fn read_file_as<T: Element>(path: &Path) -> Result<Array<T>> {
     from_bytes_as::<T>(&bytes).map_err(|e| e.at(path))
 }
 
-/// Writes `map` in the layout issue 2 fixes: float32, shape `(D, H, W)`,
+/// Writes `map` in the layout Python tools read: float32, shape `(D, H, W)`,
 /// C order, element `[k][j][i]` the signed distance from voxel centre
 /// `((i+0.5)/W SX, (j+0.5)/H SY, (k+0.5)/D SZ)` in the units of `extent`
 /// (the map stores shell depths, so every value is scaled by `SZ`).

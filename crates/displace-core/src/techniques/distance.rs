@@ -1,6 +1,6 @@
 //! Distance mapping, through [`DisplacementMap::trace_counted`] (the
 //! project's tracer, not a copy): Donnelly's fixed loop
-//! ([`Method::SphereFixed`], seed 000 listing 8-2) or ours
+//! ([`Method::SphereFixed`], Donnelly's listing 8-2) or ours
 //! ([`Method::Sphere`]: early out, then the exact walk).
 
 use super::{Hit, Traced};

@@ -1,6 +1,6 @@
 //! The per-pixel displacement techniques that engines ship today, beside
 //! distance mapping, behind one interface so that `displace compare` can
-//! measure them against the exact reference on the same rays (issue 5).
+//! measure them against the exact reference on the same rays (BENCHMARKS.md).
 //!
 //! Everything is in map space ([`crate::convention`]): `z` up, lengths in
 //! shell depths, one tile `[0, ax] x [0, ay] x [0, 1]`, surface
@@ -80,7 +80,7 @@ pub enum Technique {
     /// Maximum mipmaps (Tevs, Ihrke and Seidel 2008): a max pyramid walked
     /// to the exact hit.
     MaxMip,
-    /// Distance mapping as seed 000 has it: `budget` sphere-tracing steps
+    /// Distance mapping as Donnelly has it (listing 8-2): `budget` sphere-tracing steps
     /// ([`crate::Method::SphereFixed`]).
     DistanceFixed,
     /// Ours: sphere tracing with early out and exact refinement

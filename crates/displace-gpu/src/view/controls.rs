@@ -14,7 +14,9 @@ pub enum Action {
     /// Turn the camera about its target: degrees about the up axis, degrees
     /// up towards it.
     Orbit {
+        /// Degrees about the up axis.
         yaw: f32,
+        /// Degrees up towards it.
         raise: f32,
     },
     /// Multiply the camera's distance to its target.
@@ -23,22 +25,32 @@ pub enum Action {
     Depth(f32),
     /// Multiply the depth scale.
     DepthBy(f32),
+    /// Set the sphere-tracing step count.
     Iterations(u32),
     /// Double (`true`) or halve the iteration count.
     IterationsStep(bool),
+    /// Set the trace method.
     Method(Method),
+    /// Switch between Donnelly's fixed loop and ours.
     ToggleMethod,
+    /// Set the self-shadowing mode.
     Shadows(Shadows),
+    /// Next self-shadowing mode (none, hard, soft).
     CycleShadows,
     /// Turn the light about the camera's target, as `Orbit` turns the eye.
     Light {
+        /// Degrees about the up axis.
         yaw: f32,
+        /// Degrees up towards it.
         raise: f32,
     },
+    /// Show or hide the overlay.
     Hud(bool),
+    /// Flip the overlay.
     ToggleHud,
     /// Back to the scene's own camera, light and settings.
     Reset,
+    /// Close the viewer.
     Quit,
     /// Script only: ask the window for this inner size.
     Resize([u32; 2]),

@@ -25,7 +25,9 @@ use orbit::{turn, Orbit};
 /// scene file gives it (all sharing one camera and light), and the linear
 /// background colour.
 pub struct ViewScene {
+    /// Each displaced face: its compiled renderer and its plane.
     pub faces: Vec<(Renderer, PlaneScene)>,
+    /// Linear RGB clear colour.
     pub background: [f64; 3],
 }
 
@@ -34,18 +36,24 @@ pub struct ViewScene {
 pub struct Settings {
     /// Times each face's own displacement depth.
     pub depth_scale: f32,
+    /// Sphere-tracing steps per ray.
     pub iterations: u32,
+    /// Trace method.
     pub method: Method,
+    /// Self-shadowing mode.
     pub shadows: Shadows,
+    /// Whether the overlay is drawn.
     pub hud: bool,
 }
 
 /// Camera, light and settings of the view of one scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewState {
+    /// The camera.
     pub orbit: Orbit,
     /// Light position minus the orbit target.
     light_offset: Vec3,
+    /// The live settings.
     pub settings: Settings,
     start: Box<(Orbit, Vec3, Settings)>,
 }
@@ -88,6 +96,7 @@ impl ViewState {
         })
     }
 
+    /// Light position: it follows the orbit target.
     pub fn light(&self) -> Vec3 {
         self.orbit.target + self.light_offset
     }

@@ -22,7 +22,7 @@ pub fn nearest_axis(v: Vec3) -> Vec3 {
 
 /// The rotation that turns `offset` (from the target) by `yaw` degrees
 /// about `axis` and raises it by `raise` degrees towards `axis`, its angle
-/// to the axis kept within [`POLE_MARGIN_DEGREES`] of either pole. Identity
+/// to the axis kept within `POLE_MARGIN_DEGREES` of either pole. Identity
 /// for a zero turn, so an untouched view stays exactly where it started.
 pub fn turn(offset: Vec3, axis: Vec3, yaw: f32, raise: f32) -> Quat {
     if yaw == 0.0 && raise == 0.0 {
@@ -45,6 +45,7 @@ pub fn turn(offset: Vec3, axis: Vec3, yaw: f32, raise: f32) -> Quat {
 /// Eye, target and up of a camera that orbits `target`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Orbit {
+    /// The point the camera orbits and looks at.
     pub target: Vec3,
     offset: Vec3,
     up: Vec3,
@@ -65,10 +66,12 @@ impl Orbit {
         }
     }
 
+    /// Camera position.
     pub fn eye(&self) -> Vec3 {
         self.target + self.offset
     }
 
+    /// Camera up direction.
     pub fn up(&self) -> Vec3 {
         self.up
     }

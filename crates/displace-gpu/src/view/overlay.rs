@@ -80,8 +80,11 @@ struct PresentUniform {
 /// Where the present pass draws: a view, its format and its size.
 #[derive(Clone, Copy)]
 pub struct Output<'a> {
+    /// The surface's texture view.
     pub view: &'a wgpu::TextureView,
+    /// Its format (a pipeline is built per format).
     pub format: wgpu::TextureFormat,
+    /// Its size in pixels.
     pub size: [u32; 2],
 }
 
@@ -96,6 +99,8 @@ pub struct Presenter {
 }
 
 impl Presenter {
+    /// Compiles the present shader; pipelines are made per output format on
+    /// first use.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.checked("building the present pass", || {
             let module = ctx

@@ -47,8 +47,11 @@ pub struct ViewOptions {
 
 /// A presented frame read back: sRGB RGBA8, rows top to bottom.
 pub struct Screenshot {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Four bytes a pixel.
     pub rgba8: Vec<u8>,
 }
 

@@ -121,3 +121,13 @@ pub fn random_rays(rng: &mut Rng, hi: Vec3, n: usize) -> Vec<MapRay> {
         })
         .collect()
 }
+
+/// The map of seed `seed` (clamped) and `n` rays around its one tile, drawn
+/// in that order from the one generator.
+pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
+    let mut rng = Rng::new(seed);
+    let map = random_map(&mut rng, Address::Clamp);
+    let [ax, ay] = map.aspect();
+    let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), n);
+    (map, rays)
+}

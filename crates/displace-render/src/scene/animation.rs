@@ -71,9 +71,13 @@ impl Path3 {
 /// A validated `[animation]`.
 #[derive(Clone, Debug)]
 pub struct Animation {
+    /// Number of frames.
     pub frames: u32,
+    /// Frames per second, for the video encoder.
     pub fps: f32,
+    /// The camera position's path, if it moves.
     pub camera_position: Option<Path3>,
+    /// The look-at point's path, if it moves.
     pub camera_look_at: Option<Path3>,
     /// The light moved (index into `[[lights]]`) and its path.
     pub light: Option<(usize, Path3)>,

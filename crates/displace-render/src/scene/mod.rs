@@ -1,4 +1,4 @@
-//! Scenes: parsed from TOML ([`spec`]), validated and built ([`build`]) into
+//! Scenes: parsed from TOML ([`spec`]), validated and built (`build`) into
 //! primitives under one BVH, with materials, lights and a camera.
 
 pub mod animation;
@@ -26,12 +26,15 @@ use std::path::{Path, PathBuf};
 
 /// The built-in default scene: the studded Cornell box with soft shadows.
 pub const DEFAULT_SCENE: &str = include_str!("../../../../scenes/cornell_studded_shadows.toml");
+/// The name errors give the built-in scene, which has no file.
 pub const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
 
 /// What a caller may change about a scene without editing its file.
 #[derive(Clone, Debug, Default)]
 pub struct SceneOptions {
+    /// Overrides `image.spp` (`--spp`).
     pub spp: Option<u32>,
+    /// Overrides `image.width` and `image.height` (`--size`).
     pub size: Option<[u32; 2]>,
     /// Overrides every displaced face's tracing method (tests compare
     /// sphere tracing with the exact reference this way).
@@ -44,6 +47,8 @@ pub struct SceneOptions {
     pub integrator: Option<Integrator>,
 }
 
+/// A built scene: primitives under one BVH, materials, lights, camera and
+/// environment, ready for [`crate::render()`].
 pub struct Scene {
     pub(crate) camera: Camera,
     pub(crate) width: u32,
@@ -115,18 +120,23 @@ impl Scene {
         Ok(scene)
     }
 
+    /// Image width in pixels.
     pub fn width(&self) -> u32 {
         self.width
     }
+    /// Image height in pixels.
     pub fn height(&self) -> u32 {
         self.height
     }
+    /// Samples per pixel.
     pub fn spp(&self) -> u32 {
         self.spp
     }
+    /// Number of primitives (a mesh counts its triangles).
     pub fn primitive_count(&self) -> usize {
         self.prims.len()
     }
+    /// What the bake cache did while building.
     pub fn cache_stats(&self) -> CacheStats {
         self.cache_stats
     }
@@ -152,15 +162,19 @@ impl Scene {
     pub fn primitives(&self) -> &[Primitive] {
         &self.prims
     }
+    /// The materials, indexed by [`Primitive::material`].
     pub fn materials(&self) -> &[Material] {
         &self.materials
     }
+    /// The lights of the Whitted integrator.
     pub fn lights(&self) -> &[Light] {
         &self.lights
     }
+    /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera
     }
+    /// Linear RGB radiance of escaping rays when there is no environment map.
     pub fn background(&self) -> Vec3 {
         self.background
     }
@@ -168,7 +182,7 @@ impl Scene {
     pub fn environment(&self) -> &Environment {
         &self.environment
     }
-    /// The light transport algorithm [`crate::render`] runs.
+    /// The light transport algorithm [`crate::render()`] runs.
     pub fn integrator(&self) -> Integrator {
         self.integrator
     }

@@ -6,6 +6,7 @@ use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
 
+/// A point, direction or colour as the file writes it, `[x, y, z]`.
 pub type V3 = [f32; 3];
 
 /// Exactly `[x, y, z]`. A fixed-size array read straight from a TOML array
@@ -19,15 +20,21 @@ fn exact3<'de, D: Deserializer<'de>>(d: D) -> Result<V3, D::Error> {
         .map_err(|_| D::Error::invalid_length(v.len(), &"exactly 3 numbers [x, y, z]"))
 }
 
+/// A whole scene file (docs/scenes.md): one table per part.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneSpec {
+    /// `[image]`.
     pub image: ImageSpec,
+    /// `[camera]`.
     pub camera: CameraSpec,
+    /// `[materials.NAME]`, named by the shapes.
     #[serde(default)]
     pub materials: BTreeMap<String, MaterialSpec>,
+    /// `[[lights]]`.
     #[serde(default)]
     pub lights: Vec<LightSpec>,
+    /// `[[shapes]]`.
     #[serde(default)]
     pub shapes: Vec<ShapeSpec>,
     /// Frames over which the camera and a light move (docs/scenes.md).
@@ -38,6 +45,7 @@ pub struct SceneSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AnimationSpec {
+    /// Frame count (1 to 2^20); frames are `0..frames`.
     pub frames: i64,
     /// Frames per second, for whoever encodes the frames into a video.
     #[serde(default = "default_fps")]
@@ -67,9 +75,12 @@ fn default_interpolation() -> String {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraKeySpec {
+    /// The frame this key holds at.
     pub frame: i64,
+    /// The eye at that frame.
     #[serde(default, deserialize_with = "exact3_opt")]
     pub position: Option<V3>,
+    /// The look-at point at that frame.
     #[serde(default, deserialize_with = "exact3_opt")]
     pub look_at: Option<V3>,
 }
@@ -78,22 +89,33 @@ pub struct CameraKeySpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PathKeySpec {
+    /// The frame this key holds at.
     pub frame: i64,
+    /// The light's position (an area light's origin) at that frame.
     #[serde(deserialize_with = "exact3")]
     pub position: V3,
 }
 
+/// `[image]`: size, sampling and light transport.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImageSpec {
+    /// Image width in pixels (at most 2^28 pixels in all).
     pub width: i64,
+    /// Image height in pixels.
     pub height: i64,
+    /// Samples per pixel (1 to 65536), stratified over the pixel.
     #[serde(default = "default_spp")]
     pub spp: i64,
+    /// Whitted: reflection bounces; path: bounces of any kind (0 to 64).
     #[serde(default = "default_max_depth")]
     pub max_depth: i64,
+    /// Seed of the per-sample random numbers: a render is a pure function of
+    /// the scene and the seed.
     #[serde(default)]
     pub seed: u64,
+    /// Whitted: shadow rays per area light at each hit, stratified (Cook,
+    /// Porter and Carpenter 1984).
     #[serde(default = "default_shadow_samples")]
     pub shadow_samples: i64,
     /// `None` when the file leaves it out (black, unless `environment`).
@@ -133,13 +155,17 @@ fn default_shadow_samples() -> i64 {
     16
 }
 
+/// `[camera]`: a pinhole or thin-lens camera.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
+    /// The eye point.
     #[serde(deserialize_with = "exact3")]
     pub position: V3,
+    /// The point at the image centre; must differ from `position`.
     #[serde(deserialize_with = "exact3")]
     pub look_at: V3,
+    /// Up direction; must not be parallel to the view.
     #[serde(default = "default_up", deserialize_with = "exact3")]
     pub up: V3,
     /// Degrees.
@@ -148,6 +174,7 @@ pub struct CameraSpec {
     /// Lens diameter, world units; 0 is a pinhole.
     #[serde(default)]
     pub aperture: f32,
+    /// Distance of the plane in focus (default: `|look_at - position|`).
     pub focus_distance: Option<f32>,
 }
 
@@ -158,37 +185,58 @@ fn default_vfov() -> f32 {
     40.0
 }
 
+/// `[materials.NAME]`, by its `type`.
 #[derive(Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum MaterialSpec {
+    /// Lambertian diffuse.
     Lambert {
+        /// Albedo.
         color: V3,
+        /// Colour map (sRGB) multiplying `color`.
         texture: Option<String>,
+        /// Emitted radiance (both sides).
         #[serde(default)]
         emission: V3,
     },
+    /// Lambertian plus an energy-normalised Blinn-Phong highlight.
     Phong {
+        /// Albedo.
         color: V3,
+        /// Colour map (sRGB) multiplying `color`.
         texture: Option<String>,
+        /// Highlight colour, `specular (n + 8) / (8 pi) cos^n`.
         specular: V3,
+        /// Blinn-Phong exponent `n`.
         shininess: f32,
+        /// Emitted radiance (both sides).
         #[serde(default)]
         emission: V3,
     },
+    /// Perfect reflection, Whitted's reflection ray.
     Mirror {
+        /// Reflectance.
         #[serde(default = "one")]
         color: V3,
+        /// An optional diffuse part.
         #[serde(default)]
         diffuse: V3,
+        /// Emitted radiance (both sides).
         #[serde(default)]
         emission: V3,
     },
+    /// Distributed reflection (Cook, Porter and Carpenter 1984): one ray per
+    /// sample in a Phong lobe around the mirror direction.
     Glossy {
+        /// Reflectance.
         #[serde(default = "one")]
         color: V3,
+        /// In `(0, 1]`: the lobe's exponent is `2 / roughness^2 - 2`.
         roughness: f32,
+        /// An optional diffuse part.
         #[serde(default)]
         diffuse: V3,
+        /// Emitted radiance (both sides).
         #[serde(default)]
         emission: V3,
     },
@@ -198,21 +246,31 @@ fn one() -> V3 {
     [1.0; 3]
 }
 
+/// `[[lights]]`, by its `type`.
 #[derive(Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum LightSpec {
+    /// A point light: hard shadows.
     Point {
+        /// Where it is.
         position: V3,
+        /// Radiant intensity (W/sr per channel).
         intensity: V3,
         /// As for area lights.
         #[serde(default)]
         fill: bool,
     },
+    /// A one-sided parallelogram: soft shadows from stratified shadow rays.
     Area {
+        /// Corner.
         origin: V3,
+        /// First edge.
         edge_u: V3,
+        /// Second edge; the light shines towards `edge_u x edge_v`.
         edge_v: V3,
+        /// Emitted radiance.
         radiance: V3,
+        /// Whether the camera and reflections see the light's quad.
         #[serde(default = "yes")]
         visible: bool,
         /// A fill light standing in for indirect light: the path
@@ -226,43 +284,72 @@ fn yes() -> bool {
     true
 }
 
+/// `[[shapes]]`, by its `type`.
 #[derive(Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum ShapeSpec {
+    /// A parallelogram `origin + a edge_u + b edge_v`, texture coordinate
+    /// `(a, b)`.
     Quad {
+        /// Corner at `(0, 0)`.
         origin: V3,
+        /// Edge along `u`.
         edge_u: V3,
+        /// Edge along `v`.
         edge_v: V3,
+        /// Name of its material.
         material: String,
+        /// Its displacement, if any.
         displacement: Option<DisplacementSpec>,
     },
+    /// A triangle, displaced as the prism over it.
     Triangle {
+        /// Corners.
         vertices: [V3; 3],
+        /// Texture coordinates of the corners (`[[0,0],[1,0],[0,1]]`).
         uvs: Option<[[f32; 2]; 3]>,
+        /// Name of its material.
         material: String,
+        /// Its displacement, if any.
         displacement: Option<DisplacementSpec>,
     },
+    /// A sphere.
     Sphere {
+        /// Centre.
         center: V3,
+        /// Radius.
         radius: f32,
+        /// Name of its material.
         material: String,
     },
+    /// An axis-aligned box of six quads, turned about its vertical centre line.
     Box {
+        /// Lower corner.
         min: V3,
+        /// Upper corner.
         max: V3,
+        /// Turn about the vertical, degrees.
         #[serde(default)]
         rotate_y: f32,
+        /// Name of its material.
         material: String,
     },
+    /// An OBJ mesh or a built-in (`builtin:plane`, `cube`, `sphere`, `torus`).
     Mesh {
+        /// The OBJ file, relative to the scene file, or `builtin:NAME`.
         path: String,
+        /// Moved by this after scaling and turning.
         #[serde(default)]
         translate: V3,
+        /// Uniform scale.
         #[serde(default = "unit_scale")]
         scale: f32,
+        /// Turn about the vertical, degrees.
         #[serde(default)]
         rotate_y: f32,
+        /// Name of its material.
         material: String,
+        /// Its displacement, if any (the mesh needs texture coordinates).
         displacement: Option<DisplacementSpec>,
     },
 }
@@ -271,6 +358,7 @@ fn unit_scale() -> f32 {
     1.0
 }
 
+/// `displacement = { ... }` of a quad, triangle or mesh.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DisplacementSpec {
@@ -282,17 +370,25 @@ pub struct DisplacementSpec {
     pub height_size: [i64; 2],
     /// World units along the face normal; 0 means no displacement.
     pub depth: f32,
+    /// Distance-map resolution `[w, h, d]` voxels.
     #[serde(default = "default_map_size")]
     pub map_size: [i64; 3],
+    /// `"clamp"` or `"repeat"` (needed for `tiles` other than 1).
     #[serde(default = "default_address")]
     pub address: String,
+    /// Tiles of the map across the face (meshes: multiplies their coordinates).
     #[serde(default = "default_tiles")]
     pub tiles: [f32; 2],
+    /// `"sphere"`, `"sphere-fixed"` (Donnelly's fixed loop, listing 8-2) or
+    /// `"exact"`.
     #[serde(default = "default_method")]
     pub method: String,
+    /// Sphere-tracing steps (the fixed count of `sphere-fixed`).
     #[serde(default = "default_iterations")]
     pub iterations: i64,
+    /// Colour map (sRGB) at the displaced texture coordinate.
     pub color_texture: Option<String>,
+    /// Replaces the computed normal map: RGB `0.5 n + 0.5`, map space, +Y up.
     pub normal_map: Option<String>,
     /// Quads only: run `v` from the far edge back to `origin`, so that an
     /// image (row 0 = `v = 0`, the top row) reads unmirrored on a face whose

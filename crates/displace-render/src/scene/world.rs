@@ -13,7 +13,9 @@ use std::sync::Arc;
 /// Per-triangle attributes of meshes and textured triangles.
 #[derive(Clone, Copy, Debug)]
 pub struct TriAttr {
+    /// Vertex normals for smooth shading, when the mesh has them.
     pub normals: Option<[Vec3; 3]>,
+    /// Texture coordinates of the corners.
     pub uvs: [Vec2; 3],
 }
 
@@ -25,15 +27,20 @@ pub struct TriAttr {
 /// [`Scene::primitives`] the CPU made of it.
 #[derive(Clone, Debug)]
 pub struct SceneMesh {
+    /// World-space triangles.
     pub triangles: Vec<MeshTriangle>,
+    /// Index into [`Scene::materials`].
     pub material: u32,
+    /// The displacement, for a displaced mesh.
     pub displacement: Option<MeshDisplacement>,
+    /// The primitives the CPU built of it.
     pub prims: std::ops::Range<usize>,
 }
 
 /// The displacement shared by every triangle of a [`SceneMesh`].
 #[derive(Clone, Debug)]
 pub struct MeshDisplacement {
+    /// The baked maps (shared through the bake cache).
     pub map: Arc<DisplacementMap>,
     /// World units along the normal.
     pub depth: f32,
@@ -43,19 +50,34 @@ pub struct MeshDisplacement {
     pub textured: bool,
 }
 
+/// The geometry of a primitive.
 #[derive(Clone, Debug)]
 pub enum Shape {
+    /// A plain parallelogram.
     Quad(Quad),
-    Triangle { tri: Triangle, attr: u32 },
+    /// A plain triangle; `attr` indexes its [`TriAttr`] (`NO_ATTR`: none).
+    Triangle {
+        /// The triangle.
+        tri: Triangle,
+        /// Index of its [`TriAttr`], or `NO_ATTR`.
+        attr: u32,
+    },
+    /// A sphere.
     Sphere(Sphere),
+    /// A displaced quad or triangle: the prism over it, traced in map space.
     Displaced(Box<DisplacedFace>),
 }
 
+/// A triangle without per-vertex attributes (flat normal, no texture
+/// coordinates).
 pub const NO_ATTR: u32 = u32::MAX;
 
+/// One shape with its material: what the BVH holds.
 #[derive(Clone, Debug)]
 pub struct Primitive {
+    /// Its geometry.
     pub shape: Shape,
+    /// Index into [`Scene::materials`].
     pub material: u32,
     /// Index of the light this primitive is the visible emitter of.
     pub emitter: Option<u32>,
@@ -65,6 +87,7 @@ pub struct Primitive {
 }
 
 impl Primitive {
+    /// The world box of the shape (a displaced face's whole shell).
     pub fn bounds(&self) -> Aabb {
         match &self.shape {
             Shape::Quad(q) => q.bounds(),
@@ -86,13 +109,19 @@ pub(super) enum Local {
 /// Everything shading needs at a hit, world space.
 #[derive(Clone, Copy, Debug)]
 pub struct Interaction {
+    /// Distance along the ray.
     pub t: f32,
+    /// World position of the hit.
     pub position: Vec3,
     /// Unit, as the shape defines it (not flipped towards the ray).
     pub geometric_normal: Vec3,
+    /// Unit normal for shading: interpolated, or from the normal map.
     pub shading_normal: Vec3,
+    /// Texture coordinate of the hit (displaced for a displaced face).
     pub uv: Vec2,
+    /// Index into [`Scene::materials`].
     pub material: u32,
+    /// The light this surface is the visible emitter of, if any.
     pub emitter: Option<u32>,
     /// Map-space tracing cost (0 for plain shapes).
     pub iterations: u32,

@@ -3,7 +3,7 @@
 
 pub mod scene_toml;
 
-use displace_render::{render, Image, RenderOptions, Rendered, Scene, SceneOptions};
+use displace_render::{render, Aov, Crop, Image, RenderOptions, Rendered, Scene, SceneOptions};
 use std::path::{Path, PathBuf};
 
 pub fn scenes_dir() -> PathBuf {
@@ -33,4 +33,47 @@ pub fn image(scene: &Scene) -> Image {
 
 pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
     render(scene, opts).unwrap()
+}
+
+/// A pool of `threads` threads, to render the same scene on different
+/// thread counts.
+pub fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
+/// `scene` rendered over the `width x height` pixels at `(x, y)` only, with
+/// `aovs`; an error where the rectangle leaves the image.
+pub fn render_crop(
+    scene: &Scene,
+    [x, y, width, height]: [u32; 4],
+    aovs: Vec<Aov>,
+) -> displace_render::Result<(Crop, Rendered)> {
+    let crop = Crop {
+        x,
+        y,
+        width,
+        height,
+    };
+    let opts = RenderOptions {
+        crop: Some(crop),
+        aovs,
+        ..Default::default()
+    };
+    render(scene, &opts).map(|r| (crop, r))
+}
+
+/// Every pixel of `crop`, row by row, as its index in the full image
+/// (`width` wide) and in the crop's own image.
+pub fn crop_pixels(crop: Crop, width: u32) -> impl Iterator<Item = (usize, usize)> {
+    (0..crop.height).flat_map(move |y| {
+        (0..crop.width).map(move |x| {
+            (
+                ((crop.y + y) * width + crop.x + x) as usize,
+                (y * crop.width + x) as usize,
+            )
+        })
+    })
 }
