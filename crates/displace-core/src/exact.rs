@@ -2,8 +2,9 @@
 //! the height map, solved in closed form, walking the patches the ray crosses
 //! with a 2D DDA. It is the ground truth that tests and benchmarks compare
 //! the sphere tracer against, and the sphere tracer's refinement step
-//! (`shared/DESIGN.md`, "Hit refinement") over the short segment where the
-//! distance map can no longer tell the ray from the surface.
+//! ([`crate::sphere_trace`]: after Donnelly's march, section 8.5.2, has
+//! brought the ray to a thin band above the surface) over the short segment
+//! where the distance map can no longer tell the ray from the surface.
 
 use crate::HeightMap;
 use glam::{DVec3, Vec3};

@@ -1,6 +1,7 @@
-//! Displaced faces (seed 002, sections 2.4 and 3.4): the face extruded by its
-//! depth along its normal is the shell (a box for a parallelogram, a prism
-//! for a triangle). A world ray is carried into the face's map space by the
+//! Displaced faces (the ray-tracer paper, sections 2.4 and 3.4, in
+//! `docs/architecture.md`'s "References"): the face extruded by its depth
+//! along its normal is the shell (a box for a parallelogram, a prism for a
+//! triangle). A world ray is carried into the face's map space by the
 //! inverse of the face's affine frame, traced there by the core's sphere
 //! tracer, and its hit carried back.
 //!
@@ -12,6 +13,15 @@
 //! tracing in map space is exact for any parallelogram or triangle, sheared
 //! or not. Only lengths change, by `s = |M^-1 d|` for a unit world
 //! direction `d`: `t_map = s t_world`. Normals go back by `M^-T`.
+//!
+//! This replaces the ray-tracer paper's map translation (its section 3.2),
+//! which projected each point onto the face and two of its sides: one
+//! matrix each way, and the shell's five extra faces (its section 2.4)
+//! become the map box (or prism) that the core's tracer clips against.
+//! Donnelly's shaders do the same job on the GPU: the vertex shader carries
+//! the eye vector into tangent space (section 8.5.1, listing 8-1) and the
+//! fragment shader rescales it by the "normalization factor" `(depth/width,
+//! depth/height, 1)` (section 8.5.2, listing 8-2); `M^-1` is both at once.
 
 use crate::geometry::{Aabb, Ray};
 use crate::texture::Texture;
@@ -23,15 +33,37 @@ use std::sync::Arc;
 /// Where a face sits in the world: its base point at texture coordinate
 /// `(0, 0)`, how the world moves per tile of texture coordinate, its unit
 /// normal and its displacement depth.
+///
+/// The scene builder fills one in for each displaced quad and triangle;
+/// [`DisplacedFace::new`] turns it into the affine map-space frame of the
+/// module docs.
 #[derive(Clone, Copy, Debug)]
 pub struct FaceFrame {
+    /// World position of texture coordinate `(0, 0)` on the base surface
+    /// (the bottom of the shell, height 0).
     pub origin: Vec3,
+    /// World displacement per unit of `u` (one tile along the face's first
+    /// edge): `dP/du`, the tangent.
     pub dpdu: Vec3,
+    /// World displacement per unit of `v`: `dP/dv`, the bitangent. Need not
+    /// be orthogonal to [`Self::dpdu`]: sheared faces trace exactly.
     pub dpdv: Vec3,
+    /// Unit normal of the base surface, the direction heights displace
+    /// along (the side the shell is extruded towards).
     pub normal: Vec3,
+    /// World height of a height-map value of 1: the shell's thickness.
     pub depth: f32,
 }
 
+/// A displaced parallelogram or triangle as the renderer's primitive: its
+/// shell's bounds for the BVH, its frame to and from map space, and the
+/// shared [`DisplacementMap`] it is traced through.
+///
+/// This is the intersection routine of the ray-tracer paper (section 3.4)
+/// recast: a ray that meets the shell is carried into map space and sphere
+/// traced through the conservative distance map (Donnelly, section 8.3),
+/// so shadow and reflection rays, which use the same routine, see the
+/// displaced surface with nothing special (the paper's section 1.2).
 #[derive(Clone, Debug)]
 pub struct DisplacedFace {
     origin: Vec3,
@@ -48,13 +80,24 @@ pub struct DisplacedFace {
     /// Added to the hit's texture coordinate (triangles whose coordinates
     /// were shifted by whole tiles into the map's domain).
     uv_offset: Vec2,
+    /// Base colour texture sampled at the hit's texture coordinate (the
+    /// scene's `color_texture`); `None` leaves the material's own albedo.
     pub color: Option<Arc<Texture>>,
+    /// A tangent-space normal map (+Y up, OpenGL) given in the scene, which
+    /// then stands in for the normals baked from the height map (the
+    /// ray-tracer paper's section 2.2 normal map); `None` uses the baked
+    /// ones.
     pub normal_map: Option<Arc<Texture>>,
 }
 
 /// A world ray carried into a face's map space ([`DisplacedFace::map_query`]).
+///
+/// It exists so that the transform and the clip happen once, whether the
+/// ray is then traced alone ([`DisplacedFace::intersect`]) or with others
+/// in a batch, and [`MapQuery::finish`] brings any of those hits back.
 #[derive(Clone, Copy, Debug)]
 pub struct MapQuery {
+    /// The ray in map space, unit direction, ready for the core's tracer.
     pub ray: MapRay,
     /// `t_map = scale t_world`.
     pub scale: f32,
@@ -80,21 +123,44 @@ impl MapQuery {
 }
 
 /// What the renderer needs of a displaced hit, in world space.
+///
+/// The map-space [`MapHit`] carried back by the face's frame
+/// ([`DisplacedFace::resolve`]), so that shading, shadow and reflection
+/// rays start from it as from any other primitive's hit.
 #[derive(Clone, Copy, Debug)]
 pub struct DisplacedHit {
+    /// World position of the hit on the displaced surface (or the shell's
+    /// wall).
     pub position: Vec3,
+    /// Unit world normal of the surface actually hit (the bilinear patch or
+    /// the wall), carried by `M^-T`: the one that decides which side
+    /// secondary rays leave from.
     pub geometric_normal: Vec3,
+    /// Unit world normal for lighting: the normal map's (baked or given)
+    /// at the hit, or the geometric normal on a wall.
     pub shading_normal: Vec3,
     /// Texture coordinate (tiles).
     pub uv: Vec2,
+    /// Distance-map steps plus patches walked to find the hit: the cost
+    /// that the `iterations` AOV shows (Donnelly's results, section 8.6,
+    /// fix the steps at 16; the early-out tracer takes as many as it needs).
     pub iterations: u32,
+    /// Whether the ray hit the shell's wall (the side of the solid slab
+    /// under the surface) rather than the displaced surface: walls are lit
+    /// by their own flat normal.
     pub wall: bool,
 }
 
 impl DisplacedFace {
-    /// `tiles` is how many tiles of the map the face spans; `prism_uv` the
-    /// triangle's texture coordinates (already in `[0, tiles]`) or `None` for
-    /// the full parallelogram.
+    /// The face over `frame`, traced through `map` with `trace`; `None`
+    /// when the frame is degenerate (zero or non-finite volume), since the
+    /// map-space transform could not be inverted.
+    ///
+    /// `trace.tiles` is how many tiles of the map the face spans; `prism_uv`
+    /// the triangle's texture coordinates (already in `[0, tiles]`) or
+    /// `None` for the full parallelogram; `uv_offset` is added back to every
+    /// hit's texture coordinate (triangles shifted by whole tiles into the
+    /// map's domain).
     pub fn new(
         frame: FaceFrame,
         map: Arc<DisplacementMap>,
@@ -135,10 +201,16 @@ impl DisplacedFace {
         })
     }
 
+    /// World bounds of the whole shell (base and top, with the prism's or
+    /// box's corners), which the BVH (pbrt-v4 section 7.3) culls with:
+    /// the ray-tracer paper's bounding box (section 2.4) as an AABB.
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
 
+    /// The displacement map the face is traced through, shared with every
+    /// face that uses the same source and aspect (the bake cache); batch
+    /// queries group faces by it and the GPU back end uploads it.
     pub fn map(&self) -> &Arc<DisplacementMap> {
         &self.map
     }
@@ -148,6 +220,9 @@ impl DisplacedFace {
         (self.origin, self.to_world)
     }
 
+    /// The face's trace settings (method, step count, tiles) before any
+    /// clipping to a ray, so that other back ends (the GPU's) trace the face
+    /// as this one does.
     pub fn trace_options(&self) -> TraceOptions {
         self.trace
     }
@@ -158,6 +233,10 @@ impl DisplacedFace {
         self.prism.is_some()
     }
 
+    /// Changes how the face is traced ([`displace_core::Method`]: the
+    /// early-out sphere tracer, Donnelly's fixed loop of listing 8-2, or the
+    /// exact reference) without rebuilding it, so that one scene can be
+    /// rendered by each method and compared.
     pub fn set_method(&mut self, method: displace_core::Method) {
         self.trace.method = method;
     }

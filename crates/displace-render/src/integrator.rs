@@ -5,7 +5,13 @@
 //! materials (glossy rays spread around the mirror direction; the spread is
 //! integrated over the pixel's many samples, as the paper distributes it).
 //! Displaced faces are ordinary primitives here: shadows and reflections on
-//! and of them need nothing special (seed 002, section 1.2).
+//! and of them need nothing special (the ray-tracer paper, section 1.2, in
+//! `docs/architecture.md`'s "References": only the intersection routine
+//! changes, so its shadows and reflections carry over).
+//!
+//! [`crate::path`] is the physically based alternative (pbrt-v4 section
+//! 13.4, Veach 1997's multiple importance sampling); this one is the paper's
+//! own renderer, and the default.
 
 use crate::geometry::Ray;
 use crate::light::Light;
@@ -16,13 +22,26 @@ use glam::Vec3;
 /// Which of a pixel's `count` samples this is: at the first hit, area-light
 /// samples are stratified over all the pixel's shadow rays together (`count
 /// x shadow_samples` strata), not each sample's few.
+///
+/// Stratifying across the whole pixel is what lets a few shadow rays a
+/// sample add up to a smooth penumbra: Cook, Porter and Carpenter's
+/// distribution of the shadow rays over the pixel's samples.
 #[derive(Clone, Copy, Debug)]
 pub struct PixelSample {
+    /// This sample's index in `0..count`; it picks the sample's strata.
     pub index: u32,
+    /// Samples in the pixel (the scene's `spp`).
     pub count: u32,
 }
 
-/// Radiance arriving along `ray` (linear RGB).
+/// Radiance arriving along `ray` (linear RGB): the environment on a miss,
+/// else the hit's emission, direct light and reflection.
+///
+/// `depth` is the number of reflections already taken (0 for a camera
+/// ray), bounded by the scene's `max_depth`; `sample` is `Some` only for a
+/// camera ray, whose shadow rays it stratifies over the pixel (reflection
+/// rays pass `None`). The one-ray reference that the render loop's batched
+/// pixels ([`radiance_deferred`]) must match bit for bit.
 pub fn radiance(
     scene: &Scene,
     ray: &Ray,
@@ -39,6 +58,10 @@ pub fn radiance(
 /// Surfaces are two-sided: the geometric and shading normals turned to the
 /// side `ray` arrived on, and the point secondary rays start from, just off
 /// the surface on that side.
+///
+/// Returns `(ng, ns, p)`. The offset by the scene's `epsilon` along `ng`
+/// keeps a secondary ray from hitting its own surface again; it is shared
+/// by both integrators and [`crate::probe`] so they start rays alike.
 pub fn facing(scene: &Scene, ray: &Ray, hit: &Interaction) -> (Vec3, Vec3, Vec3) {
     let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
     if ng.dot(ray.dir) > 0.0 {
@@ -49,8 +72,13 @@ pub fn facing(scene: &Scene, ray: &Ray, hit: &Interaction) -> (Vec3, Vec3, Vec3)
 }
 
 /// A shadow ray towards a light sample, as [`radiance`] casts it.
+///
+/// Kept apart from its tracing so that shadow rays can be traced one at a
+/// time or in batches, with the same rays either way.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadowQuery {
+    /// From the offset surface point towards the light sample, unit
+    /// direction, so that [`Self::t_max`] is a world distance.
     pub ray: Ray,
     /// Occluders count only before this distance (short of the light).
     pub t_max: f32,
@@ -214,15 +242,29 @@ pub struct Deferred {
 
 /// A held-back shadow ray: the light it samples and what it carries when
 /// nothing blocks it.
+///
+/// [`Deferred::finish`] sums these per light, in the order they were
+/// appended, so the held-back sums equal [`radiance`]'s.
 #[derive(Clone, Copy, Debug)]
 pub struct Term {
+    /// The shadow ray to trace.
     pub query: ShadowQuery,
+    /// Index of the light sampled, in the scene's `lights`: which light's
+    /// sum (divided by its sample count) the term goes to.
     pub light: u32,
+    /// BRDF times the light sample's weight times the receiver's cosine:
+    /// what the term adds when the ray is not blocked.
     pub value: Vec3,
 }
 
 /// [`radiance`] of a camera ray whose first hit (or miss) is already
 /// known, its shadow rays appended to `terms` instead of traced.
+///
+/// Camera rays are intersected together and their shadow rays traced
+/// together (batch queries, [`crate::scene::batch`]), which is faster
+/// through displaced faces; this splits [`radiance`] at the shadow rays so
+/// that the image stays the one-ray tracer's. The reflection ray is still
+/// traced here, one at a time. Pass the result to [`Deferred::finish`].
 pub fn radiance_deferred(
     scene: &Scene,
     ray: &Ray,

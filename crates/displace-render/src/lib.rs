@@ -33,9 +33,6 @@ pub mod bsdf;
 pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
-// Not yet held to missing_docs: its public items get their docs with the
-// rewrite of this module now under way.
-#[allow(missing_docs)]
 pub mod displaced;
 pub mod distribution;
 pub mod emitters;
@@ -43,9 +40,6 @@ pub mod environment;
 pub mod error;
 pub mod geometry;
 mod heights;
-// Not yet held to missing_docs: its public items get their docs with the
-// rewrite of this module now under way.
-#[allow(missing_docs)]
 pub mod integrator;
 pub mod light;
 pub mod material;
@@ -54,9 +48,6 @@ pub mod mesh;
 pub mod output;
 pub mod path;
 pub mod probe;
-// Not yet held to missing_docs: its public items get their docs with the
-// rewrite of this module now under way.
-#[allow(missing_docs)]
 pub mod render;
 pub mod sampler;
 pub mod scene;

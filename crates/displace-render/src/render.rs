@@ -16,11 +16,20 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// A rectangle of the full image, in pixels.
+///
+/// A crop renders exactly the pixels the full render would have there
+/// (samples are seeded per pixel), which is what lets a render farm split
+/// an image into crops ([`crate::tiling`]) and merge them ([`crate::merge`])
+/// seamlessly. Parsed from `x,y,w,h` (`--crop`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
+    /// Left column of the crop in the full image (0 is the left edge).
     pub x: u32,
+    /// Top row of the crop in the full image (0 is the top).
     pub y: u32,
+    /// Columns in the crop; at least 1, and `x + width` within the image.
     pub width: u32,
+    /// Rows in the crop; at least 1, and `y + height` within the image.
     pub height: u32,
 }
 
@@ -51,6 +60,11 @@ impl std::str::FromStr for Crop {
 }
 
 /// Arbitrary output variables, one primary ray through each pixel centre.
+///
+/// Images besides the colour for checking and comparing renders: where the
+/// displaced surface is (depth, position), how it is oriented (normal),
+/// its texture coordinates, and what the sphere tracer paid for it
+/// (iterations, Donnelly's cost measure in section 8.6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Aov {
     /// World distance along the camera ray; +inf where nothing is hit.
@@ -66,6 +80,8 @@ pub enum Aov {
 }
 
 impl Aov {
+    /// Every AOV (what [`str::parse`] searches), in the order `--aov`'s
+    /// help lists them.
     pub const ALL: [Aov; 5] = [
         Aov::Depth,
         Aov::Normal,
@@ -74,6 +90,9 @@ impl Aov {
         Aov::Iterations,
     ];
 
+    /// Floats a pixel of this AOV holds: 1 for depth and iterations, 2 for
+    /// the texture coordinate, 3 for normal and position (the last axis of
+    /// its [`AovImage`]).
     pub fn channels(self) -> usize {
         match self {
             Aov::Depth | Aov::Iterations => 1,
@@ -82,6 +101,8 @@ impl Aov {
         }
     }
 
+    /// The name `--aov` takes, [`str::parse`] accepts and the AOV's files
+    /// carry (`OUT.depth.npy`).
     pub fn name(self) -> &'static str {
         match self {
             Aov::Depth => "depth",
@@ -104,9 +125,16 @@ impl std::str::FromStr for Aov {
     }
 }
 
+/// How to run one render of a scene, apart from the scene itself (which
+/// holds the image size, samples and integrator): which part, which extra
+/// images, and the hooks the CLI needs. The default renders the whole image,
+/// colour only.
 #[derive(Default)]
 pub struct RenderOptions<'a> {
+    /// The part of the image to render; `None` for all of it.
     pub crop: Option<Crop>,
+    /// Extra images to render alongside the colour, in this order in
+    /// [`Rendered::aovs`]; empty for none.
     pub aovs: Vec<Aov>,
     /// `(tiles done, tiles in all)`.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
@@ -115,25 +143,44 @@ pub struct RenderOptions<'a> {
 }
 
 /// Linear RGB pixels, row-major, row 0 at the top.
+///
+/// Kept linear and unclamped so that farm tiles (EXR) merge back into the
+/// same image and EXR output keeps the radiance; [`crate::output`] encodes
+/// sRGB only when writing a PNG.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Pixels a row.
     pub width: u32,
+    /// Rows.
     pub height: u32,
+    /// `width * height` radiance values, `pixels[y * width + x]`.
     pub pixels: Vec<Vec3>,
 }
 
 /// An AOV as an `(height, width, channels)` float array.
+///
+/// That is the layout [`crate::output`] writes as is, as `OUT.NAME.npy`
+/// (with a false-colour PNG beside it).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AovImage {
+    /// Which variable this is (and so its channel count).
     pub aov: Aov,
+    /// Pixels a row.
     pub width: u32,
+    /// Rows.
     pub height: u32,
+    /// `height * width * aov.channels()` floats, row-major, channels
+    /// innermost.
     pub data: Vec<f32>,
 }
 
+/// What [`render`] returns: the colour image of the crop (or whole image)
+/// and the AOVs asked for.
 #[derive(Clone, Debug)]
 pub struct Rendered {
+    /// The colour image, the crop's size.
     pub image: Image,
+    /// One image per [`RenderOptions::aovs`] entry, in that order.
     pub aovs: Vec<AovImage>,
 }
 
@@ -142,6 +189,18 @@ pub struct Rendered {
 pub const TILE: u32 = 16;
 
 /// Renders `scene` in the current rayon pool.
+///
+/// Tiles of [`TILE`] pixels are shaded in parallel; each pixel's samples
+/// are seeded from the scene's seed and the pixel alone, so the result is
+/// the same for any thread count and a crop's pixels are the full image's.
+/// The integrator is the scene's (Whitted, [`crate::integrator`], or path
+/// tracing, [`crate::path`]).
+///
+/// # Errors
+///
+/// [`Error::Option`] when the crop is empty or leaves the image;
+/// [`Error::Cancelled`] when [`RenderOptions::cancel`] is set before the
+/// last tile starts.
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
     let (fw, fh) = (scene.width, scene.height);
     let crop = opts.crop.unwrap_or(Crop {
