@@ -1,9 +1,9 @@
-//! The plugin against the CPU's exact trace (`displace-core`, which
-//! `displace gpu-render` agrees with on every pixel of a planar face), on
-//! one displaced quad seen by a pinhole camera (GPU Gems 2 ch. 8, section
-//! 8.5):
+//! The plugin against the CPU's exact trace (`displace-core`) and against
+//! `displace gpu-render`'s renderer (displace-gpu), on one displaced quad
+//! seen by a pinhole camera (GPU Gems 2 ch. 8, section 8.5):
 //! - the displaced texture coordinate the fragment computes agrees with the
-//!   exact hit's on >= 99% of the pixels both cover;
+//!   exact hit's, and with gpu-render's, on >= 99% of the pixels both
+//!   cover;
 //! - the depth the prepass holds is the depth of the displaced point;
 //! - the shadow map holds the displaced shape: a bump shadows the floor
 //!   where the exact trace says it does.
@@ -311,6 +311,77 @@ fn displaced_uv_agrees_with_the_exact_hit() {
     assert!(
         missed as f64 <= 0.01 * both as f64,
         "{missed} rays through the top face missed"
+    );
+}
+
+/// The plugin against `displace gpu-render`'s renderer (displace-gpu's
+/// raster path, which draws the face's whole shell box) on the same face,
+/// camera and map: the displaced texture coordinate agrees on >= 99% of
+/// the pixels both cover, and the plugin covers no pixel the renderer
+/// leaves empty.
+#[test]
+fn displaced_uv_agrees_with_gpu_render() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let map = map("gen:studded");
+    let scene = PlaneScene::for_map(&map);
+    let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
+    spawn_quad(&mut app, &map, &scene, Output::Hit);
+    let target = app.target();
+    app.world_mut().spawn((camera(&scene, target), Hdr));
+    let Some(hits) = frame(&mut app) else { return };
+    drop(app);
+    let data = hits.data.as_ref().unwrap();
+    let Some(ctx) = displace_gpu::test_support::test_context() else {
+        return;
+    };
+    // displace-gpu's built-in plane is this test's: the same eye, target,
+    // field of view, face and depth; the same step budget.
+    let mut plane = displace_gpu::PlaneScene::for_map(&map, [W, H]);
+    plane.iterations = scene.iterations;
+    assert_eq!(
+        (plane.eye, plane.target, plane.fov_y_degrees, plane.depth),
+        (scene.eye, scene.target, scene.fov_y_degrees, scene.depth)
+    );
+    let image = displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear)
+        .unwrap()
+        .render(ctx, &plane)
+        .unwrap();
+    let (mut both, mut agree, mut only_bevy, mut only_gpu) = (0usize, 0usize, 0usize, 0usize);
+    for y in 0..H {
+        for x in 0..W {
+            let i = (y * W + x) as usize;
+            let px = &data[i * 8..i * 8 + 8];
+            let ours = half(&px[6..8]) > 0.5;
+            let theirs = image.uv[i];
+            match (ours, theirs[2] != 0.0) {
+                (true, true) => {
+                    both += 1;
+                    let du = (half(&px[0..2]) - theirs[0]).abs();
+                    let dv = (half(&px[2..4]) - theirs[1]).abs();
+                    // Half a height texel (64 texels), as against the
+                    // exact hit.
+                    agree += usize::from(du.max(dv) <= 0.5 / 64.0);
+                }
+                (true, false) => only_bevy += 1,
+                (false, true) => only_gpu += 1,
+                (false, false) => {}
+            }
+        }
+    }
+    let ratio = agree as f64 / both as f64;
+    eprintln!(
+        "uv against gpu-render: {agree}/{both} agree ({:.3}%); Bevy only {only_bevy}, gpu-render only {only_gpu} (rays through the shell's sides)",
+        100.0 * ratio
+    );
+    assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
+    assert!(
+        ratio >= 0.99,
+        "displaced uv agrees with gpu-render on {:.3}% of the pixels both cover",
+        100.0 * ratio
+    );
+    assert!(
+        only_bevy as f64 <= 0.01 * both as f64,
+        "{only_bevy} pixels covered by the plugin and not by gpu-render"
     );
 }
 
