@@ -248,15 +248,9 @@ fn displaced_uv_agrees_with_the_exact_hit() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let map = map("gen:studded");
     let scene = PlaneScene::for_map(&map);
-    // The hit as data, in a float target.
-    let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
-    spawn_quad(&mut app, &map, &scene, Output::Hit);
-    let target = app.target();
-    app.world_mut().spawn((camera(&scene, target), Hdr));
-    let Some(hits) = frame(&mut app) else { return };
-    drop(app);
-    let data = hits.data.as_ref().unwrap();
-    assert_eq!(data.len(), (W * H * 8) as usize);
+    let Some(data) = hit_frame(&map, &scene) else {
+        return;
+    };
     let opts = TraceOptions {
         method: Method::Exact,
         ..Default::default()
@@ -290,24 +284,11 @@ fn displaced_uv_agrees_with_the_exact_hit() {
             }
         }
     }
-    let ratio = agree as f64 / both as f64;
-    eprintln!(
-        "uv: {agree}/{both} agree ({:.3}%); covered by Bevy only {only_bevy}, by the exact trace only {only_exact} ({missed} of them entering through the top)",
-        100.0 * ratio
-    );
-    assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
-    assert!(
-        ratio >= 0.99,
-        "displaced uv agrees on {:.3}% of the pixels both cover",
-        100.0 * ratio
-    );
+    eprintln!("by the exact trace only {only_exact} ({missed} of them entering through the top)");
     // The material draws the mesh (the shell's top face): the trace's own
     // pixels are rays entering through the shell's sides (the strips along
     // the near edges), bar the rasteriser's edge pixels.
-    assert!(
-        only_bevy as f64 <= 0.01 * both as f64,
-        "{only_bevy} pixels covered by Bevy only"
-    );
+    assert_uv_agreement("the exact hit", agree, both, only_bevy);
     assert!(
         missed as f64 <= 0.01 * both as f64,
         "{missed} rays through the top face missed"
@@ -324,13 +305,9 @@ fn displaced_uv_agrees_with_gpu_render() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let map = map("gen:studded");
     let scene = PlaneScene::for_map(&map);
-    let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
-    spawn_quad(&mut app, &map, &scene, Output::Hit);
-    let target = app.target();
-    app.world_mut().spawn((camera(&scene, target), Hdr));
-    let Some(hits) = frame(&mut app) else { return };
-    drop(app);
-    let data = hits.data.as_ref().unwrap();
+    let Some(data) = hit_frame(&map, &scene) else {
+        return;
+    };
     let Some(ctx) = displace_gpu::test_support::test_context() else {
         return;
     };
@@ -368,20 +345,43 @@ fn displaced_uv_agrees_with_gpu_render() {
             }
         }
     }
+    eprintln!("gpu-render only {only_gpu} (rays through the shell's sides)");
+    assert_uv_agreement("gpu-render", agree, both, only_bevy);
+}
+
+/// The plugin's quad rendered with the hit as data (`Output::Hit`, a float
+/// target: displaced u, v, map-space t and 1 where hit, in binary16), eight
+/// bytes a pixel; `None` where the adapter policy allows no GPU.
+fn hit_frame(map: &DisplacementMap, scene: &PlaneScene) -> Option<Vec<u8>> {
+    let mut app = Headless::new(W, H, TextureFormat::Rgba16Float);
+    spawn_quad(&mut app, map, scene, Output::Hit);
+    let target = app.target();
+    app.world_mut().spawn((camera(scene, target), Hdr));
+    let hits = frame(&mut app)?;
+    drop(app);
+    let data = hits.data.unwrap();
+    assert_eq!(data.len(), (W * H * 8) as usize);
+    Some(data)
+}
+
+/// The uv comparison's verdict against `other`: the face fills a quarter of
+/// the frame at least, the plugin's displaced uv agrees on >= 99% of the
+/// pixels both cover, and the plugin covers at most 1% more.
+fn assert_uv_agreement(other: &str, agree: usize, both: usize, only_bevy: usize) {
     let ratio = agree as f64 / both as f64;
     eprintln!(
-        "uv against gpu-render: {agree}/{both} agree ({:.3}%); Bevy only {only_bevy}, gpu-render only {only_gpu} (rays through the shell's sides)",
+        "uv against {other}: {agree}/{both} agree ({:.3}%); covered by Bevy only {only_bevy}",
         100.0 * ratio
     );
     assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
     assert!(
         ratio >= 0.99,
-        "displaced uv agrees with gpu-render on {:.3}% of the pixels both cover",
+        "displaced uv agrees with {other} on {:.3}% of the pixels both cover",
         100.0 * ratio
     );
     assert!(
         only_bevy as f64 <= 0.01 * both as f64,
-        "{only_bevy} pixels covered by the plugin and not by gpu-render"
+        "{only_bevy} pixels covered by Bevy and not by {other}"
     );
 }
 
