@@ -16,12 +16,7 @@ pub struct Ray {
 impl Ray {
     /// A ray from `origin` along `dir` (normalised here).
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        let dir = dir.normalize();
-        Self {
-            origin,
-            dir,
-            inv_dir: dir.recip(),
-        }
+        Self::from_unit(origin, dir.normalize())
     }
 
     /// A ray whose direction is already unit length (normalising it again
