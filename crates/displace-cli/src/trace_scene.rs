@@ -17,7 +17,7 @@
 use crate::trace::read_rays_with_length;
 use anyhow::{Context, Result};
 use displace_render::geometry::Ray;
-use displace_render::scene::batch::{Batch, Detail};
+use displace_render::scene::batch::{Batch, GeometryHit};
 use displace_render::{Scene, SceneOptions};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -53,7 +53,7 @@ pub struct Scratch {
     rays: Vec<Ray>,
     limits: Vec<f32>,
     lens: Vec<f32>,
-    hits: Vec<Option<(u32, displace_render::scene::Interaction)>>,
+    hits: Vec<Option<GeometryHit>>,
     blocked: Vec<bool>,
 }
 
@@ -75,14 +75,7 @@ impl Scratch {
 /// nz, shape]`, into `out` (8 values a ray).
 pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], sc: &mut Scratch, out: &mut [f32]) {
     sc.load(rays);
-    scene.intersect_many(
-        &sc.rays,
-        0.0,
-        &sc.limits,
-        Detail::Geometry,
-        &mut sc.batch,
-        &mut sc.hits,
-    );
+    scene.intersect_geometry_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
     for ((o, hit), &len) in out.chunks_mut(8).zip(&sc.hits).zip(&sc.lens) {
         o.copy_from_slice(&row(scene, hit, len));
     }
@@ -99,16 +92,11 @@ pub fn blocked_many(scene: &Scene, rays: &[[f32; 7]], sc: &mut Scratch, out: &mu
 }
 
 /// A hit as a row of the hits file.
-fn row(
-    scene: &Scene,
-    hit: &Option<(u32, displace_render::scene::Interaction)>,
-    len: f32,
-) -> [f32; 8] {
+fn row(scene: &Scene, hit: &Option<GeometryHit>, len: f32) -> [f32; 8] {
     match hit {
-        Some((prim, hit)) => {
-            let prim = *prim;
-            let (p, n) = (hit.position, hit.geometric_normal);
-            let shape = scene.shape_of(prim).map_or(LIGHT, |k| k as f32);
+        Some(hit) => {
+            let (p, n) = (hit.position, hit.normal);
+            let shape = scene.shape_of(hit.prim).map_or(LIGHT, |k| k as f32);
             [hit.t / len, p.x, p.y, p.z, n.x, n.y, n.z, shape]
         }
         None => [

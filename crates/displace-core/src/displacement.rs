@@ -100,6 +100,18 @@ impl DisplacementMap {
         crate::cell_trace::trace_many(&self.height, &self.distance, rays, opts, out)
     }
 
+    /// [`Self::trace_many`] handing each hit to `hit(i, ..)` (misses say
+    /// nothing): the same hits, without a slice of answers to fill and read
+    /// back ([`crate::cell_trace::trace_each`]).
+    pub fn trace_each(
+        &self,
+        rays: &[MapRay],
+        opts: &[TraceOptions],
+        hit: impl FnMut(usize, MapHit),
+    ) {
+        crate::cell_trace::trace_each(&self.height, &self.distance, rays, opts, hit)
+    }
+
     /// [`Self::occluded`] for many rays, eight at a time where the CPU
     /// allows: `out[i]` is exactly `self.occluded(&rays[i], &opts[i])`.
     pub fn occluded_many(&self, rays: &[MapRay], opts: &[TraceOptions], out: &mut [bool]) {

@@ -112,14 +112,42 @@ impl MapQuery {
     /// The world distance and map-space hit of a trace of this query: a
     /// wall hit takes the normal of the prism side it entered through.
     #[inline]
-    pub fn finish(&self, mut hit: MapHit) -> (f32, MapHit) {
-        if hit.kind == HitKind::Wall {
-            if let Some(n) = self.entry {
-                hit.normal = n;
-            }
-        }
-        (hit.t / self.scale, hit)
+    pub fn finish(&self, hit: MapHit) -> (f32, MapHit) {
+        finish(self.entry, self.scale, hit)
     }
+}
+
+/// [`MapQuery::finish`] from the query's two fields that it reads, for
+/// batches that keep their queries as columns.
+#[inline]
+pub(crate) fn finish(entry: Option<Vec3>, scale: f32, mut hit: MapHit) -> (f32, MapHit) {
+    if hit.kind == HitKind::Wall {
+        if let Some(n) = entry {
+            hit.normal = n;
+        }
+    }
+    (hit.t / scale, hit)
+}
+
+/// Eight values, one per lane of [`DisplacedFace::map_queries8`] and
+/// [`DisplacedFace::world_geometry8`].
+pub type Lanes8 = [f32; 8];
+
+/// Eight world rays in map space as columns ([`DisplacedFace::map_queries8`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MapQueries8 {
+    /// Map-space origins, `x`, `y`, `z`.
+    pub origin: [Lanes8; 3],
+    /// Unit map-space directions.
+    pub dir: [Lanes8; 3],
+    /// `t_map = scale t_world`.
+    pub scale: Lanes8,
+    /// The clipped range in map units.
+    pub t_min: Lanes8,
+    /// See [`Self::t_min`].
+    pub t_max: Lanes8,
+    /// Whether the lane's ray has a map-space length (else no query).
+    pub valid: [bool; 8],
 }
 
 /// What the renderer needs of a displaced hit, in world space.
@@ -305,12 +333,109 @@ impl DisplacedFace {
         Some((MapRay { origin, dir }, s, opts, entry))
     }
 
+    /// The world position and unit geometric normal of a map-space hit:
+    /// where it is, not how it is lit (what [`Self::resolve`] also
+    /// reports as `position` and `geometric_normal`, computed alike).
+    #[inline]
+    pub fn world_geometry(&self, hit: &MapHit) -> (Vec3, Vec3) {
+        (
+            self.origin + self.to_world * hit.position,
+            (self.normal_to_world * hit.normal).normalize(),
+        )
+    }
+
+    /// [`Self::map_query`] for eight rays at once, each with its own
+    /// range, as columns (`Lanes8`): the same arithmetic in the same order,
+    /// written lane by lane over arrays so that the compiler keeps the
+    /// eight in vector registers (the square roots and divisions of one
+    /// ray's query are a chain of latencies; eight of them overlap).
+    /// `None` for a triangle, whose prism clip stays one ray at a time.
+    ///
+    /// Lane `l` of the answer is `map_query(rays[l], t_min[l], t_max[l])`'s
+    /// map ray, scale and clipped range when `valid[l]`, else `None` there.
+    #[inline]
+    pub fn map_queries8(
+        &self,
+        rays: &[&Ray; 8],
+        t_min: &Lanes8,
+        t_max: &Lanes8,
+    ) -> Option<MapQueries8> {
+        if self.prism.is_some() {
+            return None;
+        }
+        let (rows, c) = (rows_of(&self.to_map), self.origin);
+        let mut q = MapQueries8::default();
+        let mut d = [[0.0f32; 8]; 3];
+        for l in 0..8 {
+            let v = rays[l].origin - c;
+            let w = rays[l].dir;
+            for a in 0..3 {
+                let (x, y, z) = rows[a];
+                q.origin[a][l] = x * v.x + y * v.y + z * v.z;
+                d[a][l] = x * w.x + y * w.y + z * w.z;
+            }
+        }
+        for l in 0..8 {
+            let s = (d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l]).sqrt();
+            let inv = 1.0 / s;
+            q.valid[l] = s > 0.0 && s.is_finite();
+            q.scale[l] = s;
+            for (dir, d) in q.dir.iter_mut().zip(&d) {
+                dir[l] = d[l] * inv;
+            }
+            q.t_min[l] = t_min[l] * s;
+            q.t_max[l] = t_max[l] * s;
+        }
+        Some(q)
+    }
+
+    /// The trace options of a query of [`Self::map_queries8`]'s lane `l`.
+    #[inline]
+    pub fn lane_options(&self, q: &MapQueries8, l: usize) -> TraceOptions {
+        let mut opts = self.trace;
+        opts.t_min = q.t_min[l];
+        opts.t_max = q.t_max[l];
+        opts
+    }
+
+    /// [`Self::world_geometry`] for eight hits at once (columns of their
+    /// map-space positions and normals), lane by lane in the same order of
+    /// operations, so the answers are the one-hit ones bit for bit.
+    #[inline]
+    pub fn world_geometry8(
+        &self,
+        position: &[Lanes8; 3],
+        normal: &[Lanes8; 3],
+    ) -> [[Lanes8; 3]; 2] {
+        let (pm, nm) = (rows_of(&self.to_world), rows_of(&self.normal_to_world));
+        let base = self.origin.to_array();
+        let mut out = [[[0.0f32; 8]; 3]; 2];
+        let mut n = [[0.0f32; 8]; 3];
+        for l in 0..8 {
+            for a in 0..3 {
+                let (x, y, z) = pm[a];
+                out[0][a][l] =
+                    base[a] + (x * position[0][l] + y * position[1][l] + z * position[2][l]);
+                let (x, y, z) = nm[a];
+                n[a][l] = x * normal[0][l] + y * normal[1][l] + z * normal[2][l];
+            }
+        }
+        for l in 0..8 {
+            let len = (n[0][l] * n[0][l] + n[1][l] * n[1][l] + n[2][l] * n[2][l]).sqrt();
+            let inv = 1.0 / len;
+            for a in 0..3 {
+                out[1][a][l] = n[a][l] * inv;
+            }
+        }
+        out
+    }
+
     /// [`Self::resolve`] without the shading normal (the geometric normal
     /// stands in for it): where a hit is, not how it is lit.
     pub fn resolve_geometry(&self, hit: &MapHit) -> DisplacedHit {
-        let geometric_normal = (self.normal_to_world * hit.normal).normalize();
+        let (position, geometric_normal) = self.world_geometry(hit);
         DisplacedHit {
-            position: self.origin + self.to_world * hit.position,
+            position,
             geometric_normal,
             shading_normal: geometric_normal,
             uv: hit.uv + self.uv_offset,
@@ -321,8 +446,7 @@ impl DisplacedFace {
 
     /// The world-space description of a map-space hit.
     pub fn resolve(&self, hit: &MapHit) -> DisplacedHit {
-        let position = self.origin + self.to_world * hit.position;
-        let geometric_normal = (self.normal_to_world * hit.normal).normalize();
+        let (position, geometric_normal) = self.world_geometry(hit);
         let uv = hit.uv + self.uv_offset;
         let wall = hit.kind == HitKind::Wall;
         let shading_normal = if wall {
@@ -352,6 +476,17 @@ impl DisplacedFace {
             wall,
         }
     }
+}
+
+/// The rows of `m`: `(m * v)[a]` is `x v.x + y v.y + z v.z` with `(x, y,
+/// z) = rows_of(m)[a]`, summed left to right as glam's `Mat3 * Vec3` sums
+/// its columns, so lane-by-lane code gives its answers bit for bit.
+fn rows_of(m: &Mat3) -> [(f32, f32, f32); 3] {
+    [
+        (m.x_axis.x, m.y_axis.x, m.z_axis.x),
+        (m.x_axis.y, m.y_axis.y, m.z_axis.y),
+        (m.x_axis.z, m.y_axis.z, m.z_axis.z),
+    ]
 }
 
 /// Clips a map-space ray to the prism over triangle `tri` (`z` in `[0,

@@ -8,7 +8,7 @@ use crate::geometry::Ray;
 use crate::integrator::{radiance_deferred, Deferred, PixelSample, Term};
 use crate::path::Integrator;
 use crate::sampler::{jittered, Rng};
-use crate::scene::batch::{Batch, Detail};
+use crate::scene::batch::Batch;
 use crate::scene::Interaction;
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
@@ -347,14 +347,7 @@ fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
         }
         sc.limits.clear();
         sc.limits.resize(sc.rays.len(), f32::INFINITY);
-        scene.intersect_many(
-            &sc.rays,
-            0.0,
-            &sc.limits,
-            Detail::Shading,
-            &mut sc.batch,
-            &mut sc.hits,
-        );
+        scene.intersect_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
         sc.terms.clear();
         sc.shaded.clear();
         for (k, s) in (s0..s1).enumerate() {

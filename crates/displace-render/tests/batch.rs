@@ -7,7 +7,7 @@ mod common;
 use common::{opts, scenes_dir};
 use displace_core::random::SplitMix64;
 use displace_render::geometry::Ray;
-use displace_render::scene::batch::{Batch, Detail};
+use displace_render::scene::batch::Batch;
 use displace_render::Scene;
 use glam::{Vec2, Vec3};
 
@@ -64,6 +64,7 @@ fn batches_answer_as_the_one_ray_queries_do() {
         let (world, limits): (Vec<Ray>, Vec<f32>) = rays.iter().copied().unzip();
         let mut batch = Batch::default();
         let mut hits = Vec::new();
+        let mut geometry = Vec::new();
         let mut blocked = Vec::new();
         // Batches of uneven sizes, the scratch reused between them.
         let mut start = 0;
@@ -77,9 +78,15 @@ fn batches_answer_as_the_one_ray_queries_do() {
                 &world[start..end],
                 0.0,
                 &limits[start..end],
-                Detail::Shading,
                 &mut batch,
                 &mut hits,
+            );
+            scene.intersect_geometry_many(
+                &world[start..end],
+                0.0,
+                &limits[start..end],
+                &mut batch,
+                &mut geometry,
             );
             scene.occluded_many(
                 &world[start..end],
@@ -98,9 +105,13 @@ fn batches_answer_as_the_one_ray_queries_do() {
                         assert_eq!(a.geometric_normal, b.geometric_normal, "{name} ray {r}");
                         assert_eq!(a.shading_normal, b.shading_normal, "{name} ray {r}");
                         assert_eq!(a.uv, b.uv, "{name} ray {r}");
+                        let g = geometry[k].expect("the geometric query finds the hit");
+                        assert_eq!((g.prim, g.t), (*pb, b.t), "{name} ray {r}: geometry");
+                        assert_eq!(g.position, b.position, "{name} ray {r}: geometry");
+                        assert_eq!(g.normal, b.geometric_normal, "{name} ray {r}: geometry");
                         found += 1;
                     }
-                    (None, None) => {}
+                    (None, None) => assert!(geometry[k].is_none(), "{name} ray {r}"),
                     (a, b) => panic!("{name} ray {r}: batch {a:?} one ray {b:?}"),
                 }
                 assert_eq!(

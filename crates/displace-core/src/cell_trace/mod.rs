@@ -92,6 +92,24 @@ pub fn trace_many(
     });
 }
 
+/// [`trace_many`] handing each hit to `hit(i, ..)` as it is found (misses
+/// say nothing), for callers that keep their own answers: a batch query
+/// that would otherwise fill and read back a slice of `Option<MapHit>`.
+pub fn trace_each(
+    height: &HeightMap,
+    distance: &DistanceMap,
+    rays: &[MapRay],
+    opts: &[TraceOptions],
+    mut hit: impl FnMut(usize, MapHit),
+) {
+    assert_eq!(rays.len(), opts.len());
+    packet::run_all::<false>(height, distance, rays, opts, |i, o| {
+        if let Outcome::Hit(h) = o {
+            hit(i, h)
+        }
+    });
+}
+
 /// [`occluded`] for many rays, eight at a time where the CPU allows:
 /// `out[i]` is exactly `occluded(height, distance, &rays[i], &opts[i])`.
 ///
@@ -181,6 +199,9 @@ pub(crate) struct Lane {
 
 impl Lane {
     /// Clips `ray` to the shell, or says how the trace ends at once.
+    /// Inlined into its callers so that the lane is built where it is kept
+    /// (returned through memory, its copy stalled on store forwarding).
+    #[inline(always)]
     fn begin(
         height: &HeightMap,
         c: &Constants,

@@ -228,10 +228,11 @@ mod avx2 {
         let mut steps = [0i32; LANES];
         for (l, slot) in lanes.iter().enumerate() {
             if let Some(lane) = slot {
-                for a in 0..3 {
-                    o[a][l] = lane.ray.origin[a];
-                    dir[a][l] = lane.ray.dir[a];
-                }
+                // Component by component: a `Vec3` indexed by a loop
+                // variable is a branch per access.
+                let (ro, rd) = (lane.ray.origin, lane.ray.dir);
+                (o[0][l], o[1][l], o[2][l]) = (ro.x, ro.y, ro.z);
+                (dir[0][l], dir[1][l], dir[2][l]) = (rd.x, rd.y, rd.z);
                 t_out[l] = lane.t_out;
                 max_steps[l] = lane.max_steps.min(i32::MAX as u32) as i32;
                 t[l] = lane.t;

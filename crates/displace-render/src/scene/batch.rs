@@ -15,32 +15,49 @@
 
 use super::world::{Local, Shape};
 use super::{Interaction, Scene};
-use crate::displaced::MapQuery;
 use crate::geometry::Ray;
 use displace_core::{MapHit, MapRay, TraceOptions};
+use glam::Vec3;
 
-/// How much of a hit a batch query works out.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Detail {
-    /// Everything shading needs ([`Scene::intersect_primitive`]'s answer).
-    Shading,
-    /// Where the hit is: a displaced hit's shading normal is its geometric
-    /// one and its texture is not sampled (what Embree's `rtcIntersect`
-    /// answers; the normal map's sample is a fifth of a hit's cost).
-    Geometry,
+/// A first hit as a geometric query reports it (what Embree's
+/// `rtcIntersect` answers): where it is and the surface's normal there,
+/// without what shading needs ([`Interaction`]'s shading normal, texture
+/// coordinate and material), so that a displaced hit costs no normal-map
+/// sample and each answer is a few words instead of an interaction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeometryHit {
+    /// The primitive hit ([`Scene::shape_of`] names its shape).
+    pub prim: u32,
+    /// Distance along the (unit) ray.
+    pub t: f32,
+    /// World position of the hit.
+    pub position: Vec3,
+    /// Unit geometric normal as the shape defines it (not turned towards
+    /// the ray): the [`Interaction::geometric_normal`] of the same hit.
+    pub normal: Vec3,
 }
 
 /// Reusable buffers of the batch queries (one per thread: a render keeps
 /// one per tile so that its batches allocate nothing after the first).
+///
+/// The displaced faces' queries are kept as columns (rays, options,
+/// scales, entry normals, owners), which the core's tracer reads as they
+/// are, so that a query is written once and nothing is copied between
+/// buffers on its way to the packets.
 #[derive(Default)]
 pub struct Batch {
     /// `(primitive, ray)` for every displaced face a ray's BVH walk met.
     pending: Vec<(u32, u32)>,
-    queries: Vec<MapQuery>,
-    owners: Vec<u32>,
+    /// The map-space rays of one face's queries.
     rays: Vec<MapRay>,
+    /// Their trace options, clipped to each ray's range.
     opts: Vec<TraceOptions>,
-    hits: Vec<Option<MapHit>>,
+    /// `t_map = scale t_world` for each.
+    scales: Vec<f32>,
+    /// The outward normal of the prism side each enters through.
+    entries: Vec<Option<Vec3>>,
+    /// The pending entry each answers.
+    owners: Vec<u32>,
     blocked: Vec<bool>,
     answers: Vec<bool>,
     best: Vec<Option<(u32, f32, Local)>>,
@@ -49,17 +66,107 @@ pub struct Batch {
 impl Scene {
     /// The nearest hit of each of `rays` with `t` in `[t_min, t_max[i]]`
     /// and the primitive it lies on: `out[i]` is what
-    /// `intersect_primitive(&rays[i], t_min, t_max[i])` finds, described as
-    /// far as `detail` asks.
+    /// `intersect_primitive(&rays[i], t_min, t_max[i])` finds.
     pub fn intersect_many(
         &self,
         rays: &[Ray],
         t_min: f32,
         t_max: &[f32],
-        detail: Detail,
         batch: &mut Batch,
         out: &mut Vec<Option<(u32, Interaction)>>,
     ) {
+        self.nearest_many(rays, t_min, t_max, batch);
+        out.clear();
+        out.extend(
+            batch.best.iter().zip(rays).map(|(b, ray)| {
+                b.map(|(i, t, local)| (i, self.resolve_with(i, ray, t, local, true)))
+            }),
+        );
+    }
+
+    /// The nearest hit of each of `rays` as a geometric query reports it:
+    /// `out[i]` is where [`Self::intersect_many`]'s `out[i]` lies and its
+    /// geometric normal, worked out without the shading.
+    pub fn intersect_geometry_many(
+        &self,
+        rays: &[Ray],
+        t_min: f32,
+        t_max: &[f32],
+        batch: &mut Batch,
+        out: &mut Vec<Option<GeometryHit>>,
+    ) {
+        self.nearest_many(rays, t_min, t_max, batch);
+        out.clear();
+        for (best, rays) in batch.best.chunks(8).zip(rays.chunks(8)) {
+            if let Some(hits) = self.displaced_geometry8(best) {
+                out.extend(hits.into_iter().map(Some));
+                continue;
+            }
+            out.extend(
+                best.iter()
+                    .zip(rays)
+                    .map(|(b, ray)| self.geometry_of(b, ray)),
+            );
+        }
+    }
+
+    /// Eight nearest hits on one displaced face, carried to the world
+    /// together ([`crate::displaced::DisplacedFace::world_geometry8`]);
+    /// `None` unless `best` is eight such hits.
+    fn displaced_geometry8(&self, best: &[Option<(u32, f32, Local)>]) -> Option<[GeometryHit; 8]> {
+        let &Some((prim, _, _)) = best.first()? else {
+            return None;
+        };
+        let Shape::Displaced(face) = &self.prims[prim as usize].shape else {
+            return None;
+        };
+        if best.len() != 8 {
+            return None;
+        }
+        let mut hits = [None; 8];
+        for (h, b) in hits.iter_mut().zip(best) {
+            match b {
+                Some((p, t, Local::Map(m))) if *p == prim => *h = Some((*t, m)),
+                _ => return None,
+            }
+        }
+        let hits = hits.map(|h| h.expect("every lane checked"));
+        let column = |f: fn(&MapHit) -> Vec3| -> [[f32; 8]; 3] {
+            let v = hits.map(|(_, m)| f(m));
+            [v.map(|p| p.x), v.map(|p| p.y), v.map(|p| p.z)]
+        };
+        let [p, n] = face.world_geometry8(&column(|m| m.position), &column(|m| m.normal));
+        Some(std::array::from_fn(|l| GeometryHit {
+            prim,
+            t: hits[l].0,
+            position: Vec3::new(p[0][l], p[1][l], p[2][l]),
+            normal: Vec3::new(n[0][l], n[1][l], n[2][l]),
+        }))
+    }
+
+    /// One nearest hit as a geometric query reports it.
+    fn geometry_of(&self, best: &Option<(u32, f32, Local)>, ray: &Ray) -> Option<GeometryHit> {
+        best.map(|(prim, t, local)| {
+            let (position, normal) = match (&self.prims[prim as usize].shape, local) {
+                (Shape::Displaced(d), Local::Map(h)) => d.world_geometry(&h),
+                _ => {
+                    let hit = self.resolve_with(prim, ray, t, local, false);
+                    (hit.position, hit.geometric_normal)
+                }
+            };
+            GeometryHit {
+                prim,
+                t,
+                position,
+                normal,
+            }
+        })
+    }
+
+    /// The nearest primitive, distance and local hit of each ray into
+    /// `batch.best`: the BVH walked ray by ray, the plain shapes met on the
+    /// way intersected there, the displaced faces traced together.
+    fn nearest_many(&self, rays: &[Ray], t_min: f32, t_max: &[f32], batch: &mut Batch) {
         assert_eq!(rays.len(), t_max.len());
         batch.pending.clear();
         batch.best.clear();
@@ -78,15 +185,6 @@ impl Scene {
             batch.best.push(best);
         }
         self.trace_pending(rays, t_min, t_max, batch, false);
-        out.clear();
-        out.extend(batch.best.iter().zip(rays).map(|(b, ray)| {
-            b.map(|(i, t, local)| {
-                (
-                    i,
-                    self.resolve_with(i, ray, t, local, detail == Detail::Shading),
-                )
-            })
-        }));
     }
 
     /// Whether anything lies on each of `rays` within `[t_min, t_max[i]]`:
@@ -130,8 +228,12 @@ impl Scene {
     /// `batch.blocked` (one per pending entry, in its order).
     fn trace_pending(&self, rays: &[Ray], t_min: f32, t_max: &[f32], batch: &mut Batch, any: bool) {
         // Grouped by face (stable: within a face, in ray order), so each
-        // face's rays go through its map together.
-        batch.pending.sort_by_key(|&(i, _)| i);
+        // face's rays go through its map together. A BVH walk meets the
+        // faces of one ray in its own order, so the entries of a batch
+        // over one face are sorted already.
+        if !batch.pending.is_sorted_by_key(|&(i, _)| i) {
+            batch.pending.sort_by_key(|&(i, _)| i);
+        }
         batch.blocked.clear();
         batch.blocked.resize(batch.pending.len(), false);
         let mut start = 0;
@@ -145,45 +247,81 @@ impl Scene {
             let Shape::Displaced(face) = &self.prims[prim as usize].shape else {
                 unreachable!("only displaced faces are pending")
             };
-            batch.queries.clear();
-            batch.owners.clear();
-            for (k, &(_, r)) in batch.pending[start..end].iter().enumerate() {
-                let r = r as usize;
-                // A first hit only matters before the nearest plain hit.
-                let limit = match (any, &batch.best.get(r)) {
-                    (false, Some(Some((_, t, _)))) => *t,
-                    _ => t_max[r],
-                };
-                if let Some(q) = face.map_query(&rays[r], t_min, limit) {
-                    batch.queries.push(q);
-                    batch.owners.push((start + k) as u32);
-                }
-            }
             batch.rays.clear();
-            batch.rays.extend(batch.queries.iter().map(|q| q.ray));
             batch.opts.clear();
-            batch.opts.extend(batch.queries.iter().map(|q| q.opts));
-            let n = batch.queries.len();
+            batch.scales.clear();
+            batch.entries.clear();
+            batch.owners.clear();
+            // A first hit only matters before the nearest plain hit.
+            let best = &batch.best;
+            let limit = |r: usize| match (any, best.get(r)) {
+                (false, Some(Some((_, t, _)))) => *t,
+                _ => t_max[r],
+            };
+            let mut k = start;
+            while k < end {
+                let group = &batch.pending[k..end.min(k + 8)];
+                let rs: [&Ray; 8] =
+                    std::array::from_fn(|l| &rays[group[l.min(group.len() - 1)].1 as usize]);
+                let lanes = if group.len() == 8 {
+                    let limits = std::array::from_fn(|l| limit(group[l].1 as usize));
+                    face.map_queries8(&rs, &[t_min; 8], &limits)
+                } else {
+                    None
+                };
+                match lanes {
+                    Some(q) => {
+                        for l in (0..8).filter(|&l| q.valid[l]) {
+                            let at = |v: &[[f32; 8]; 3]| Vec3::new(v[0][l], v[1][l], v[2][l]);
+                            batch.rays.push(MapRay {
+                                origin: at(&q.origin),
+                                dir: at(&q.dir),
+                            });
+                            batch.opts.push(face.lane_options(&q, l));
+                            batch.scales.push(q.scale[l]);
+                            batch.entries.push(None);
+                            batch.owners.push((k + l) as u32);
+                        }
+                    }
+                    None => {
+                        for (l, &(_, r)) in group.iter().enumerate() {
+                            let r = r as usize;
+                            if let Some(q) = face.map_query(&rays[r], t_min, limit(r)) {
+                                batch.rays.push(q.ray);
+                                batch.opts.push(q.opts);
+                                batch.scales.push(q.scale);
+                                batch.entries.push(q.entry);
+                                batch.owners.push((k + l) as u32);
+                            }
+                        }
+                    }
+                }
+                k += group.len();
+            }
             let map = face.map();
             if any {
                 batch.answers.clear();
-                batch.answers.resize(n, false);
+                batch.answers.resize(batch.rays.len(), false);
                 map.occluded_many(&batch.rays, &batch.opts, &mut batch.answers);
                 for (&k, &b) in batch.owners.iter().zip(&batch.answers) {
                     batch.blocked[k as usize] = b;
                 }
             } else {
-                batch.hits.clear();
-                batch.hits.resize(n, None);
-                map.trace_many(&batch.rays, &batch.opts, &mut batch.hits);
-                for ((q, &k), hit) in batch.queries.iter().zip(&batch.owners).zip(&batch.hits) {
-                    let Some(hit) = hit else { continue };
-                    let (t, hit) = q.finish(*hit);
-                    let r = batch.pending[k as usize].1 as usize;
-                    if batch.best[r].is_none_or(|(_, best, _)| t < best) {
-                        batch.best[r] = Some((prim, t, Local::Map(hit)));
+                let Batch {
+                    pending,
+                    scales,
+                    entries,
+                    owners,
+                    best,
+                    ..
+                } = batch;
+                map.trace_each(&batch.rays, &batch.opts, |q, hit| {
+                    let (t, hit) = crate::displaced::finish(entries[q], scales[q], hit);
+                    let r = pending[owners[q] as usize].1 as usize;
+                    if best[r].is_none_or(|(_, best, _)| t < best) {
+                        best[r] = Some((prim, t, Local::Map(hit)));
                     }
-                }
+                });
             }
             start = end;
         }
