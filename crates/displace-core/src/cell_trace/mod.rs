@@ -396,7 +396,7 @@ impl Lane {
 /// out once per ray rather than once per walk (a shadow ray leaving the
 /// surface walks several bands; the divisions were a fifth of a walk), the
 /// cell scale once per map ([`Constants`]).
-struct Grid {
+pub(crate) struct Grid {
     o: Vec3,
     d: Vec3,
     x: Axis,
@@ -474,27 +474,75 @@ impl Grid {
 ///   is blocked without a solve (the returned hit then carries a point of
 ///   that stretch and no normal).
 #[inline]
-fn walk<const ANY: bool>(
-    height: &HeightMap,
-    g: &Grid,
-    [sx, sy]: [f64; 2],
-    t0: f32,
-    t1: f32,
-) -> Walk {
+fn walk<const ANY: bool>(height: &HeightMap, g: &Grid, cells: [f64; 2], t0: f32, t1: f32) -> Walk {
     if t1 < t0 {
         return Walk::Miss { cells: 0 };
     }
-    let (mut ci, mut tx) = g.x.start(t0);
-    let (mut cj, mut ty) = g.y.start(t0);
+    let (ci, tx) = g.x.start(t0);
+    let (cj, ty) = g.y.start(t0);
+    let at = Cursor {
+        ci,
+        cj,
+        tx,
+        ty,
+        ta: t0,
+        cells: 0,
+    };
+    walk_from::<ANY>(height, g, cells, at, t1)
+}
+
+/// Where a walk stands: the cell it is in, the parameters at which the
+/// ray leaves it across and down, where the ray entered it, and the cells
+/// counted so far (this one not yet).
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Cursor {
+    pub(crate) ci: i64,
+    pub(crate) cj: i64,
+    pub(crate) tx: f32,
+    pub(crate) ty: f32,
+    pub(crate) ta: f32,
+    pub(crate) cells: u32,
+}
+
+impl Cursor {
+    /// Where the ray leaves the cell (or the walk ends).
+    #[inline(always)]
+    fn tb(&self, t1: f32) -> f32 {
+        min(min(self.tx, self.ty), t1)
+    }
+
+    /// Into the next cell: across where the ray leaves through an x side
+    /// first, down otherwise.
+    #[inline(always)]
+    fn advance(&mut self, g: &Grid, tb: f32) {
+        self.ta = tb;
+        if self.tx < self.ty {
+            self.ci += g.x.step;
+            self.tx += g.x.dt;
+        } else {
+            self.cj += g.y.step;
+            self.ty += g.y.dt;
+        }
+    }
+}
+
+/// The walk from the cell at `at` to `t1` ([`walk`]'s loop).
+#[inline]
+fn walk_from<const ANY: bool>(
+    height: &HeightMap,
+    g: &Grid,
+    [sx, sy]: [f64; 2],
+    mut at: Cursor,
+    t1: f32,
+) -> Walk {
     let margin = 1e-4 * (1.0 + t1.abs());
     let (oz, dz) = (g.o.z, g.d.z);
     let descending = dz < 0.0;
-    let mut ta = t0;
-    let mut cells = 0u32;
     loop {
-        let tb = min(min(tx, ty), t1);
-        cells += 1;
-        let corners = height.cell_fast(ci, cj);
+        let (ta, tb) = (at.ta, at.tb(t1));
+        at.cells += 1;
+        let cells = at.cells;
+        let corners = height.cell_fast(at.ci, at.cj);
         let [h00, h10, h01, h11] = corners;
         let z_low = oz + dz * if descending { tb } else { ta };
         if ANY && z_low < min(min(h00, h10), min(h01, h11)) - margin {
@@ -507,7 +555,7 @@ fn walk<const ANY: bool>(
         if z_low - margin <= max(max(h00, h10), max(h01, h11)) {
             let (od, dd) = (g.o.as_dvec3(), g.d.as_dvec3());
             if let Some((t, normal)) =
-                patch_hit(corners, ci, cj, od, dd, sx, sy, ta as f64, tb as f64)
+                patch_hit(corners, at.ci, at.cj, od, dd, sx, sy, ta as f64, tb as f64)
             {
                 return Walk::Hit(SurfaceHit { t, normal, cells });
             }
@@ -515,15 +563,25 @@ fn walk<const ANY: bool>(
         if tb >= t1 {
             return Walk::Miss { cells };
         }
-        ta = tb;
-        if tx < ty {
-            ci += g.x.step;
-            tx += g.x.dt;
-        } else {
-            cj += g.y.step;
-            ty += g.y.dt;
-        }
+        at.advance(g, tb);
     }
+}
+
+/// The walk on from the cell after the one at `at` (counted already),
+/// whose solve found nothing: what [`walk_from`] does after such a cell.
+pub(crate) fn walk_after<const ANY: bool>(
+    height: &HeightMap,
+    g: &Grid,
+    cells: [f64; 2],
+    mut at: Cursor,
+    t1: f32,
+) -> Walk {
+    let tb = at.tb(t1);
+    if tb >= t1 {
+        return Walk::Miss { cells: at.cells };
+    }
+    at.advance(g, tb);
+    walk_from::<ANY>(height, g, cells, at, t1)
 }
 
 /// `f32::min` without its NaN rule (one instruction, not four): the
@@ -543,5 +601,64 @@ fn max(a: f32, b: f32) -> f32 {
         a
     } else {
         b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::random::SplitMix64;
+    use crate::Address;
+
+    /// The packet kernel defers a crossing cell's solve and, should it find
+    /// no root, walks on with [`walk_after`]: from any cell whose solve
+    /// finds nothing, that must be the rest of the walk the scalar loop
+    /// takes, cell for cell.
+    #[test]
+    fn the_walk_goes_on_after_a_rootless_cell_as_the_whole_walk_does() {
+        let mut rng = SplitMix64::new(7);
+        let (w, h) = (16, 12);
+        let data = (0..w * h).map(|_| rng.next_f32()).collect();
+        let height = HeightMap::new(w, h, data, Address::Clamp).unwrap();
+        let aspect = [2.0f64, 1.5];
+        let cells = [w as f64 / aspect[0], h as f64 / aspect[1]];
+        let mut checked = 0;
+        for _ in 0..2000 {
+            let o = Vec3::new(rng.next_f32() * 2.0, rng.next_f32() * 1.5, 1.0);
+            let d = Vec3::new(
+                rng.next_f32() - 0.5,
+                rng.next_f32() - 0.5,
+                -0.05 - rng.next_f32(),
+            )
+            .normalize();
+            let ray = MapRay::new(o, d);
+            let g = Grid::new(cells, &ray);
+            let t1 = (1.0 / -d.z).min(3.0);
+            let whole = walk::<false>(&height, &g, cells, 0.0, t1);
+            // Cell by cell along the walk, as the scalar loop goes: at each
+            // cell before the one that ends it, the walk after that cell is
+            // what is left of the whole walk.
+            let (ci, tx) = g.x.start(0.0);
+            let (cj, ty) = g.y.start(0.0);
+            let mut at = Cursor {
+                ci,
+                cj,
+                tx,
+                ty,
+                ta: 0.0,
+                cells: 0,
+            };
+            let end = match whole {
+                Walk::Hit(hit) => hit.cells,
+                Walk::Miss { cells } | Walk::StartsInside { cells, .. } => cells,
+            };
+            for _ in 1..end {
+                at.cells += 1;
+                assert_eq!(walk_after::<false>(&height, &g, cells, at, t1), whole);
+                at.advance(&g, at.tb(t1));
+                checked += 1;
+            }
+        }
+        assert!(checked > 2000, "only {checked} cells checked");
     }
 }

@@ -96,7 +96,7 @@ fn vector_kernel() -> bool {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::super::{Next, SurfaceHit, Walk};
+    use super::super::{walk_after, Cursor, Next, SurfaceHit, Walk};
     use super::{Constants, Lane, Outcome, LANES};
     use crate::exact::patch_hit;
     use crate::{DistanceMap, HeightMap};
@@ -425,6 +425,9 @@ mod avx2 {
         let mut cells_v = _mm256_setzero_si256();
         let mut corners = [[0.0f32; LANES]; 4];
         let mut tb = [0.0f32; LANES];
+        // Lanes whose walk ended on a crossing, their solves still to do.
+        let mut waiting = 0u32;
+        let mut deferred = [Deferred::default(); LANES];
         while live != 0 {
             let live_v = lane_mask(live);
             let tb_v = _mm256_min_ps(_mm256_min_ps(tx_v, ty_v), t1_v);
@@ -447,6 +450,7 @@ mod avx2 {
             );
             let highest = _mm256_max_ps(_mm256_max_ps(h00, h10), _mm256_max_ps(h01, h11));
             let mut ended = 0u32;
+            let mut defer_now = 0u32;
             if ANY {
                 let lowest = _mm256_min_ps(_mm256_min_ps(h00, h10), _mm256_min_ps(h01, h11));
                 let below = _mm256_cmp_ps::<_CMP_LT_OQ>(z_low, _mm256_sub_ps(lowest, margin_v));
@@ -508,21 +512,52 @@ mod avx2 {
                     ),
                 );
                 solve &= !bits(clear);
+                // Above the patch at the stretch's start and below it at
+                // its end by more than the rounding: the ray crosses it
+                // here, so this lane's walk ends at this cell (its solve
+                // finds the root). The solve waits until the packet's walks
+                // are done, so the others do not wait for its square root
+                // and divisions, and the deferred solves overlap.
+                let lt = |x: __m256, y: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(x, y);
+                let crossing = _mm256_and_ps(gt(k0, m), lt(k_end, sub(zero, m)));
+                defer_now = solve & bits(crossing);
+                solve &= !defer_now;
             }
             let last_cell = _mm256_cmp_ps::<_CMP_GE_OQ>(tb_v, t1_v);
-            let at_end = live & !ended & bits(last_cell);
-            if solve | at_end != 0 {
+            let at_end = live & !ended & !defer_now & bits(last_cell);
+            if solve | at_end | defer_now != 0 {
                 _mm256_storeu_ps(tb.as_mut_ptr(), tb_v);
                 _mm256_storeu_ps(ta.as_mut_ptr(), ta_v);
                 _mm256_storeu_si256(ci.as_mut_ptr().cast(), ci_v);
                 _mm256_storeu_si256(cj.as_mut_ptr().cast(), cj_v);
-                if solve != 0 {
+                if solve | defer_now != 0 {
                     _mm256_storeu_ps(corners[0].as_mut_ptr(), h00);
                     _mm256_storeu_ps(corners[1].as_mut_ptr(), h10);
                     _mm256_storeu_ps(corners[2].as_mut_ptr(), h01);
                     _mm256_storeu_ps(corners[3].as_mut_ptr(), h11);
                 }
                 _mm256_storeu_si256(cells.as_mut_ptr().cast(), cells_v);
+                if defer_now != 0 {
+                    let (mut txs, mut tys) = ([0.0f32; LANES], [0.0f32; LANES]);
+                    _mm256_storeu_ps(txs.as_mut_ptr(), tx_v);
+                    _mm256_storeu_ps(tys.as_mut_ptr(), ty_v);
+                    for l in lanes_of(defer_now) {
+                        deferred[l] = Deferred {
+                            corners: [corners[0][l], corners[1][l], corners[2][l], corners[3][l]],
+                            at: Cursor {
+                                ci: ci[l] as i64,
+                                cj: cj[l] as i64,
+                                tx: txs[l],
+                                ty: tys[l],
+                                ta: ta[l],
+                                cells: cells[l],
+                            },
+                            tb: tb[l],
+                        };
+                    }
+                    ended |= defer_now;
+                    waiting |= defer_now;
+                }
                 for l in lanes_of(solve | at_end) {
                     let bit = 1 << l;
                     let lane = lanes[l].as_mut().expect("a live lane");
@@ -561,11 +596,15 @@ mod avx2 {
             }
             live &= !ended;
             // The next cell: across where the ray leaves through an x side
-            // first, down otherwise (the scalar walk's `tx < ty`).
+            // first, down otherwise (the scalar walk's `tx < ty`). Every
+            // lane steps, ended or not (an ended lane's cells are clamped
+            // into the map and never read back): masking the step by the
+            // live lanes would make each cell's address wait for the last
+            // cell's gathers, where now the gathers of successive cells
+            // overlap.
             ta_v = tb_v;
             let across = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LT_OQ>(tx_v, ty_v));
-            let along = _mm256_castps_si256(_mm256_andnot_ps(_mm256_castsi256_ps(across), live_v));
-            let across = _mm256_and_si256(across, _mm256_castps_si256(live_v));
+            let along = _mm256_xor_si256(across, _mm256_set1_epi32(-1));
             ci_v = _mm256_add_epi32(ci_v, _mm256_and_si256(sti_v, across));
             cj_v = _mm256_add_epi32(cj_v, _mm256_and_si256(stj_v, along));
             tx_v = _mm256_blendv_ps(
@@ -575,6 +614,46 @@ mod avx2 {
             );
             ty_v = _mm256_blendv_ps(ty_v, _mm256_add_ps(ty_v, dty_v), _mm256_castsi256_ps(along));
         }
+        // The deferred solves, each as the scalar walk solves that cell; in
+        // the (numerically degenerate) case that it finds no root after
+        // all, the walk goes on from the next cell as the scalar walk would.
+        for l in lanes_of(waiting) {
+            let lane = lanes[l].as_mut().expect("a deferred lane");
+            let d = &deferred[l];
+            let g = &lane.grid;
+            let (t1, last) = (walks[l].t1, walks[l].last);
+            let w = match patch_hit(
+                d.corners,
+                d.at.ci,
+                d.at.cj,
+                g.o.as_dvec3(),
+                g.d.as_dvec3(),
+                c.cells[0],
+                c.cells[1],
+                d.at.ta as f64,
+                d.tb as f64,
+            ) {
+                Some((t, normal)) => Walk::Hit(SurfaceHit {
+                    t,
+                    normal,
+                    cells: d.at.cells,
+                }),
+                None => walk_after::<ANY>(height, g, c.cells, d.at, t1),
+            };
+            match lane.walked::<ANY>(c, w, t1, last) {
+                Some(out) => emit(l, out),
+                None => resume |= 1 << l,
+            }
+        }
         resume
+    }
+
+    /// A lane's walk stopped at a crossing cell, its solve deferred: the
+    /// cell and where the walk stood in it.
+    #[derive(Clone, Copy, Default)]
+    struct Deferred {
+        corners: [f32; 4],
+        at: Cursor,
+        tb: f32,
     }
 }
