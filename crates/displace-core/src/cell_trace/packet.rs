@@ -169,7 +169,7 @@ mod avx2 {
         distance: &DistanceMap,
         c: &Constants,
         lanes: &mut [Option<Lane>; LANES],
-        emit: &mut dyn FnMut(usize, Outcome),
+        emit: &mut impl FnMut(usize, Outcome),
     ) {
         let mut walks = [WalkState::default(); LANES];
         // Lanes at the top of the scalar loop: every lane at first, then
@@ -215,7 +215,7 @@ mod avx2 {
         c: &Constants,
         lanes: &mut [Option<Lane>; LANES],
         mut live: u32,
-        emit: &mut dyn FnMut(usize, Outcome),
+        emit: &mut impl FnMut(usize, Outcome),
     ) -> (u32, [WalkState; LANES]) {
         let [w, h, d] = distance.size();
         let [sx, sy, sz] = distance.cell_scale();
@@ -335,7 +335,7 @@ mod avx2 {
         lanes: &mut [Option<Lane>; LANES],
         mut live: u32,
         walks: &[WalkState; LANES],
-        emit: &mut dyn FnMut(usize, Outcome),
+        emit: &mut impl FnMut(usize, Outcome),
     ) -> u32 {
         let mut resume = 0u32;
         let mut ci = [0i32; LANES];
