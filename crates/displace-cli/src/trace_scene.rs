@@ -76,8 +76,10 @@ impl Scratch {
 pub fn first_hits(scene: &Scene, rays: &[[f32; 7]], sc: &mut Scratch, out: &mut [f32]) {
     sc.load(rays);
     scene.intersect_geometry_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
-    for ((o, hit), &len) in out.chunks_mut(8).zip(&sc.hits).zip(&sc.lens) {
-        o.copy_from_slice(&row(scene, hit, len));
+    // Rows as arrays: a slice copy of eight values is a call to `memcpy`.
+    for ((o, hit), &len) in out.chunks_exact_mut(8).zip(&sc.hits).zip(&sc.lens) {
+        let o: &mut [f32; 8] = o.try_into().expect("rows of eight values");
+        *o = row(scene, hit, len);
     }
 }
 
