@@ -3,36 +3,12 @@
 //! and a group 1 of rays and results, one invocation per ray in workgroups
 //! of [`WORKGROUP`], dispatched to read the results back or to be timed.
 
+use crate::descriptors::{empty_buffer, pipeline_layout, shader_module};
 use crate::timing::{compute_writes, time_frames, Timing};
 use crate::{Error, GpuContext, Result};
 use bytemuck::Pod;
-use wgpu::util::DeviceExt;
 
 pub(crate) const WORKGROUP: u32 = 64;
-
-/// A storage-buffer entry of a compute bind group layout.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform buffer holding `value`.
-pub(crate) fn uniform_buffer<T: Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
-}
 
 /// Compiles `source` and builds the pipeline of `entry` over `layouts`;
 /// shader and layout mistakes come back as [`Error::Gpu`].
@@ -44,30 +20,29 @@ pub(crate) fn compute_pipeline(
     layouts: &[&wgpu::BindGroupLayout],
 ) -> Result<wgpu::ComputePipeline> {
     ctx.checked(&format!("building the {label} pipeline"), || {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
-        let layouts: Vec<_> = layouts.iter().map(|l| Some(*l)).collect();
-        let layout = ctx
-            .device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &layouts,
-                immediate_size: 0,
-            });
-        ctx.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        compute_pipeline_unchecked(ctx, label, &source, entry, layouts)
     })
+}
+
+/// [`compute_pipeline`] inside the caller's own error scope.
+pub(crate) fn compute_pipeline_unchecked(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    entry: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> wgpu::ComputePipeline {
+    let module = shader_module(ctx, label, source);
+    let layout = pipeline_layout(ctx, label, layouts);
+    ctx.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
 }
 
 /// Rays per dispatch: what one storage binding of `per_hit`-byte results
@@ -93,12 +68,12 @@ pub(crate) fn dispatch_and_read<T: Pod>(
     let size = (rays * std::mem::size_of::<T>()) as u64;
     ctx.checked("tracing rays", || {
         let (group, results) = rays_group();
-        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("results readback"),
+        let readback = empty_buffer(
+            ctx,
+            "results readback",
             size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        );
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -157,17 +132,30 @@ pub(crate) fn time_dispatches(
             ),
         });
     }
+    time_compute(ctx, "timed rays", pipeline, groups, [workgroups, 1], frames)
+}
+
+/// GPU time of `frames` dispatches of `workgroups` (x, y) with `groups` as
+/// groups 0 and 1 (timestamps around them, [`crate::timing`]).
+pub(crate) fn time_compute(
+    ctx: &GpuContext,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    groups: [&wgpu::BindGroup; 2],
+    [x, y]: [u32; 2],
+    frames: u32,
+) -> Result<Timing> {
     let frames = frames.max(1);
     time_frames(ctx, frames, |encoder, query| {
         for f in 0..frames {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("timed rays"),
+                label: Some(label),
                 timestamp_writes: compute_writes(query, f, frames),
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, groups[0], &[]);
             pass.set_bind_group(1, groups[1], &[]);
-            pass.dispatch_workgroups(workgroups, 1, 1);
+            pass.dispatch_workgroups(x, y, 1);
         }
         Ok(())
     })

@@ -11,21 +11,22 @@
 //! so distance mapping reads bit for bit what the CPU reads.
 
 use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
-    time_dispatches, uniform_buffer,
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, time_dispatches,
 };
 use crate::convention::technique_code;
+use crate::descriptors::{
+    bind_group_layout, storage_entry, texture_entry, uniform_buffer, uniform_entry,
+};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{technique_compute_source, DistanceTexture};
 use crate::technique_maps::TechniqueTextures;
 use crate::timing::Timing;
-use crate::trace::{check_rays, RayIn};
+use crate::trace::{check_rays, ray_buffers};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::techniques::{Hit, Maps, Needs, Technique, Traced};
 use displace_core::{MapRay, Method, TraceOptions};
 use glam::{Vec2, Vec3};
-use wgpu::util::DeviceExt;
 
 /// Mirror of WGSL `TechniqueParams`.
 #[repr(C)]
@@ -77,7 +78,7 @@ impl TechniqueTracer {
             None => GpuMap::for_height(ctx, &maps.height, maps.aspect)?,
         };
         let textures = TechniqueTextures::new(ctx, maps)?;
-        let rays_layout = rays_layout(&ctx.device);
+        let rays_layout = rays_layout(ctx);
         let pipeline = compute_pipeline(
             ctx,
             "techniques",
@@ -191,51 +192,20 @@ impl TechniqueTracer {
         uniforms: &Uniforms,
         rays: &[MapRay],
     ) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let ray_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("technique rays"),
-                contents: bytemuck::cast_slice(&RayIn::all(rays)),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("technique hits"),
-            size: (rays.len() * std::mem::size_of::<TechniqueHitOut>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
         let view = wgpu::BindingResource::TextureView;
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("technique rays"),
-            layout: &self.rays_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: hit_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: uniforms.technique.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: view(&self.textures.cones),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: view(&self.textures.relaxed),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: view(&self.textures.pyramid),
-                },
+        ray_buffers::<TechniqueHitOut>(
+            ctx,
+            "technique rays",
+            "technique hits",
+            &self.rays_layout,
+            rays,
+            &[
+                uniforms.technique.as_entire_binding(),
+                view(&self.textures.cones),
+                view(&self.textures.relaxed),
+                view(&self.textures.pyramid),
             ],
-        });
-        (group, hit_buf)
+        )
     }
 
     fn trace_chunk(
@@ -268,38 +238,25 @@ fn to_traced(h: &TechniqueHitOut) -> Traced {
 
 /// Group 1: rays, hits, the technique's uniform, cones, relaxed cones and
 /// the pyramid.
-fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
-    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty,
-        count: None,
-    };
-    let texture = wgpu::BindingType::Texture {
-        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("technique rays"),
-        entries: &[
+fn rays_layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let texture = |binding| texture_entry(binding, compute, false, wgpu::TextureViewDimension::D2);
+    bind_group_layout(
+        ctx,
+        "technique rays",
+        &[
             storage_entry(0, true),
             storage_entry(1, false),
-            entry(
+            uniform_entry(
                 2,
-                wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: wgpu::BufferSize::new(
-                        std::mem::size_of::<TechniqueParams>() as u64
-                    ),
-                },
+                compute,
+                wgpu::BufferSize::new(std::mem::size_of::<TechniqueParams>() as u64),
             ),
-            entry(3, texture),
-            entry(4, texture),
-            entry(5, texture),
+            texture(3),
+            texture(4),
+            texture(5),
         ],
-    })
+    )
 }
 
 /// GPU cost of one technique at one budget over a batch of rays.

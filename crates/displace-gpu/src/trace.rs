@@ -4,10 +4,12 @@
 //! interchangeable.
 
 use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
-    time_dispatches, uniform_buffer,
+    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, time_dispatches,
 };
 use crate::convention::{FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
+use crate::descriptors::{
+    bind_group, bind_group_layout, buffer_of, empty_buffer, storage_entry, uniform_buffer,
+};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
@@ -15,7 +17,6 @@ use bytemuck::{Pod, Zeroable};
 use displace_core::sphere_trace::HitKind;
 use displace_core::{DisplacementMap, MapHit, MapRay, TraceOptions};
 use glam::{Vec2, Vec3};
-use wgpu::util::DeviceExt;
 
 /// What [`trace_rays`] returns per ray: the CPU's hit record.
 pub type GpuHit = MapHit;
@@ -63,6 +64,35 @@ pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
     Ok(())
 }
 
+/// Group 1 of a batch query: the `rays` (binding 0), a storage buffer for
+/// one `H` per ray (binding 1), then `extra` (bindings 2, 3, ...). Returns
+/// the group and the result buffer.
+pub(crate) fn ray_buffers<H>(
+    ctx: &GpuContext,
+    rays_label: &str,
+    hits_label: &str,
+    layout: &wgpu::BindGroupLayout,
+    rays: &[MapRay],
+    extra: &[wgpu::BindingResource],
+) -> (wgpu::BindGroup, wgpu::Buffer) {
+    let ray_buf = buffer_of(
+        ctx,
+        rays_label,
+        bytemuck::cast_slice(&RayIn::all(rays)),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let hit_buf = empty_buffer(
+        ctx,
+        hits_label,
+        (rays.len() * std::mem::size_of::<H>()) as u64,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let mut resources = vec![ray_buf.as_entire_binding(), hit_buf.as_entire_binding()];
+    resources.extend(extra.iter().cloned());
+    let group = bind_group(ctx, rays_label, layout, &resources);
+    (group, hit_buf)
+}
+
 /// Mirror of WGSL `HitOut`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -96,12 +126,11 @@ impl RayTracer {
     /// Uploads `map` and compiles the query for `texture`.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
-        let rays_layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("rays"),
-                entries: &[storage_entry(0, true), storage_entry(1, false)],
-            });
+        let rays_layout = bind_group_layout(
+            ctx,
+            "rays",
+            &[storage_entry(0, true), storage_entry(1, false)],
+        );
         let pipeline = compute_pipeline(
             ctx,
             "ray-query",
@@ -161,36 +190,7 @@ impl RayTracer {
     }
 
     fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let input = RayIn::all(rays);
-        let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
-        let ray_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("rays"),
-                contents: bytemuck::cast_slice(&input),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("rays"),
-            layout: &self.rays_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: hit_buf.as_entire_binding(),
-                },
-            ],
-        });
-        (group, hit_buf)
+        ray_buffers::<HitOut>(ctx, "rays", "hits", &self.rays_layout, rays, &[])
     }
 
     fn trace_chunk(
