@@ -27,6 +27,9 @@ pub const BINDINGS_LOAD: &str = include_str!("../shaders/bindings_load.wgsl");
 pub const BINDINGS_FILTERED: &str = include_str!("../shaders/bindings_filtered.wgsl");
 /// The batch ray query's compute entry point.
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+/// Lambert plus normalised Blinn-Phong of one point light, shared by the
+/// displaced hits and the plain triangles so both light alike.
+pub const LIGHTING: &str = include_str!("../shaders/lighting.wgsl");
 /// Normal-mapped Blinn-Phong shading with self-shadowing, texture lookups
 /// with the base coordinate's derivatives (section 8.5.3).
 pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
@@ -146,18 +149,18 @@ pub fn technique_compute_source(texture: DistanceTexture) -> String {
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
 /// shadowing variants are uniforms of one module).
 pub fn raster_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), SHADE, RASTER].join("\n")
+    [map_trace_source(texture).as_str(), LIGHTING, SHADE, RASTER].join("\n")
 }
 
 /// The mesh variant of the raster path: the same fragment work, started
 /// from each mesh triangle's shell in its MikkTSpace frame.
 pub fn mesh_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), SHADE, MESH].join("\n")
+    [map_trace_source(texture).as_str(), LIGHTING, SHADE, MESH].join("\n")
 }
 
 /// Non-displaced triangles beside the displaced draws (no map).
 pub fn plain_source() -> String {
-    join(&[CONVENTION, PLAIN])
+    join(&[CONVENTION, LIGHTING, PLAIN])
 }
 
 /// The bare loop of dependent filtered fetches (benchmarks only).
