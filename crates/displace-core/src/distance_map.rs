@@ -640,13 +640,8 @@ mod tests {
 
     #[test]
     fn min_and_nan_match_a_plain_fold() {
-        let mut state = 7u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 3.0
-        };
+        let mut unit = crate::random::xorshift_unit(7);
+        let mut next = || unit() * 8.0 - 3.0;
         for n in [0usize, 1, 15, 16, 17, 100, 1000] {
             let mut v: Vec<f32> = (0..n).map(|_| next()).collect();
             let want = v.iter().copied().fold(f32::INFINITY, f32::min);
@@ -682,13 +677,8 @@ mod tests {
             }
         }
         values.extend([-100.0, r.min - 1.0, r.max, r.max + 1e-3, 1e9, f32::INFINITY]);
-        let mut state = 3u64;
-        values.extend((0..5000).map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            r.min - 0.5 + (state >> 40) as f32 / (1u64 << 24) as f32 * (R8_SPAN + 1.0)
-        }));
+        let mut unit = crate::random::xorshift_unit(3);
+        values.extend((0..5000).map(|_| r.min - 0.5 + unit() * (R8_SPAN + 1.0)));
         let mut codes = vec![0u8; values.len()];
         e.encode_into(&values, &mut codes);
         for (&v, &c) in values.iter().zip(&codes) {
