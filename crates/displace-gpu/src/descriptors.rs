@@ -67,39 +67,32 @@ pub(crate) fn uniform_entry(
     visibility: wgpu::ShaderStages,
     min_size: Option<wgpu::BufferSize>,
 ) -> wgpu::BindGroupLayoutEntry {
-    buffer_entry(
-        binding,
-        visibility,
-        wgpu::BufferBindingType::Uniform,
-        min_size,
-    )
+    let ty = buffer(wgpu::BufferBindingType::Uniform, min_size);
+    layout_entry(binding, visibility, ty)
+}
+
+/// Binding 0 of the raster passes' own groups: the frame's uniform, read by
+/// both the vertex and the fragment stage, its size checked at draw time.
+pub(crate) fn frame_uniform_entry() -> wgpu::BindGroupLayoutEntry {
+    uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, None)
 }
 
 /// A storage-buffer entry of a compute bind group layout.
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    buffer_entry(
-        binding,
-        wgpu::ShaderStages::COMPUTE,
-        wgpu::BufferBindingType::Storage { read_only },
-        None,
-    )
+    let ty = buffer(wgpu::BufferBindingType::Storage { read_only }, None);
+    layout_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
 }
 
-fn buffer_entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
+/// A buffer binding without dynamic offsets.
+fn buffer(
     ty: wgpu::BufferBindingType,
     min_binding_size: Option<wgpu::BufferSize>,
-) -> wgpu::BindGroupLayoutEntry {
-    layout_entry(
-        binding,
-        visibility,
-        wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size,
-        },
-    )
+) -> wgpu::BindingType {
+    wgpu::BindingType::Buffer {
+        ty,
+        has_dynamic_offset: false,
+        min_binding_size,
+    }
 }
 
 /// A single-sampled float texture entry of `dimension`.

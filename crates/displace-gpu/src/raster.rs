@@ -8,8 +8,8 @@
 
 use crate::descriptors::{
     bind_group, bind_group_layout, buffer_of, cleared_attachment, color_target, empty_buffer,
-    extent_2d, pipeline_layout, render_pipeline, sampler_entry, shader_module,
-    texture_2d_descriptor, texture_entry, uniform_buffer, uniform_entry, RenderStages,
+    extent_2d, frame_uniform_entry, pipeline_layout, render_pipeline, sampler_entry, shader_module,
+    texture_2d_descriptor, texture_entry, uniform_buffer, RenderStages,
 };
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::mesh::{ShellMesh, ShellVertex};
@@ -431,11 +431,7 @@ impl Renderer {
         mesh.check()?;
         let (pipeline, frame_layout) = ctx.checked("building the plain pipeline", || {
             let module = shader_module(ctx, "plain", &plain_source());
-            let frame_layout = bind_group_layout(
-                ctx,
-                "plain frame",
-                &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, None)],
-            );
+            let frame_layout = bind_group_layout(ctx, "plain frame", &[frame_uniform_entry()]);
             let layout = pipeline_layout(ctx, "plain", &[&frame_layout]);
             let pipeline = render_pipeline(
                 ctx,
@@ -536,7 +532,7 @@ impl Renderer {
                 ctx,
                 "shading",
                 &[
-                    uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, None),
+                    frame_uniform_entry(),
                     tex(1),
                     tex(2),
                     sampler_entry(3, fragment),

@@ -4,9 +4,9 @@
 //! the text over it (`shaders/present.wgsl`).
 
 use crate::descriptors::{
-    bind_group, bind_group_layout, cleared_attachment, color_target, pipeline_layout,
-    render_pipeline, shader_module, texture_2d_descriptor, texture_entry, uniform_buffer,
-    uniform_entry, RenderStages,
+    bind_group, bind_group_layout, cleared_attachment, color_target, frame_uniform_entry,
+    pipeline_layout, render_pipeline, shader_module, texture_2d_descriptor, texture_entry,
+    uniform_buffer, RenderStages,
 };
 use crate::shaders::PRESENT;
 use crate::{GpuContext, Result};
@@ -117,15 +117,8 @@ impl Presenter {
                     wgpu::TextureViewDimension::D2,
                 )
             };
-            let layout = bind_group_layout(
-                ctx,
-                "present",
-                &[
-                    uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, None),
-                    tex(1),
-                    tex(2),
-                ],
-            );
+            let layout =
+                bind_group_layout(ctx, "present", &[frame_uniform_entry(), tex(1), tex(2)]);
             let pipeline_layout = pipeline_layout(ctx, "present", &[&layout]);
             Self {
                 module,
