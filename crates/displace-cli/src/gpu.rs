@@ -149,15 +149,7 @@ fn bake_face(face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
         },
     )
     .with_context(|| format!("loading height map {}", face.height))?;
-    bake(
-        &height,
-        &BakeOptions {
-            size,
-            extent: face.extent,
-            ..BakeOptions::default()
-        },
-    )
-    .context("baking the distance map")
+    bake(&height, &BakeOptions::new(size, face.extent)).context("baking the distance map")
 }
 
 fn open_gpu() -> Result<GpuContext> {
@@ -432,15 +424,7 @@ mod tests {
         };
         let height = generators::generate("gen:gaussian", 32, 32, Address::Clamp).unwrap();
         let extent = Extent::new(2.0, 1.0, 0.25).unwrap();
-        let map = bake(
-            &height,
-            &BakeOptions {
-                size: [32, 32, 8],
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let map = bake(&height, &BakeOptions::new([32, 32, 8], extent)).unwrap();
         let mut rays = Vec::new();
         for i in 0..20 {
             for j in 0..20 {

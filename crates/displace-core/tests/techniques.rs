@@ -21,17 +21,7 @@ fn all_maps(height: HeightMap, extent: Extent, distance: [usize; 3]) -> Maps {
     maps.cones = Some(ConeMap::build(&height, aspect, ConeKind::Conservative));
     maps.relaxed = Some(ConeMap::build(&height, aspect, ConeKind::Relaxed));
     maps.pyramid = Some(MaxPyramid::build(&height));
-    maps.displacement = Some(
-        bake(
-            &height,
-            &BakeOptions {
-                size: distance,
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    maps.displacement = Some(bake(&height, &BakeOptions::new(distance, extent)).unwrap());
     maps
 }
 

@@ -264,15 +264,7 @@ mod tests {
     fn baked() -> (DistanceMap, Extent) {
         let extent = Extent::new(1.0, 1.0, 0.2).unwrap();
         let height = generators::generate("gen:gaussian", 16, 16, Address::Clamp).unwrap();
-        let map = bake(
-            &height,
-            &BakeOptions {
-                size: [12, 10, 6],
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let map = bake(&height, &BakeOptions::new([12, 10, 6], extent)).unwrap();
         (map.distance, extent)
     }
 

@@ -449,15 +449,7 @@ mod tests {
     fn baked(address: Address) -> (DistanceMap, Extent) {
         let extent = Extent::new(1.0, 0.5, 0.125).unwrap();
         let height = generators::generate("gen:gaussian", 20, 12, address).unwrap();
-        let m = bake(
-            &height,
-            &BakeOptions {
-                size: [10, 6, 4],
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let m = bake(&height, &BakeOptions::new([10, 6, 4], extent)).unwrap();
         (m.distance, extent)
     }
 

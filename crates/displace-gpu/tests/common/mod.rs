@@ -75,15 +75,7 @@ pub fn random_map(rng: &mut Rng, address: Address) -> DisplacementMap {
         rng.range(0.05, 0.6),
     )
     .unwrap();
-    bake(
-        &height,
-        &BakeOptions {
-            size,
-            extent,
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap()
+    bake(&height, &BakeOptions::new(size, extent)).unwrap()
 }
 
 /// Rays from around and above the shell `[0, hi.x] x [0, hi.y] x [0, 1]`,
