@@ -65,14 +65,12 @@ impl Format {
 impl std::str::FromStr for Format {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "r8" => Ok(Format::R8),
-            "r16f" => Ok(Format::R16F),
-            "r32f" => Ok(Format::R32F),
-            other => Err(Error::UnknownName(format!(
-                "unknown distance format `{other}` (expected r8, r16f or r32f)"
-            ))),
-        }
+        let choices = [
+            ("r8", Format::R8),
+            ("r16f", Format::R16F),
+            ("r32f", Format::R32F),
+        ];
+        crate::names::parse_choice("distance format", s, &choices).map_err(Error::UnknownName)
     }
 }
 

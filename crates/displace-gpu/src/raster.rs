@@ -17,6 +17,7 @@ use crate::plain::{PlainFrame, PlainMesh, PLAIN_VERTEX_LAYOUT};
 use crate::shaders::{mesh_source, plain_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
+use displace_core::names::parse_choice;
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
 use glam::{Mat4, Vec2, Vec3};
 
@@ -40,14 +41,12 @@ pub enum Shadows {
 impl std::str::FromStr for Shadows {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "none" => Ok(Self::None),
-            "hard" => Ok(Self::Hard),
-            "soft" => Ok(Self::Soft),
-            o => Err(Error::InvalidOption(format!(
-                "unknown shadows `{o}` (expected none, hard or soft)"
-            ))),
-        }
+        let choices = [
+            ("none", Self::None),
+            ("hard", Self::Hard),
+            ("soft", Self::Soft),
+        ];
+        parse_choice("shadows", s, &choices).map_err(Error::InvalidOption)
     }
 }
 

@@ -94,14 +94,9 @@ impl DistanceTexture {
 impl std::str::FromStr for DistanceTexture {
     type Err = crate::Error;
     fn from_str(s: &str) -> crate::Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|d| d.name() == s)
-            .ok_or_else(|| {
-                crate::Error::InvalidOption(format!(
-                    "unknown distance texture `{s}` (expected r32-load, r8-load, r16-linear or r8-linear)"
-                ))
-            })
+        let choices = Self::ALL.map(|d| (d.name(), d));
+        displace_core::names::parse_choice("distance texture", s, &choices)
+            .map_err(crate::Error::InvalidOption)
     }
 }
 

@@ -27,15 +27,14 @@ pub enum Channel {
 impl std::str::FromStr for Channel {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "r" => Ok(Channel::R),
-            "g" => Ok(Channel::G),
-            "b" => Ok(Channel::B),
-            "a" => Ok(Channel::A),
-            other => Err(Error::InvalidHeightMap(format!(
-                "unknown channel `{other}` (expected r, g, b or a)"
-            ))),
-        }
+        let choices = [
+            ("r", Channel::R),
+            ("g", Channel::G),
+            ("b", Channel::B),
+            ("a", Channel::A),
+        ];
+        crate::names::parse_choice("channel", &s.to_ascii_lowercase(), &choices)
+            .map_err(Error::InvalidHeightMap)
     }
 }
 
