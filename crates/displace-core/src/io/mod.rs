@@ -246,3 +246,14 @@ pub fn bake_underestimate(size: [usize; 3], aspect: [f32; 2], quantum: f32) -> f
     );
     h.truncate().length() + h.length() + quantum
 }
+
+/// Asserts that the reader `err` (bytes to its error message) refuses
+/// `bytes` with a message holding every one of `needles`: the malformed
+/// file tests of each format.
+#[cfg(test)]
+pub(crate) fn assert_refused(err: &dyn Fn(&[u8]) -> String, bytes: &[u8], needles: &[&str]) {
+    let message = err(bytes);
+    for needle in needles {
+        assert!(message.contains(needle), "no `{needle}` in: {message}");
+    }
+}
