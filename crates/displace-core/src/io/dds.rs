@@ -234,14 +234,7 @@ pub fn from_bytes(
             0.0,
         ),
     };
-    if let Some(i) = data.iter().position(|v| v.is_nan()) {
-        return Err(FormatError::Invalid(format!(
-            "voxel ({}, {}, {}) is NaN",
-            i % size[0],
-            (i / size[0]) % size[1],
-            i / (size[0] * size[1])
-        )));
-    }
+    super::check_no_nan(&data, size)?;
     let bound = super::bake_underestimate(size, extent.aspect(), quantum);
     let map = DistanceMap::from_raw(size, extent.aspect(), address, data, bound)?;
     Ok((map, format))

@@ -417,14 +417,7 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect(),
     };
-    if let Some(i) = data.iter().position(|v| v.is_nan()) {
-        return Err(FormatError::Invalid(format!(
-            "voxel ({}, {}, {}) is NaN",
-            i % size[0],
-            (i / size[0]) % size[1],
-            i / (size[0] * size[1])
-        )));
-    }
+    super::check_no_nan(&data, size)?;
     let map = DistanceMap::from_raw(size, extent.aspect(), address, data, bound)?;
     Ok(Decoded {
         map,
