@@ -212,15 +212,9 @@ pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&s
     assert_eq!(wgsl, rust, "{wgsl_name}: member names and offsets");
 }
 
-/// `[(name, offset)]` of a Rust mirror's fields, for [`assert_layout`].
+/// [`crate::field_offsets`], for [`assert_layout`].
 #[cfg(test)]
-macro_rules! offsets {
-    ($t:ty { $($field:ident),* $(,)? }) => {
-        &[$((stringify!($field), std::mem::offset_of!($t, $field))),*]
-    };
-}
-#[cfg(test)]
-pub(crate) use offsets;
+pub(crate) use crate::field_offsets as offsets;
 
 #[cfg(test)]
 mod tests {

@@ -16,7 +16,7 @@
 
 mod common;
 
-use common::{random_map, random_rays, Rng};
+use common::{assert_hits_agree, random_map, random_rays, Rng};
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique, Traced};
 use displace_core::Address;
 use displace_gpu::test_support::test_context;
@@ -93,14 +93,7 @@ impl Tally {
             self.cpu_fetches >= self.hits as u64,
             "{what}: hits that cost nothing: {self:?}"
         );
-        assert!(
-            self.hit_miss_differ <= allowed,
-            "{what}: hit/miss differs on more than 0.1% of rays: {self:?}"
-        );
-        assert!(
-            self.far <= allowed,
-            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {self:?}"
-        );
+        assert_hits_agree(what, self.rays, self.hit_miss_differ, self.far, self);
         if exact_counts {
             assert!(
                 self.fetches_differ <= allowed,

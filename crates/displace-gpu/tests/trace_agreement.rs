@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{clamped_case, random_map, random_rays, Rng};
+use common::{assert_hits_agree, clamped_case, random_map, random_rays, Rng};
 use displace_core::{Address, MapHit, Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, RayTracer};
@@ -47,14 +47,7 @@ impl Tally {
             self.hits * 2 > self.rays / 2,
             "{what}: too few hits to mean anything: {self:?}"
         );
-        assert!(
-            self.hit_miss_differ <= allowed,
-            "{what}: hit/miss differs on more than 0.1% of rays: {self:?}"
-        );
-        assert!(
-            self.far <= allowed,
-            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {self:?}"
-        );
+        assert_hits_agree(what, self.rays, self.hit_miss_differ, self.far, self);
         assert!(
             self.kind_differ <= allowed,
             "{what}: surface/wall differs on more than 0.1% of rays: {self:?}"

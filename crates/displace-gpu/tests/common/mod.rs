@@ -123,3 +123,25 @@ pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
     let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), n);
     (map, rays)
 }
+
+/// The bounds every GPU-against-CPU tally holds to: of `rays`, at most
+/// 0.1% where one side hits and the other misses (`hit_miss_differ`) and
+/// at most 0.1% whose hit points lie more than 1e-3 apart (`far`); a
+/// failure prints `tally` whole.
+pub fn assert_hits_agree(
+    what: &str,
+    rays: usize,
+    hit_miss_differ: usize,
+    far: usize,
+    tally: &impl std::fmt::Debug,
+) {
+    let allowed = rays / 1000;
+    assert!(
+        hit_miss_differ <= allowed,
+        "{what}: hit/miss differs on more than 0.1% of rays: {tally:?}"
+    );
+    assert!(
+        far <= allowed,
+        "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {tally:?}"
+    );
+}
