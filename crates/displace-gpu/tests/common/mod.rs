@@ -124,24 +124,53 @@ pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
     (map, rays)
 }
 
-/// The bounds every GPU-against-CPU tally holds to: of `rays`, at most
-/// 0.1% where one side hits and the other misses (`hit_miss_differ`) and
-/// at most 0.1% whose hit points lie more than 1e-3 apart (`far`); a
-/// failure prints `tally` whole.
-pub fn assert_hits_agree(
-    what: &str,
-    rays: usize,
-    hit_miss_differ: usize,
-    far: usize,
-    tally: &impl std::fmt::Debug,
-) {
-    let allowed = rays / 1000;
-    assert!(
-        hit_miss_differ <= allowed,
-        "{what}: hit/miss differs on more than 0.1% of rays: {tally:?}"
-    );
-    assert!(
-        far <= allowed,
-        "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {tally:?}"
-    );
+/// How a GPU query's answers agree with the CPU's over a batch of rays:
+/// hit or miss, and how far apart the hit points lie; every GPU-against-CPU
+/// tally counts these the same way and holds them to the same bounds.
+#[derive(Default, Debug)]
+pub struct HitAgreement {
+    /// Rays counted.
+    pub rays: usize,
+    /// Rays both sides hit.
+    pub hits: usize,
+    /// Rays one side hits and the other misses.
+    pub hit_miss_differ: usize,
+    /// Rays both hit at points more than 1e-3 apart.
+    pub far: usize,
+    /// The largest distance between two hit points.
+    pub worst: f32,
+}
+
+impl HitAgreement {
+    /// Counts one ray the CPU and the GPU hit at `cpu` and `gpu` (`None`: a
+    /// miss).
+    pub fn add(&mut self, cpu: Option<Vec3>, gpu: Option<Vec3>) {
+        self.rays += 1;
+        match (cpu, gpu) {
+            (Some(c), Some(g)) => {
+                self.hits += 1;
+                let e = (c - g).length();
+                self.worst = self.worst.max(e);
+                if e > 1e-3 {
+                    self.far += 1;
+                }
+            }
+            (None, None) => {}
+            _ => self.hit_miss_differ += 1,
+        }
+    }
+
+    /// At most 0.1% of the rays differ in hit or miss, and at most 0.1% in
+    /// where they hit; a failure prints `tally` whole.
+    pub fn check(&self, what: &str, tally: &impl std::fmt::Debug) {
+        let allowed = self.rays / 1000;
+        assert!(
+            self.hit_miss_differ <= allowed,
+            "{what}: hit/miss differs on more than 0.1% of rays: {tally:?}"
+        );
+        assert!(
+            self.far <= allowed,
+            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {tally:?}"
+        );
+    }
 }
