@@ -64,12 +64,10 @@ fn fs_mesh(in: MeshVsOut) -> FsOut {
     // Derivatives, listing 8-2's normalisation and the hit, or a discarded
     // fragment (shade.wgsl).
     let m = march_shell(in.map_pos, in.tan_eye);
-    let h = m.hit;
-    let dir = m.dir;
     let depth = 1.0 / frame.inv_bump_depth;
     let to_phys = vec3f(in.scale / params.aspect, depth);
-    let rgb = shade_hit(h, in.map_pos, dir, in.tan_light, to_phys, m.dx, m.dy);
-    let p = in.map_pos + dir * h.t;
+    let rgb = shade_hit(m.hit, in.map_pos, m.dir, in.tan_light, to_phys, m.dx, m.dy);
+    let p = in.map_pos + m.dir * m.hit.t;
     // The hit back in the world through the fragment's frame.
     let n = normalize(in.normal);
     let t = normalize(in.tangent.xyz);
@@ -77,5 +75,5 @@ fn fs_mesh(in: MeshVsOut) -> FsOut {
     let d = p - in.map_pos;
     let world = in.world + t * (d.x / params.aspect.x * in.scale.x)
         + b * (d.y / params.aspect.y * in.scale.y) + n * (d.z * depth);
-    return shell_out(rgb, p.xy / params.aspect + frame.uv_shift, h, world);
+    return shell_out(rgb, p.xy / params.aspect + frame.uv_shift, m.hit, world);
 }

@@ -63,15 +63,13 @@ fn fs_main(in: VsOut) -> FsOut {
     // Derivatives, listing 8-2's normalisation and the hit, or a discarded
     // fragment (shade.wgsl).
     let m = march_shell(in.map_pos, in.tan_eye);
-    let h = m.hit;
-    let dir = m.dir;
     let depth = 1.0 / frame.inv_bump_depth;
     // Map units to the face's physical tangent frame: the baked proportions
     // across, the live depth along the normal.
     let to_phys = vec3f(length(frame.face_t.xyz) / params.aspect.x, length(frame.face_b.xyz) / params.aspect.y, depth);
-    let rgb = shade_hit(h, in.map_pos, dir, in.tan_light, to_phys, m.dx, m.dy);
-    let p = in.map_pos + dir * h.t;
+    let rgb = shade_hit(m.hit, in.map_pos, m.dir, in.tan_light, to_phys, m.dx, m.dy);
+    let p = in.map_pos + m.dir * m.hit.t;
     let uv = p.xy / params.aspect;
     let world = frame.face_origin.xyz + uv.x * frame.face_t.xyz + uv.y * frame.face_b.xyz + p.z * depth * frame.face_n.xyz;
-    return shell_out(rgb, uv, h, world);
+    return shell_out(rgb, uv, m.hit, world);
 }
