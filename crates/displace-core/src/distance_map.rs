@@ -65,11 +65,7 @@ impl Format {
 impl std::str::FromStr for Format {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        let choices = [
-            ("r8", Format::R8),
-            ("r16f", Format::R16F),
-            ("r32f", Format::R32F),
-        ];
+        let choices = [Format::R8, Format::R16F, Format::R32F].map(|f| (f.name(), f));
         crate::names::parse_choice("distance format", s, &choices).map_err(Error::UnknownName)
     }
 }

@@ -27,14 +27,14 @@ pub enum Channel {
 impl std::str::FromStr for Channel {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
+        let name = s.to_ascii_lowercase();
         let choices = [
             ("r", Channel::R),
             ("g", Channel::G),
             ("b", Channel::B),
             ("a", Channel::A),
         ];
-        crate::names::parse_choice("channel", &s.to_ascii_lowercase(), &choices)
-            .map_err(Error::InvalidHeightMap)
+        crate::names::parse_choice("channel", &name, &choices).map_err(Error::InvalidHeightMap)
     }
 }
 
