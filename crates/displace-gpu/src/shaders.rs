@@ -25,6 +25,8 @@ pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const BINDINGS_LOAD: &str = include_str!("../shaders/bindings_load.wgsl");
 /// The same for the filtered distance textures (with the sampler).
 pub const BINDINGS_FILTERED: &str = include_str!("../shaders/bindings_filtered.wgsl");
+/// What both batch queries share: group 1's rays and the result flags.
+pub const BATCH: &str = include_str!("../shaders/batch.wgsl");
 /// The batch ray query's compute entry point.
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
 /// Lambert plus normalised Blinn-Phong of one point light, shared by the
@@ -128,13 +130,14 @@ pub fn join(parts: &[&str]) -> String {
 
 /// The batch ray query kernel.
 pub fn compute_trace_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
+    [map_trace_source(texture).as_str(), BATCH, TRACE_COMPUTE].join("\n")
 }
 
-/// The batch query of every issue-5 technique (`shaders/techniques.wgsl`).
+/// The batch query of every technique (`shaders/techniques.wgsl`).
 pub fn technique_compute_source(texture: DistanceTexture) -> String {
     [
         map_trace_source(texture).as_str(),
+        BATCH,
         TECHNIQUES,
         TECHNIQUE_COMPUTE,
     ]
