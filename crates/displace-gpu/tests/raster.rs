@@ -5,15 +5,14 @@
 
 mod common;
 
-use common::{random_map, Rng};
-use displace_core::{Address, Method, TraceOptions};
+use common::clamped_map;
+use displace_core::{Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, PlaneScene, Renderer, Shadows};
 
 fn uv_agreement(texture: DistanceTexture, seed: u64) {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(seed);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(seed);
     let scene = PlaneScene::for_map(&map, [64, 64]);
     let image = Renderer::new(ctx, &map, texture)
         .unwrap()
@@ -65,8 +64,7 @@ fn raster_uv_matches_cpu_r16() {
 #[test]
 fn variants_differ_as_they_should() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(13);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(13);
     let renderer = Renderer::new(ctx, &map, DistanceTexture::R8Linear).unwrap();
     let base = PlaneScene::for_map(&map, [64, 64]);
     let render = |scene: PlaneScene| renderer.render(ctx, &scene).unwrap();
@@ -131,8 +129,7 @@ fn variants_differ_as_they_should() {
 #[test]
 fn bad_scenes_are_refused() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(14);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(14);
     let renderer = Renderer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     let base = PlaneScene::for_map(&map, [8, 8]);
     for bad in [

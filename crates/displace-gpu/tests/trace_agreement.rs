@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{clamped_case, random_map, random_rays, HitAgreement, Rng};
+use common::{clamped_case, clamped_map, random_map, random_rays, HitAgreement, Rng};
 use displace_core::{Address, MapHit, Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, RayTracer};
@@ -184,8 +184,7 @@ fn fixed_steps_agree_when_enough_and_stop_short_when_too_few() {
 #[test]
 fn bad_rays_and_options_are_refused() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(8);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(8);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     let ok = displace_core::MapRay::new(Vec3::new(0.5, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0));
     let nan = displace_core::MapRay {

@@ -114,6 +114,12 @@ pub fn random_rays(rng: &mut Rng, hi: Vec3, n: usize) -> Vec<MapRay> {
         .collect()
 }
 
+/// The clamped map of seed `seed`: what a test that needs one map and no
+/// rays draws.
+pub fn clamped_map(seed: u64) -> DisplacementMap {
+    random_map(&mut Rng::new(seed), Address::Clamp)
+}
+
 /// The map of seed `seed` (clamped) and `n` rays around its one tile, drawn
 /// in that order from the one generator.
 pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
