@@ -4,8 +4,10 @@
 //! of pixels), and bad scene input through gpu-render.
 
 mod bad_scenes;
+mod cli_common;
 
 use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
+use cli_common::{displaced_quad, frame, lambert, quad};
 use displace_core::io::npy::read_file;
 use displace_gpu::test_support::test_context;
 use std::path::Path;
@@ -18,54 +20,25 @@ fn displace() -> Command {
     c
 }
 
-/// What every scene here shares: 64x64 pixels, primitive visibility and
-/// direct light only (one sample, no reflections), a pinhole `camera` and
-/// one point `light` (TOML keys of each).
-fn frame(camera: &str, light: &str) -> String {
-    format!(
-        r#"[image]
-width = 64
-height = 64
-spp = 1
-max_depth = 0
-shadow_samples = 1
-
-[camera]
-{camera}
-
-[[lights]]
-type = "point"
-{light}
-"#
-    )
-}
-
 /// The camera and light of [`scene`].
 const QUAD_CAMERA: &str =
     "position = [0.5, -0.45, 0.95]\nlook_at = [0.5, 0.5, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0";
 const QUAD_LIGHT: &str = "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]";
 
-/// One displaced unit quad in material `clay`, without the frame.
-fn displaced_quad(material: &str) -> String {
-    format!(
-        r#"
-[materials.clay]
-{material}
-
-[[shapes]]
-type = "quad"
-origin = [0.0, 0.0, 0.0]
-edge_u = [1.0, 0.0, 0.0]
-edge_v = [0.0, 1.0, 0.0]
-material = "clay"
-displacement = {{ height = "gen:gaussian", height_size = [64, 64], depth = 0.15, map_size = [64, 64, 16] }}
-"#
-    )
-}
+/// The displacement of [`scene`]'s quad, without the closing brace: a
+/// test adds its own keys.
+const QUAD_DISPLACEMENT: &str =
+    r#"height = "gen:gaussian", height_size = [64, 64], depth = 0.15, map_size = [64, 64, 16]"#;
 
 /// One displaced quad seen from above, lit from the side.
 fn scene(material: &str) -> String {
-    frame(QUAD_CAMERA, QUAD_LIGHT) + &displaced_quad(material)
+    scene_with(material, "")
+}
+
+/// [`scene`] with `extra` keys in the quad's displacement.
+fn scene_with(material: &str, extra: &str) -> String {
+    frame([64, 64], QUAD_CAMERA, QUAD_LIGHT)
+        + &displaced_quad(material, &format!("{QUAD_DISPLACEMENT}{extra}"))
 }
 
 fn run(args: &[&str], dir: &Path) -> Output {
@@ -218,9 +191,9 @@ fn tiled_quad_matches_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
-        "map_size = [64, 64, 16] }",
-        "map_size = [64, 64, 16], address = \"repeat\", tiles = [2.0, 2.0] }",
+    let text = scene_with(
+        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
+        ", address = \"repeat\", tiles = [2.0, 2.0]",
     );
     compare_scene(&text, "tiled", 6.0);
 }
@@ -233,9 +206,9 @@ fn flipped_quad_matches_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
-        "map_size = [64, 64, 16] }",
-        "map_size = [64, 64, 16], flip_v = true }",
+    let text = scene_with(
+        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
+        ", flip_v = true",
     );
     compare_scene(&text, "flip_v", 4.0);
 }
@@ -252,22 +225,22 @@ fn two_quads_occlude_each_other_as_on_the_cpu() {
     if test_context().is_none() {
         return;
     }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
-        .replace("[0.5, -0.45, 0.95]", "[0.5, -0.9, 0.8]")
-        .replace("[0.5, 0.5, 0.0]", "[0.5, 0.5, 0.1]")
-        .replace("vfov = 50.0", "vfov = 55.0")
-        + r#"
-[materials.blue]
-type = "lambert"
-color = [0.2, 0.3, 0.8]
-
-[[shapes]]
-type = "quad"
-origin = [0.2, 0.3, 0.05]
-edge_u = [0.6, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.5]
-material = "blue"
-displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, map_size = [64, 64, 8] }
+    let camera =
+        "position = [0.5, -0.9, 0.8]\nlook_at = [0.5, 0.5, 0.1]\nup = [0.0, 0.0, 1.0]\nvfov = 55.0";
+    let text = frame([64, 64], camera, QUAD_LIGHT)
+        + &displaced_quad(
+            "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
+            QUAD_DISPLACEMENT,
+        )
+        + "\n"
+        + &lambert("blue", "[0.2, 0.3, 0.8]")
+        + &quad(
+            "[0.2, 0.3, 0.05]",
+            "[0.6, 0.0, 0.0]",
+            "[0.0, 0.0, 0.5]",
+            "blue",
+        )
+        + r#"displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, map_size = [64, 64, 8] }
 "#;
     compare_scene(&text, "two quads", 32.0);
 }
@@ -276,6 +249,7 @@ displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, m
 /// one `[[shapes]]` entry, material `clay`).
 fn mesh_scene(shape: &str) -> String {
     frame(
+        [64, 64],
         "position = [3.3, 2.7, -3.9]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 45.0",
         "position = [1.5, 4.0, -3.0]\nintensity = [12.0, 11.0, 10.0]",
     ) + &format!(
@@ -572,14 +546,15 @@ impl Diffs {
 /// `shapes` (TOML `[[shapes]]` entries, material `wall`) added.
 fn plain_scene(shapes: &str) -> String {
     frame(
+        [64, 64],
         "position = [0.5, -0.8, 1.0]\nlook_at = [0.5, 0.6, 0.2]\nup = [0.0, 0.0, 1.0]\nvfov = 60.0",
         "position = [0.3, -0.3, 1.6]\nintensity = [3.0, 2.5, 2.0]",
-    ) + &displaced_quad("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
-        + r#"
-[materials.wall]
-type = "lambert"
-color = [0.3, 0.6, 0.7]
-"# + shapes
+    ) + &displaced_quad(
+        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
+        QUAD_DISPLACEMENT,
+    ) + "\n"
+        + &lambert("wall", "[0.3, 0.6, 0.7]")
+        + shapes
 }
 
 /// A Lambert wall behind a displaced floor, nothing between either and the
@@ -595,16 +570,13 @@ fn a_plain_wall_matches_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let c = classify(&plain_scene(
-        r#"
-[[shapes]]
-type = "quad"
-origin = [-0.2, 1.2, 0.0]
-edge_u = [1.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 1.0]
-material = "wall"
-"#,
-    ));
+    let wall = quad(
+        "[-0.2, 1.2, 0.0]",
+        "[1.4, 0.0, 0.0]",
+        "[0.0, 0.0, 1.0]",
+        "wall",
+    );
+    let c = classify(&plain_scene(&wall));
     let agree = c.agreement();
     let all = f32::NEG_INFINITY..f32::INFINITY;
     let wall = c.inside(Seen::Plain, all.clone(), 64);
@@ -635,27 +607,23 @@ fn plain_and_displaced_shapes_occlude_each_other() {
     if test_context().is_none() {
         return;
     }
-    let floating = r#"
-[[shapes]]
-type = "quad"
-origin = [0.2, 0.2, 0.4]
-edge_u = [0.6, 0.0, 0.0]
-edge_v = [0.0, 0.6, 0.0]
-material = "wall"
-"#;
-    let under = r#"
-[[shapes]]
-type = "quad"
-origin = [-1.0, -0.5, -0.3]
-edge_u = [3.0, 0.0, 0.0]
-edge_v = [0.0, 3.0, 0.0]
-material = "wall"
-"#;
+    let floating = quad(
+        "[0.2, 0.2, 0.4]",
+        "[0.6, 0.0, 0.0]",
+        "[0.0, 0.6, 0.0]",
+        "wall",
+    );
+    let under = quad(
+        "[-1.0, -0.5, -0.3]",
+        "[3.0, 0.0, 0.0]",
+        "[0.0, 3.0, 0.0]",
+        "wall",
+    );
     let c = classify(&plain_scene(&format!("{floating}{under}")));
     let agree = c.agreement();
     // Where the floating quad hides the floor: the floor on those pixels
     // without it.
-    let bare = classify(&plain_scene(under));
+    let bare = classify(&plain_scene(&under));
     let hidden = c
         .both(Seen::Plain, 0.39..0.41)
         .into_iter()

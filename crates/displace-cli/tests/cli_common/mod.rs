@@ -1,6 +1,7 @@
 //! What several CLI test files share: running the binary, reading a run's
-//! stderr, listing what a run left in its directory, and the smallest scene
-//! `render` draws.
+//! stderr, listing what a run left in its directory, the smallest scene
+//! `render` draws, and the parts of the scenes the GPU tests compare
+//! renderers on.
 #![allow(dead_code)]
 
 use std::path::Path;
@@ -113,5 +114,57 @@ edge_v = [0, 0, 2]
 material = "floor"
 displacement = {{ {displacement} }}
 "#
+    )
+}
+
+/// What the GPU comparison scenes share: `width` x `height` pixels,
+/// primitive visibility and direct light only (one sample, no reflections),
+/// a pinhole `camera` and one point `light` (TOML keys of each).
+pub fn frame([width, height]: [u32; 2], camera: &str, light: &str) -> String {
+    format!(
+        r#"[image]
+width = {width}
+height = {height}
+spp = 1
+max_depth = 0
+shadow_samples = 1
+
+[camera]
+{camera}
+
+[[lights]]
+type = "point"
+{light}
+"#
+    )
+}
+
+/// One displaced unit quad in the xy plane, in material `clay` (`material`
+/// holds its TOML keys), displaced by the inline table `displacement`.
+pub fn displaced_quad(material: &str, displacement: &str) -> String {
+    format!("\n[materials.clay]\n{material}\n\n")
+        + &quad(
+            "[0.0, 0.0, 0.0]",
+            "[1.0, 0.0, 0.0]",
+            "[0.0, 1.0, 0.0]",
+            "clay",
+        )
+        + &format!("displacement = {{ {displacement} }}\n")
+}
+
+/// `[materials.NAME]`: a Lambert surface of linear RGB `color`.
+pub fn lambert(name: &str, color: &str) -> String {
+    format!("[materials.{name}]\ntype = \"lambert\"\ncolor = {color}\n")
+}
+
+/// One `[[lights]]` point light of radiant `intensity` at `position`.
+pub fn point_light(position: &str, intensity: &str) -> String {
+    format!("[[lights]]\ntype = \"point\"\nposition = {position}\nintensity = {intensity}\n")
+}
+
+/// A `[[shapes]]` quad `origin + a edge_u + b edge_v` of `material`.
+pub fn quad(origin: &str, edge_u: &str, edge_v: &str, material: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"{material}\"\n"
     )
 }
