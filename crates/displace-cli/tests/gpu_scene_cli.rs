@@ -7,7 +7,7 @@ mod bad_scenes;
 mod cli_common;
 
 use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
-use cli_common::{displaced_quad, frame, lambert, quad};
+use cli_common::{displaced_quad, frame, lambert, quad, sphere};
 use displace_core::io::npy::read_file;
 use displace_gpu::test_support::test_context;
 use std::path::Path;
@@ -24,6 +24,9 @@ fn displace() -> Command {
 const QUAD_CAMERA: &str =
     "position = [0.5, -0.45, 0.95]\nlook_at = [0.5, 0.5, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0";
 const QUAD_LIGHT: &str = "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]";
+
+/// The keys of the clay material most scenes here draw: a Lambert surface.
+const CLAY: &str = "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]";
 
 /// The displacement of [`scene`]'s quad, without the closing brace: a
 /// test adds its own keys.
@@ -63,16 +66,19 @@ fn rgb(path: &Path) -> Vec<[f32; 3]> {
 /// Where both renderers see the face: UV within 1e-3 of the CPU's on at
 /// least 99.5% of pixels (hit or miss agreeing too); mean absolute sRGB
 /// difference of the colour at most `max_mean` (8-bit steps) over pixels
-/// both hit. Returns (matching fraction, mean colour difference, hits).
-fn compare(material: &str, intensity: &str, max_mean: f32) -> (f64, f32, usize) {
-    compare_scene(
-        &scene(material).replace("[3.0, 2.5, 2.0]", intensity),
-        material,
-        max_mean,
-    )
+/// both hit; the light of radiant `intensity` (TOML RGB).
+fn compare(material: &str, intensity: &str, max_mean: f32) {
+    let light = format!("position = [-0.3, 0.2, 1.5]\nintensity = {intensity}");
+    let text = frame([64, 64], QUAD_CAMERA, &light) + &displaced_quad(material, QUAD_DISPLACEMENT);
+    compare_scene(&text, material, max_mean);
 }
 
-fn compare_scene(text: &str, label: &str, max_mean: f32) -> (f64, f32, usize) {
+/// [`compare`]'s verdict on the scene `text`, `label` naming it; nothing
+/// where the environment allows running without a GPU.
+fn compare_scene(text: &str, label: &str, max_mean: f32) {
+    if test_context().is_none() {
+        return;
+    }
     let m = measure_scene(text);
     let frac = m.matching as f64 / m.pixels as f64;
     let mean = m.colour_mean();
@@ -84,7 +90,6 @@ fn compare_scene(text: &str, label: &str, max_mean: f32) -> (f64, f32, usize) {
     );
     assert!(frac >= 0.995, "UV AOV matches on {frac}");
     assert!(mean <= max_mean, "mean colour difference {mean}");
-    (frac, mean, hits)
 }
 
 /// Per-pixel agreement of the two renderers' 64x64 UV AOVs and colours.
@@ -160,23 +165,13 @@ fn measure_scene(text: &str) -> Agreement {
 /// texture and the filtered normal map.
 #[test]
 fn lambert_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    compare(
-        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        "[3.0, 2.5, 2.0]",
-        4.0,
-    );
+    compare(CLAY, "[3.0, 2.5, 2.0]", 4.0);
 }
 
 /// Normalised Blinn-Phong with a grey highlight (the GPU's is white: the
 /// mean of specular colour and light is used, so the light here is white).
 #[test]
 fn phong_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
     compare(
         "type = \"phong\"\ncolor = [0.7, 0.5, 0.3]\nspecular = [0.3, 0.3, 0.3]\nshininess = 20.0",
         "[2.5, 2.5, 2.5]",
@@ -188,14 +183,8 @@ fn phong_quad_matches_the_cpu_renderer() {
 /// the UV AOV counts tiles, as on the CPU.
 #[test]
 fn tiled_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    let text = scene_with(
-        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        ", address = \"repeat\", tiles = [2.0, 2.0]",
-    );
-    compare_scene(&text, "tiled", 6.0);
+    let repeat = ", address = \"repeat\", tiles = [2.0, 2.0]";
+    compare_scene(&scene_with(CLAY, repeat), "tiled", 6.0);
 }
 
 /// A `flip_v` quad (a left-handed face frame): drawn with the opposite
@@ -203,14 +192,7 @@ fn tiled_quad_matches_the_cpu_renderer() {
 /// `edge_v`, as on the CPU.
 #[test]
 fn flipped_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    let text = scene_with(
-        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        ", flip_v = true",
-    );
-    compare_scene(&text, "flip_v", 4.0);
+    compare_scene(&scene_with(CLAY, ", flip_v = true"), "flip_v", 4.0);
 }
 
 /// Two displaced quads, the upright one in front of the other: one draw
@@ -222,16 +204,10 @@ fn flipped_quad_matches_the_cpu_renderer() {
 /// differences; measured mean difference 14.3/255 (bound 32).
 #[test]
 fn two_quads_occlude_each_other_as_on_the_cpu() {
-    if test_context().is_none() {
-        return;
-    }
     let camera =
         "position = [0.5, -0.9, 0.8]\nlook_at = [0.5, 0.5, 0.1]\nup = [0.0, 0.0, 1.0]\nvfov = 55.0";
     let text = frame([64, 64], camera, QUAD_LIGHT)
-        + &displaced_quad(
-            "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-            QUAD_DISPLACEMENT,
-        )
+        + &displaced_quad(CLAY, QUAD_DISPLACEMENT)
         + "\n"
         + &lambert("blue", "[0.2, 0.3, 0.8]")
         + &quad(
@@ -305,7 +281,7 @@ displacement = { height = "gen:studded?period=8", height_size = [64, 64], depth 
 /// non-zero status, and no output file.
 #[test]
 fn bad_scenes_fail_like_the_cpu_renderer_and_write_nothing() {
-    let good = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]");
+    let good = scene(CLAY);
     for case in bad_scenes(&good, "gen:gaussian") {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
@@ -549,10 +525,8 @@ fn plain_scene(shapes: &str) -> String {
         [64, 64],
         "position = [0.5, -0.8, 1.0]\nlook_at = [0.5, 0.6, 0.2]\nup = [0.0, 0.0, 1.0]\nvfov = 60.0",
         "position = [0.3, -0.3, 1.6]\nintensity = [3.0, 2.5, 2.0]",
-    ) + &displaced_quad(
-        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        QUAD_DISPLACEMENT,
-    ) + "\n"
+    ) + &displaced_quad(CLAY, QUAD_DISPLACEMENT)
+        + "\n"
         + &lambert("wall", "[0.3, 0.6, 0.7]")
         + shapes
 }
@@ -742,22 +716,16 @@ fn a_sphere_and_a_visible_area_light_match_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let c = classify(&plain_scene(
-        r#"
-[[shapes]]
-type = "sphere"
-center = [0.5, 0.5, 0.42]
-radius = 0.2
-material = "wall"
-
+    let shapes = sphere("[0.5, 0.5, 0.42]", 0.2, "wall")
+        + r#"
 [[lights]]
 type = "area"
 origin = [0.35, 1.3, 0.65]
 edge_u = [0.3, 0.0, 0.0]
 edge_v = [0.0, 0.0, 0.2]
 radiance = [5.0, 5.0, 5.0]
-"#,
-    ));
+"#;
+    let c = classify(&plain_scene(&shapes));
     let agree = c.agreement();
     let sphere = c.both(Seen::Plain, 0.21..0.63);
     let light = c.inside(Seen::Plain, 0.64..0.86, 64);

@@ -54,9 +54,7 @@ fn quad(origin: &str, edge_u: &str, edge_v: &str) -> String {
 
 /// A `[[shapes]]` sphere of material `white`.
 fn sphere(center: &str, radius: f32) -> String {
-    format!(
-        "[[shapes]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius:?}\nmaterial = \"white\"\n"
-    )
+    cli_common::sphere(center, radius, "white")
 }
 
 /// The unit square at the origin in the xy plane (the frame of a lone face

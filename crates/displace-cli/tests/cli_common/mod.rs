@@ -106,14 +106,9 @@ origin = [-0.3, 2, -0.3]
 edge_u = [0.6, 0, 0]
 edge_v = [0, 0, 0.6]
 radiance = [6, 6, 6]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-material = "floor"
-displacement = {{ {displacement} }}
-"#
+{floor}displacement = {{ {displacement} }}
+"#,
+        floor = quad("[-1, 0, -1]", "[2, 0, 0]", "[0, 0, 2]", "floor"),
     )
 }
 
@@ -166,5 +161,12 @@ pub fn point_light(position: &str, intensity: &str) -> String {
 pub fn quad(origin: &str, edge_u: &str, edge_v: &str, material: &str) -> String {
     format!(
         "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"{material}\"\n"
+    )
+}
+
+/// A `[[shapes]]` sphere of `material`.
+pub fn sphere(center: &str, radius: f32, material: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius:?}\nmaterial = \"{material}\"\n"
     )
 }
