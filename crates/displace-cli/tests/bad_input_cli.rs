@@ -5,7 +5,7 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr, SPHERE_SCENE};
+use cli_common::{failed, files, stderr, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -18,21 +18,6 @@ fn cmd(dir: &Path) -> Command {
 
 fn run(args: &[&str], dir: &Path) -> Output {
     cmd(dir).args(args).output().expect("run displace")
-}
-
-/// `o` failed without a panic, its message holding every needle and none
-/// of the `absent` ones.
-fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
-    let msg = stderr(o);
-    assert!(!o.status.success(), "succeeded: {msg}");
-    assert!(!msg.contains("panicked"), "{msg}");
-    for n in needles {
-        assert!(msg.contains(n), "`{n}` not in: {msg}");
-    }
-    for a in absent {
-        assert!(!msg.contains(a), "`{a}` in: {msg}");
-    }
-    msg
 }
 
 /// Runs `args` in `dir`, which must fail as [`failed`] says and leave the

@@ -7,7 +7,7 @@ mod bad_scenes;
 mod cli_common;
 
 use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
-use cli_common::{displaced_quad, frame, lambert, quad, sphere};
+use cli_common::{displaced_quad, failed, frame, gpu_scratch_dir, lambert, quad, sphere};
 use displace_core::io::npy::read_file;
 use displace_gpu::test_support::test_context;
 use std::path::Path;
@@ -308,10 +308,9 @@ fn bad_scenes_fail_like_the_cpu_renderer_and_write_nothing() {
 /// differing on no pixel; bounds 99.5% and 0.5%.
 #[test]
 fn displaced_obj_mesh_matches_the_cpu_renderer() {
-    if test_context().is_none() {
+    let Some(dir) = gpu_scratch_dir() else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
+    };
     let obj = dir.path().join("quad.obj");
     std::fs::write(
         &obj,
@@ -367,10 +366,7 @@ fn bad_meshes_fail_with_their_path_and_line() {
             .current_dir(d)
             .output()
             .unwrap();
-        let gpu_err = String::from_utf8_lossy(&gpu.stderr);
-        assert!(!gpu.status.success(), "{path}");
-        assert!(gpu_err.contains(needle), "{path}: {gpu_err}");
-        assert!(!gpu_err.contains("panicked"), "{path}: {gpu_err}");
+        let gpu_err = failed(&gpu, &[needle], &[]);
         assert_eq!(gpu_err, String::from_utf8_lossy(&cpu.stderr), "{path}");
         assert_eq!(std::fs::read_dir(d).unwrap().count(), before, "{path}");
     }

@@ -7,6 +7,13 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+/// A scratch directory for a test that needs the GPU, or `None` where
+/// displace-gpu's test policy lets such a test pass without one.
+pub fn gpu_scratch_dir() -> Option<tempfile::TempDir> {
+    displace_gpu::test_support::test_context()?;
+    Some(tempfile::tempdir().unwrap())
+}
+
 /// Runs `displace ARGS` in `dir` and returns what it did.
 pub fn displace(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_displace"))
@@ -18,6 +25,21 @@ pub fn displace(args: &[&str], dir: &Path) -> Output {
 
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `o` failed without a panic, its message holding every needle and none
+/// of the `absent` ones.
+pub fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
+    let msg = stderr(o);
+    assert!(!o.status.success(), "succeeded: {msg}");
+    assert!(!msg.contains("panicked"), "{msg}");
+    for n in needles {
+        assert!(msg.contains(n), "`{n}` not in: {msg}");
+    }
+    for a in absent {
+        assert!(!msg.contains(a), "`{a}` in: {msg}");
+    }
+    msg
 }
 
 /// The names in `dir`, sorted.
