@@ -1,19 +1,32 @@
 //! Parsing a name into one of a fixed list of values (an addressing mode, a
-//! storage format, a shadow mode), with the one refusal every option of the
-//! libraries and the CLI words alike: what was given, and every name that
-//! would have done.
+//! storage format, a shadow mode), with the refusal every option words
+//! alike: what was given, and every name that would have done (as a list
+//! with "or", or, for the renderer's scene keys, after "known:").
 
 /// The value `choices` pairs with the name `given`, or the message
 /// ``unknown {what} `{given}` (expected a, b or c)`` listing every name in
 /// order.
 pub fn parse_choice<T: Copy>(what: &str, given: &str, choices: &[(&str, T)]) -> Result<T, String> {
-    match choices.iter().find(|(name, _)| *name == given) {
-        Some(&(_, value)) => Ok(value),
-        None => Err(format!(
-            "unknown {what} `{given}` (expected {})",
-            or_list(choices.iter().map(|(name, _)| *name))
-        )),
-    }
+    find(given, choices).ok_or_else(|| {
+        let names = or_list(choices.iter().map(|(name, _)| *name));
+        format!("unknown {what} `{given}` (expected {names})")
+    })
+}
+
+/// [`parse_choice`] with the refusal ``unknown {what} `{given}` (known: a,
+/// b, c)``, as the renderer's scene keys word it.
+pub fn parse_known<T: Copy>(what: &str, given: &str, choices: &[(&str, T)]) -> Result<T, String> {
+    find(given, choices).ok_or_else(|| {
+        let names: Vec<&str> = choices.iter().map(|(name, _)| *name).collect();
+        format!("unknown {what} `{given}` (known: {})", names.join(", "))
+    })
+}
+
+fn find<T: Copy>(given: &str, choices: &[(&str, T)]) -> Option<T> {
+    choices
+        .iter()
+        .find(|(name, _)| *name == given)
+        .map(|&(_, value)| value)
 }
 
 /// `a`, `a or b`, `a, b or c`: names as the refusals list them.
@@ -43,5 +56,9 @@ mod tests {
             Err("unknown letter `x` (expected a or b)".to_string())
         );
         assert_eq!(or_list(["only"]), "only");
+        assert_eq!(
+            parse_known("letter", "d", &choices),
+            Err("unknown letter `d` (known: a, b, c)".to_string())
+        );
     }
 }
