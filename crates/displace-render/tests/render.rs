@@ -94,8 +94,13 @@ fn depth_aov(text: &str, method: Option<Method>) -> Vec<f32> {
         &SceneOptions { method, ..opts() },
     )
     .unwrap();
+    scene_depth(&s)
+}
+
+/// The depth AOV of a render of `s`.
+fn scene_depth(s: &Scene) -> Vec<f32> {
     let r = render(
-        &s,
+        s,
         &RenderOptions {
             aovs: vec![Aov::Depth],
             ..Default::default()
@@ -426,18 +431,11 @@ fn obj_meshes_load_and_displace() {
     std::fs::write(dir.path().join("s.toml"), &text).unwrap();
     let s = Scene::load(&dir.path().join("s.toml"), &opts()).unwrap();
     assert_eq!(s.primitive_count(), 2);
-    let r = render(
-        &s,
-        &RenderOptions {
-            aovs: vec![Aov::Depth],
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let mesh = scene_depth(&s);
     let quad = depth_aov(&base, None);
     let differ = quad
         .iter()
-        .zip(&r.aovs[0].data)
+        .zip(&mesh)
         .filter(|(a, b)| {
             a.is_finite() != b.is_finite() || (a.is_finite() && (*a - *b).abs() > 1e-3)
         })
