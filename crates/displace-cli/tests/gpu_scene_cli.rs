@@ -527,6 +527,11 @@ fn plain_scene(shapes: &str) -> String {
         + shapes
 }
 
+/// A quad of the plain scenes' material `wall`.
+fn wall_quad(origin: &str, edge_u: &str, edge_v: &str) -> String {
+    quad(origin, edge_u, edge_v, "wall")
+}
+
 /// A Lambert wall behind a displaced floor, nothing between either and the
 /// light: both renderers see background, wall and floor on the same pixels,
 /// and the wall's colour is the CPU's direct term. The colour differs by
@@ -540,12 +545,7 @@ fn a_plain_wall_matches_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let wall = quad(
-        "[-0.2, 1.2, 0.0]",
-        "[1.4, 0.0, 0.0]",
-        "[0.0, 0.0, 1.0]",
-        "wall",
-    );
+    let wall = wall_quad("[-0.2, 1.2, 0.0]", "[1.4, 0.0, 0.0]", "[0.0, 0.0, 1.0]");
     let c = classify(&plain_scene(&wall));
     let agree = c.agreement();
     let all = f32::NEG_INFINITY..f32::INFINITY;
@@ -577,18 +577,8 @@ fn plain_and_displaced_shapes_occlude_each_other() {
     if test_context().is_none() {
         return;
     }
-    let floating = quad(
-        "[0.2, 0.2, 0.4]",
-        "[0.6, 0.0, 0.0]",
-        "[0.0, 0.6, 0.0]",
-        "wall",
-    );
-    let under = quad(
-        "[-1.0, -0.5, -0.3]",
-        "[3.0, 0.0, 0.0]",
-        "[0.0, 3.0, 0.0]",
-        "wall",
-    );
+    let floating = wall_quad("[0.2, 0.2, 0.4]", "[0.6, 0.0, 0.0]", "[0.0, 0.6, 0.0]");
+    let under = wall_quad("[-1.0, -0.5, -0.3]", "[3.0, 0.0, 0.0]", "[0.0, 3.0, 0.0]");
     let c = classify(&plain_scene(&format!("{floating}{under}")));
     let agree = c.agreement();
     // Where the floating quad hides the floor: the floor on those pixels
