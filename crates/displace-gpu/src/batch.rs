@@ -3,10 +3,13 @@
 //! and a group 1 of rays and results, one invocation per ray in workgroups
 //! of [`WORKGROUP`], dispatched to read the results back or to be timed.
 
-use crate::descriptors::{empty_buffer, pipeline_layout, shader_module};
+use crate::descriptors::{bind_group, buffer_of, empty_buffer, pipeline_layout, shader_module};
+use crate::gpu_map::GpuMap;
 use crate::timing::{compute_writes, time_frames, Timing};
+use crate::trace::RayIn;
 use crate::{Error, GpuContext, Result};
 use bytemuck::Pod;
+use displace_core::MapRay;
 
 pub(crate) const WORKGROUP: u32 = 64;
 
@@ -159,4 +162,116 @@ pub(crate) fn time_compute(
         }
         Ok(())
     })
+}
+
+/// Group 1 of a batch query: the `rays` (binding 0), a storage buffer for
+/// one `H` per ray (binding 1), then `extra` (bindings 2, 3, ...). Returns
+/// the group and the result buffer.
+fn ray_buffers<H>(
+    ctx: &GpuContext,
+    rays_label: &str,
+    hits_label: &str,
+    layout: &wgpu::BindGroupLayout,
+    rays: &[MapRay],
+    extra: &[wgpu::BindingResource],
+) -> (wgpu::BindGroup, wgpu::Buffer) {
+    let ray_buf = buffer_of(
+        ctx,
+        rays_label,
+        bytemuck::cast_slice(&RayIn::all(rays)),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let hit_buf = empty_buffer(
+        ctx,
+        hits_label,
+        (rays.len() * std::mem::size_of::<H>()) as u64,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let mut resources = vec![ray_buf.as_entire_binding(), hit_buf.as_entire_binding()];
+    resources.extend(extra.iter().cloned());
+    let group = bind_group(ctx, rays_label, layout, &resources);
+    (group, hit_buf)
+}
+
+/// What every batch query holds: the map (group 0), the layout of its
+/// group 1 of rays, results and extras, and the pipeline over both.
+pub(crate) struct BatchQuery {
+    pub(crate) map: GpuMap,
+    rays_layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    /// Labels of the ray and result buffers of each dispatch.
+    labels: [&'static str; 2],
+}
+
+impl BatchQuery {
+    /// Compiles `source`'s `entry` over `map`'s group 0 and `rays_layout`
+    /// ([`compute_pipeline`]); `labels` name the ray and result buffers.
+    pub(crate) fn new(
+        ctx: &GpuContext,
+        [label, entry]: [&str; 2],
+        source: String,
+        map: GpuMap,
+        rays_layout: wgpu::BindGroupLayout,
+        labels: [&'static str; 2],
+    ) -> Result<Self> {
+        let pipeline = compute_pipeline(ctx, label, source, entry, &[&map.layout, &rays_layout])?;
+        Ok(Self {
+            map,
+            rays_layout,
+            pipeline,
+            labels,
+        })
+    }
+
+    /// One dispatch over `rays` (at most one chunk) with `map_group` and a
+    /// group 1 of the rays, `H` results and `extra` ([`ray_buffers`]), the
+    /// results read back.
+    pub(crate) fn dispatch<H: Pod>(
+        &self,
+        ctx: &GpuContext,
+        map_group: &wgpu::BindGroup,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+    ) -> Result<Vec<H>> {
+        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
+            self.rays_group::<H>(ctx, rays, extra)
+        })
+    }
+
+    /// GPU time of `frames` such dispatches ([`time_dispatches`]); the
+    /// results are discarded.
+    pub(crate) fn time<H>(
+        &self,
+        ctx: &GpuContext,
+        map_group: &wgpu::BindGroup,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+        frames: u32,
+    ) -> Result<Timing> {
+        let (rays_group, _results) = self.rays_group::<H>(ctx, rays, extra);
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
+    }
+
+    fn rays_group<H>(
+        &self,
+        ctx: &GpuContext,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+    ) -> (wgpu::BindGroup, wgpu::Buffer) {
+        let [rays_label, results_label] = self.labels;
+        ray_buffers::<H>(
+            ctx,
+            rays_label,
+            results_label,
+            &self.rays_layout,
+            rays,
+            extra,
+        )
+    }
 }

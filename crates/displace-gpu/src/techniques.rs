@@ -10,9 +10,7 @@
 //! uploaded as [`DistanceTexture::R8Load`], the CPU tracer's own 8-bit codes,
 //! so distance mapping reads bit for bit what the CPU reads.
 
-use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, time_dispatches,
-};
+use crate::batch::{check_cell_cap, chunk_size, BatchQuery};
 use crate::convention::technique_code;
 use crate::descriptors::{
     bind_group_layout, storage_entry, texture_entry, uniform_buffer, uniform_entry,
@@ -21,7 +19,7 @@ use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{technique_compute_source, DistanceTexture};
 use crate::technique_maps::TechniqueTextures;
 use crate::timing::Timing;
-use crate::trace::{check_rays, ray_buffers};
+use crate::trace::check_rays;
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::techniques::{Hit, Maps, Needs, Technique, Traced};
@@ -53,12 +51,13 @@ const TECHNIQUE_FOUND: u32 = 1;
 
 /// The textures of one [`Maps`] and the pipeline that traces them.
 pub struct TechniqueTracer {
-    map: GpuMap,
+    query: BatchQuery,
     has_distance: bool,
     textures: TechniqueTextures,
-    pipeline: wgpu::ComputePipeline,
-    rays_layout: wgpu::BindGroupLayout,
 }
+
+/// Labels of the query's ray and hit buffers.
+const LABELS: [&str; 2] = ["technique rays", "technique hits"];
 
 impl TechniqueTracer {
     /// Uploads `maps` (whatever precomputations it holds) and builds the
@@ -79,19 +78,18 @@ impl TechniqueTracer {
         };
         let textures = TechniqueTextures::new(ctx, maps)?;
         let rays_layout = rays_layout(ctx);
-        let pipeline = compute_pipeline(
+        let query = BatchQuery::new(
             ctx,
-            "techniques",
+            ["techniques", "technique_main"],
             technique_compute_source(texture),
-            "technique_main",
-            &[&map.layout, &rays_layout],
+            map,
+            rays_layout,
+            LABELS,
         )?;
         Ok(Self {
-            map,
+            query,
             has_distance: maps.displacement.is_some(),
             textures,
-            pipeline,
-            rays_layout,
         })
     }
 
@@ -109,7 +107,11 @@ impl TechniqueTracer {
         let chunk = chunk_size(ctx, std::mem::size_of::<TechniqueHitOut>() as u64);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
-            for h in self.trace_chunk(ctx, &uniforms, batch)? {
+            let extra = self.extra(&uniforms);
+            for h in
+                self.query
+                    .dispatch::<TechniqueHitOut>(ctx, &uniforms.map_group, batch, &extra)?
+            {
                 check_cell_cap(h.flags, &format!("tracing rays with {}", technique.name()))?;
                 out.push(to_traced(&h));
             }
@@ -137,12 +139,11 @@ impl TechniqueTracer {
             });
         }
         let uniforms = self.uniforms(ctx, technique, budget)?;
-        let (rays_group, _hits) = self.ray_buffers(ctx, &uniforms, rays);
-        time_dispatches(
+        self.query.time::<TechniqueHitOut>(
             ctx,
-            &self.pipeline,
-            [&uniforms.map_group, &rays_group],
-            rays.len(),
+            &uniforms.map_group,
+            rays,
+            &self.extra(&uniforms),
             frames,
         )
     }
@@ -172,7 +173,7 @@ impl TechniqueTracer {
             iterations: budget,
             ..TraceOptions::default()
         };
-        let params: MapParams = self.map.params(&opts)?;
+        let params: MapParams = self.query.map.params(&opts)?;
         let map_buf = uniform_buffer(ctx, "technique map params", &params);
         let technique = TechniqueParams {
             technique: technique_code(technique),
@@ -181,42 +182,21 @@ impl TechniqueTracer {
         };
         let technique_buf = uniform_buffer(ctx, "technique params", &technique);
         Ok(Uniforms {
-            map_group: self.map.bind_group(ctx, &map_buf),
+            map_group: self.query.map.bind_group(ctx, &map_buf),
             technique: technique_buf,
         })
     }
 
-    fn ray_buffers(
-        &self,
-        ctx: &GpuContext,
-        uniforms: &Uniforms,
-        rays: &[MapRay],
-    ) -> (wgpu::BindGroup, wgpu::Buffer) {
+    /// Bindings 2 to 5 of group 1: the technique's uniform, cones,
+    /// relaxed cones and the pyramid.
+    fn extra<'a>(&'a self, uniforms: &'a Uniforms) -> [wgpu::BindingResource<'a>; 4] {
         let view = wgpu::BindingResource::TextureView;
-        ray_buffers::<TechniqueHitOut>(
-            ctx,
-            "technique rays",
-            "technique hits",
-            &self.rays_layout,
-            rays,
-            &[
-                uniforms.technique.as_entire_binding(),
-                view(&self.textures.cones),
-                view(&self.textures.relaxed),
-                view(&self.textures.pyramid),
-            ],
-        )
-    }
-
-    fn trace_chunk(
-        &self,
-        ctx: &GpuContext,
-        uniforms: &Uniforms,
-        rays: &[MapRay],
-    ) -> Result<Vec<TechniqueHitOut>> {
-        dispatch_and_read(ctx, &self.pipeline, &uniforms.map_group, rays.len(), || {
-            self.ray_buffers(ctx, uniforms, rays)
-        })
+        [
+            uniforms.technique.as_entire_binding(),
+            view(&self.textures.cones),
+            view(&self.textures.relaxed),
+            view(&self.textures.pyramid),
+        ]
     }
 }
 

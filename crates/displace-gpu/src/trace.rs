@@ -3,13 +3,9 @@
 //! returning the CPU's own [`MapHit`] so the two backends are
 //! interchangeable.
 
-use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, time_dispatches,
-};
+use crate::batch::{check_cell_cap, chunk_size, BatchQuery};
 use crate::convention::{FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
-use crate::descriptors::{
-    bind_group, bind_group_layout, buffer_of, empty_buffer, storage_entry, uniform_buffer,
-};
+use crate::descriptors::{bind_group_layout, storage_entry, uniform_buffer};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
@@ -64,35 +60,6 @@ pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
     Ok(())
 }
 
-/// Group 1 of a batch query: the `rays` (binding 0), a storage buffer for
-/// one `H` per ray (binding 1), then `extra` (bindings 2, 3, ...). Returns
-/// the group and the result buffer.
-pub(crate) fn ray_buffers<H>(
-    ctx: &GpuContext,
-    rays_label: &str,
-    hits_label: &str,
-    layout: &wgpu::BindGroupLayout,
-    rays: &[MapRay],
-    extra: &[wgpu::BindingResource],
-) -> (wgpu::BindGroup, wgpu::Buffer) {
-    let ray_buf = buffer_of(
-        ctx,
-        rays_label,
-        bytemuck::cast_slice(&RayIn::all(rays)),
-        wgpu::BufferUsages::STORAGE,
-    );
-    let hit_buf = empty_buffer(
-        ctx,
-        hits_label,
-        (rays.len() * std::mem::size_of::<H>()) as u64,
-        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    );
-    let mut resources = vec![ray_buf.as_entire_binding(), hit_buf.as_entire_binding()];
-    resources.extend(extra.iter().cloned());
-    let group = bind_group(ctx, rays_label, layout, &resources);
-    (group, hit_buf)
-}
-
 /// Mirror of WGSL `HitOut`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -117,10 +84,11 @@ pub struct GpuTraceOptions {
 
 /// A compiled ray-query pipeline for one map, reusable across batches.
 pub struct RayTracer {
-    map: GpuMap,
-    pipeline: wgpu::ComputePipeline,
-    rays_layout: wgpu::BindGroupLayout,
+    query: BatchQuery,
 }
+
+/// Labels of the query's ray and hit buffers.
+const LABELS: [&str; 2] = ["rays", "hits"];
 
 impl RayTracer {
     /// Uploads `map` and compiles the query for `texture`.
@@ -131,18 +99,15 @@ impl RayTracer {
             "rays",
             &[storage_entry(0, true), storage_entry(1, false)],
         );
-        let pipeline = compute_pipeline(
+        let query = BatchQuery::new(
             ctx,
-            "ray-query",
+            ["ray-query", "trace_main"],
             compute_trace_source(texture),
-            "trace_main",
-            &[&gpu_map.layout, &rays_layout],
-        )?;
-        Ok(Self {
-            map: gpu_map,
-            pipeline,
+            gpu_map,
             rays_layout,
-        })
+            LABELS,
+        )?;
+        Ok(Self { query })
     }
 
     /// Traces `rays` (map space, `dir` unit length as for the CPU).
@@ -152,14 +117,14 @@ impl RayTracer {
         rays: &[MapRay],
         opts: &TraceOptions,
     ) -> Result<Vec<Option<GpuHit>>> {
-        let params = self.map.params(opts)?;
+        let params = self.query.map.params(opts)?;
         check_rays(rays)?;
         let chunk = chunk_size(ctx, std::mem::size_of::<HitOut>() as u64);
         let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
-        let map_group = self.map.bind_group(ctx, &params_buf);
+        let map_group = self.query.map.bind_group(ctx, &params_buf);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
-            for h in self.trace_chunk(ctx, &map_group, batch)? {
+            for h in self.query.dispatch::<HitOut>(ctx, &map_group, batch, &[])? {
                 check_cell_cap(h.flags, "tracing rays")?;
                 out.push(to_hit(&h)?);
             }
@@ -176,32 +141,11 @@ impl RayTracer {
         opts: &TraceOptions,
         frames: u32,
     ) -> Result<crate::timing::Timing> {
-        let params = self.map.params(opts)?;
+        let params = self.query.map.params(opts)?;
         let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
-        let map_group = self.map.bind_group(ctx, &params_buf);
-        let (rays_group, _hits) = self.ray_buffers(ctx, rays);
-        time_dispatches(
-            ctx,
-            &self.pipeline,
-            [&map_group, &rays_group],
-            rays.len(),
-            frames,
-        )
-    }
-
-    fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
-        ray_buffers::<HitOut>(ctx, "rays", "hits", &self.rays_layout, rays, &[])
-    }
-
-    fn trace_chunk(
-        &self,
-        ctx: &GpuContext,
-        map_group: &wgpu::BindGroup,
-        rays: &[MapRay],
-    ) -> Result<Vec<HitOut>> {
-        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
-            self.ray_buffers(ctx, rays)
-        })
+        let map_group = self.query.map.bind_group(ctx, &params_buf);
+        self.query
+            .time::<HitOut>(ctx, &map_group, rays, &[], frames)
     }
 }
 
