@@ -5,7 +5,7 @@
 
 mod cli_common;
 
-use cli_common::{failed, files, stderr, SPHERE_SCENE};
+use cli_common::{failed, files, stderr, words, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -189,11 +189,6 @@ fn write_displaced(dir: &Path, keys: &str) {
 fn write_rays(path: &Path, rays: &[[f32; 6]]) {
     let flat: Vec<f32> = rays.iter().flatten().copied().collect();
     displace_core::io::npy::write_file(path, &[rays.len(), 6], &flat).unwrap();
-}
-
-/// The arguments of a command line without quoting: its words.
-fn words(command: &str) -> Vec<&str> {
-    command.split_whitespace().collect()
 }
 
 /// The whole peak of a bake is estimated and refused past the memory

@@ -42,6 +42,11 @@ pub fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
     msg
 }
 
+/// The arguments of a command line without quoting: its words.
+pub fn words(command: &str) -> Vec<&str> {
+    command.split_whitespace().collect()
+}
+
 /// The names in `dir`, sorted.
 pub fn files(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
