@@ -77,13 +77,11 @@ pub struct BakeArgs {
 }
 
 pub fn parse_cone_kind(s: &str) -> Result<ConeKind, String> {
-    match s {
-        "conservative" => Ok(ConeKind::Conservative),
-        "relaxed" => Ok(ConeKind::Relaxed),
-        other => Err(format!(
-            "unknown cone kind `{other}` (expected conservative or relaxed)"
-        )),
-    }
+    let choices = [
+        ("conservative", ConeKind::Conservative),
+        ("relaxed", ConeKind::Relaxed),
+    ];
+    displace_core::names::parse_choice("cone kind", s, &choices)
 }
 
 pub fn parse_channel(s: &str) -> Result<Channel, String> {

@@ -295,11 +295,7 @@ pub fn run(args: BenchBakeArgs) -> Result<()> {
         };
         for name in names {
             let height = height_for(name, size[0], size[1])?;
-            let opts = BakeOptions {
-                size,
-                extent,
-                ..BakeOptions::default()
-            };
+            let opts = BakeOptions::new(size, extent);
             let mut best = f64::INFINITY;
             let mut total = 0.0;
             // The same rule as the peer script: the best of 3 to 10 runs,

@@ -114,11 +114,7 @@ pub fn run(args: BenchTraceArgs) -> Result<()> {
     );
     for name in generators::NAMES {
         let height = height_for(name, size[0], size[1])?;
-        let opts = BakeOptions {
-            size,
-            extent,
-            ..BakeOptions::default()
-        };
+        let opts = BakeOptions::new(size, extent);
         let map = all
             .install(|| displace_core::bake(&height, &opts))
             .context("baking")?;

@@ -239,11 +239,7 @@ fn prepare(
     // The exact reference traces through the baked map's `Method::Exact`,
     // so the distance map is always built; it is reported only when a
     // distance technique is compared.
-    let opts = BakeOptions {
-        size: [height.width(), height.height(), depth],
-        extent,
-        ..BakeOptions::default()
-    };
+    let opts = BakeOptions::new([height.width(), height.height(), depth], extent);
     let start = Instant::now();
     let baked = bake(&height, &opts).context("baking the distance map")?;
     let seconds = start.elapsed().as_secs_f64();

@@ -73,12 +73,18 @@ fn axis(n: usize, scale: usize) -> Vec<f32> {
 }
 
 /// A vertex grid `us x vs` over the face, row-major in `v`.
-struct Grid {
+/// The mesh of a height map: its vertices at the grid `us x vs` of
+/// texture coordinates, sampled from the heights and their normals, in a
+/// tile of `extent`.
+struct Grid<'a> {
     us: Vec<f32>,
     vs: Vec<f32>,
+    height: &'a HeightMap,
+    normals: &'a NormalMap,
+    extent: Extent,
 }
 
-impl Grid {
+impl Grid<'_> {
     fn vertices(&self) -> usize {
         self.us.len() * self.vs.len()
     }
@@ -86,12 +92,8 @@ impl Grid {
         2 * (self.us.len() - 1) * (self.vs.len() - 1)
     }
     /// Every vertex as (position, normal, uv), row by row.
-    fn each_vertex<'a>(
-        &'a self,
-        height: &'a HeightMap,
-        normals: &'a NormalMap,
-        extent: Extent,
-    ) -> impl Iterator<Item = ([f32; 3], [f32; 3], [f32; 2])> + 'a {
+    fn each_vertex(&self) -> impl Iterator<Item = ([f32; 3], [f32; 3], [f32; 2])> + '_ {
+        let (height, normals, extent) = (self.height, self.normals, self.extent);
         self.vs.iter().flat_map(move |&v| {
             self.us.iter().map(move |&u| {
                 let h = height.sample(u, v);
@@ -149,14 +151,17 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
             args.scale
         );
     }
+    let normals = NormalMap::from_height(&height, args.extent);
     let grid = Grid {
         us: axis(height.width(), args.scale as usize),
         vs: axis(height.height(), args.scale as usize),
+        height: &height,
+        normals: &normals,
+        extent: args.extent,
     };
-    let normals = NormalMap::from_height(&height, args.extent);
     let write = |w: &mut dyn Write| match kind {
-        MeshFile::Obj => write_obj(w, &grid, &height, &normals, args.extent),
-        MeshFile::Ply => write_ply(w, &grid, &height, &normals, args.extent),
+        MeshFile::Obj => write_obj(w, &grid),
+        MeshFile::Ply => write_ply(w, &grid),
     };
     write_atomic(&args.output, write)
         .with_context(|| format!("writing {}", args.output.display()))?;
@@ -202,13 +207,7 @@ fn check_memory(args: &ExportMeshArgs) -> Result<()> {
     Ok(())
 }
 
-fn write_obj(
-    w: &mut dyn Write,
-    g: &Grid,
-    h: &HeightMap,
-    n: &NormalMap,
-    e: Extent,
-) -> std::io::Result<()> {
+fn write_obj(w: &mut dyn Write, g: &Grid) -> std::io::Result<()> {
     writeln!(
         w,
         "# displace export-mesh: {} vertices, {} triangles",
@@ -216,13 +215,13 @@ fn write_obj(
         g.triangles()
     )?;
     // Three passes rather than a copy of every vertex in memory.
-    for (p, _, _) in g.each_vertex(h, n, e) {
+    for (p, _, _) in g.each_vertex() {
         writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
     }
-    for (_, _, t) in g.each_vertex(h, n, e) {
+    for (_, _, t) in g.each_vertex() {
         writeln!(w, "vt {} {}", t[0], t[1])?;
     }
-    for (_, nn, _) in g.each_vertex(h, n, e) {
+    for (_, nn, _) in g.each_vertex() {
         writeln!(w, "vn {} {} {}", nn[0], nn[1], nn[2])?;
     }
     for [a, b, c] in g.each_triangle() {
@@ -232,13 +231,7 @@ fn write_obj(
     Ok(())
 }
 
-fn write_ply(
-    w: &mut dyn Write,
-    g: &Grid,
-    h: &HeightMap,
-    n: &NormalMap,
-    e: Extent,
-) -> std::io::Result<()> {
+fn write_ply(w: &mut dyn Write, g: &Grid) -> std::io::Result<()> {
     write!(
         w,
         "ply\nformat binary_little_endian 1.0\ncomment displace export-mesh\n\
@@ -249,7 +242,7 @@ fn write_ply(
         g.vertices(),
         g.triangles()
     )?;
-    for (p, nn, t) in g.each_vertex(h, n, e) {
+    for (p, nn, t) in g.each_vertex() {
         for c in p.into_iter().chain(nn).chain(t) {
             w.write_all(&c.to_le_bytes())?;
         }
@@ -279,9 +272,12 @@ mod tests {
         let g = Grid {
             us: axis(3, 1),
             vs: axis(2, 1),
+            height: &h,
+            normals: &n,
+            extent: e,
         };
         assert_eq!((g.vertices(), g.triangles()), (5 * 4, 2 * 4 * 3));
-        let verts: Vec<_> = g.each_vertex(&h, &n, e).collect();
+        let verts: Vec<_> = g.each_vertex().collect();
         for j in 0..2 {
             for i in 0..3 {
                 let (p, _, uv) = verts[(j + 1) * 5 + i + 1];

@@ -149,15 +149,22 @@ fn bake_face(face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
         },
     )
     .with_context(|| format!("loading height map {}", face.height))?;
-    bake(
-        &height,
-        &BakeOptions {
-            size,
-            extent: face.extent,
-            ..BakeOptions::default()
-        },
-    )
-    .context("baking the distance map")
+    bake(&height, &BakeOptions::new(size, face.extent)).context("baking the distance map")
+}
+
+/// Writes a GPU frame's RGBA8 (sRGB) texels as an RGB PNG: the frames are
+/// opaque, so the alpha channel is dropped, as `render` writes its PNGs.
+pub(crate) fn write_png_rgba8(
+    path: &std::path::Path,
+    width: u32,
+    height: u32,
+    rgba8: &[u8],
+) -> displace_render::Result<()> {
+    let rgb: Vec<u8> = rgba8
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    displace_render::output::write_png_rgb8(path, width, height, &rgb)
 }
 
 fn open_gpu() -> Result<GpuContext> {
@@ -231,14 +238,7 @@ fn write_outputs(
         .with_context(|| format!("writing {}", npy.display()))?;
     }
     match kind {
-        ImageFile::Png => {
-            let rgb: Vec<u8> = image
-                .rgba8
-                .chunks_exact(4)
-                .flat_map(|p| [p[0], p[1], p[2]])
-                .collect();
-            displace_render::output::write_png_rgb8(output, image.width, image.height, &rgb)
-        }
+        ImageFile::Png => write_png_rgba8(output, image.width, image.height, &image.rgba8),
         ImageFile::Exr => {
             // The frame is rendered to an 8-bit sRGB target: its EXR is
             // those values decoded to linear, as `render` writes EXR.
@@ -432,15 +432,7 @@ mod tests {
         };
         let height = generators::generate("gen:gaussian", 32, 32, Address::Clamp).unwrap();
         let extent = Extent::new(2.0, 1.0, 0.25).unwrap();
-        let map = bake(
-            &height,
-            &BakeOptions {
-                size: [32, 32, 8],
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let map = bake(&height, &BakeOptions::new([32, 32, 8], extent)).unwrap();
         let mut rays = Vec::new();
         for i in 0..20 {
             for j in 0..20 {

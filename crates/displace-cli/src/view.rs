@@ -80,12 +80,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
         })
     })?;
     if let (Some(path), Some(shot)) = (&args.screenshot, shot) {
-        let rgb: Vec<u8> = shot
-            .rgba8
-            .chunks_exact(4)
-            .flat_map(|p| [p[0], p[1], p[2]])
-            .collect();
-        displace_render::output::write_png_rgb8(path, shot.width, shot.height, &rgb)
+        crate::gpu::write_png_rgba8(path, shot.width, shot.height, &shot.rgba8)
             .with_context(|| format!("writing {}", path.display()))?;
         println!(
             "{} frames, {}x{} -> {}",

@@ -5,7 +5,7 @@
 
 mod cli_common;
 
-use cli_common::{files, stderr, SPHERE_SCENE};
+use cli_common::{failed, files, stderr, words, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -18,21 +18,6 @@ fn cmd(dir: &Path) -> Command {
 
 fn run(args: &[&str], dir: &Path) -> Output {
     cmd(dir).args(args).output().expect("run displace")
-}
-
-/// `o` failed without a panic, its message holding every needle and none
-/// of the `absent` ones.
-fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
-    let msg = stderr(o);
-    assert!(!o.status.success(), "succeeded: {msg}");
-    assert!(!msg.contains("panicked"), "{msg}");
-    for n in needles {
-        assert!(msg.contains(n), "`{n}` not in: {msg}");
-    }
-    for a in absent {
-        assert!(!msg.contains(a), "`{a}` in: {msg}");
-    }
-    msg
 }
 
 /// Runs `args` in `dir`, which must fail as [`failed`] says and leave the
@@ -224,66 +209,39 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
         assert_eq!(files(d), before, "{msg}");
         msg
     };
-    // The case: every buffer passes the 8 GiB check; the whole
-    // needs about 50 GB. Refused at once, nothing allocated.
-    let start = Instant::now();
-    let msg = refused(
-        "16G",
-        &[
-            "bake",
-            "gen:flat",
-            "--height-size",
-            "46000x46000",
-            "--size",
-            "32x32x8",
-            "-o",
-            "m.npy",
-        ],
+    // Refused at once under a 16 GB limit, before anything is allocated or
+    // generated: `command` (a command line, split at spaces) fails naming
+    // `needle`.
+    let refused_at_once = |command: &str, needle: &str| {
+        let start = Instant::now();
+        let msg = refused("16G", &words(command));
+        assert!(msg.contains(needle), "{msg}");
+        assert!(start.elapsed() < Duration::from_secs(10));
+    };
+    // Every buffer passes the 8 GiB check; the whole needs about 50 GB.
+    refused_at_once(
+        "bake gen:flat --height-size 46000x46000 --size 32x32x8 -o m.npy",
+        "46000x46000",
     );
-    assert!(msg.contains("46000x46000"), "{msg}");
-    assert!(start.elapsed() < Duration::from_secs(10));
     // `export-mesh` holds the heights and their normals (16 bytes a texel,
-    // 34 GB here): refused as fast, before the generator runs.
-    let start = Instant::now();
-    let msg = refused(
-        "16G",
-        &[
-            "export-mesh",
-            "gen:flat",
-            "--height-size",
-            "46000x46000",
-            "--extent",
-            "1,1,0.1",
-            "-o",
-            "m.ply",
-        ],
+    // 34 GB here).
+    refused_at_once(
+        "export-mesh gen:flat --height-size 46000x46000 --extent 1,1,0.1 -o m.ply",
+        "export-mesh of a 46000x46000",
     );
-    assert!(msg.contains("export-mesh of a 46000x46000"), "{msg}");
-    assert!(start.elapsed() < Duration::from_secs(10));
     // `compare` holds every map's heights, the one in work with its
     // precomputations and bake (hundreds of GB here): refused as fast,
-    // before the generator runs or the output directory is made.
-    let start = Instant::now();
-    let compare = |extra: &[&str]| {
-        let mut args = vec![
-            "compare",
-            "--only-given",
-            "--height",
-            "gen:flat",
-            "--out",
-            "o",
-        ];
-        args.extend(extra);
-        refused("16G", &args)
-    };
-    let msg = compare(&["--height-size", "46000x46000"]);
-    assert!(
-        msg.contains("compare on 1 height maps (the largest 46000x46000)"),
-        "{msg}"
+    // before the output directory is made.
+    let compare = "compare --only-given --height gen:flat --out o";
+    refused_at_once(
+        &format!("{compare} --height-size 46000x46000"),
+        "compare on 1 height maps (the largest 46000x46000)",
     );
-    assert!(start.elapsed() < Duration::from_secs(10));
     // So are rays by the billion (their hits are kept per elevation).
-    let msg = compare(&["--quick", "--rays", "4000000000"]);
+    let msg = refused(
+        "16G",
+        &words(&format!("{compare} --quick --rays 4000000000")),
+    );
     assert!(msg.contains("4000000000 rays"), "{msg}");
     // A small bake under a smaller limit; then allowed.
     let small = ["bake", "gen:gaussian", "--size", "64x64x8", "-o", "m.npy"];

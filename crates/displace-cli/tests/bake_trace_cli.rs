@@ -5,7 +5,7 @@
 
 mod cli_common;
 
-use cli_common::{displace, files, stderr};
+use cli_common::{displace, files, ok, stderr, words};
 use displace_core::io::{dds, ktx2, npy};
 use displace_core::{Address, Extent};
 use std::path::Path;
@@ -387,7 +387,7 @@ fn bad_inputs_are_refused_cleanly() {
     std::fs::write(d.join("empty.png"), b"").unwrap();
     refuses(
         d,
-        &["bake", "empty.png", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake empty.png --size 8x8x4 -o o.ktx2"),
         &["empty.png", "empty"],
     );
     ImageBuffer::<Luma<u8>, _>::from_fn(1, 1, |_, _| Luma([7]))
@@ -395,7 +395,7 @@ fn bad_inputs_are_refused_cleanly() {
         .unwrap();
     refuses(
         d,
-        &["bake", "one.png", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake one.png --size 8x8x4 -o o.ktx2"),
         &["one.png", "1x1"],
     );
     std::fs::write(
@@ -405,7 +405,7 @@ fn bad_inputs_are_refused_cleanly() {
     .unwrap();
     refuses(
         d,
-        &["bake", "corrupt.png", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake corrupt.png --size 8x8x4 -o o.ktx2"),
         &["corrupt.png"],
     );
     ImageBuffer::<Luma<u16>, _>::from_fn(64, 64, |x, y| Luma([(x * 1000 + y) as u16]))
@@ -415,7 +415,7 @@ fn bad_inputs_are_refused_cleanly() {
     std::fs::write(d.join("trunc.png"), &full[..full.len() / 2]).unwrap();
     refuses(
         d,
-        &["bake", "trunc.png", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake trunc.png --size 8x8x4 -o o.ktx2"),
         &["trunc.png"],
     );
     {
@@ -436,35 +436,31 @@ fn bad_inputs_are_refused_cleanly() {
     }
     refuses(
         d,
-        &["bake", "nan.exr", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake nan.exr --size 8x8x4 -o o.ktx2"),
         &["nan.exr", "NaN", "(1, 1)"],
     );
     refuses(
         d,
-        &["bake", "height.jpg", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake height.jpg --size 8x8x4 -o o.ktx2"),
         &["height.jpg"],
     );
 
     // Extents and sizes.
     refuses(
         d,
-        &["bake", "--extent", "1,1,0", "-o", "o.ktx2"],
+        &words("bake --extent 1,1,0 -o o.ktx2"),
         &["depth", "positive"],
     );
     refuses(
         d,
-        &["bake", "--extent", "-1,1,0.1", "-o", "o.ktx2"],
+        &words("bake --extent -1,1,0.1 -o o.ktx2"),
         &["width", "positive"],
     );
-    refuses(
-        d,
-        &["bake", "--extent", "1,1", "-o", "o.ktx2"],
-        &["SX,SY,SZ"],
-    );
+    refuses(d, &words("bake --extent 1,1 -o o.ktx2"), &["SX,SY,SZ"]);
     let t = std::time::Instant::now();
     refuses(
         d,
-        &["bake", "--size", "100000x100000x1000", "-o", "o.ktx2"],
+        &words("bake --size 100000x100000x1000 -o o.ktx2"),
         &["too large"],
     );
     assert!(
@@ -473,55 +469,31 @@ fn bad_inputs_are_refused_cleanly() {
     );
     refuses(
         d,
-        &[
-            "bake",
-            "gen:flat",
-            "--height-size",
-            "200000x200000",
-            "--size",
-            "8x8x4",
-            "-o",
-            "o.ktx2",
-        ],
+        &words("bake gen:flat --height-size 200000x200000 --size 8x8x4 -o o.ktx2"),
         &["too large"],
     );
-    refuses(d, &["bake", "--size", "8x8", "-o", "o.ktx2"], &["--size"]);
+    refuses(d, &words("bake --size 8x8 -o o.ktx2"), &["--size"]);
 
     // Generators.
     refuses(
         d,
-        &["bake", "gen:bogus", "--size", "8x8x4", "-o", "o.ktx2"],
+        &words("bake gen:bogus --size 8x8x4 -o o.ktx2"),
         &["bogus"],
     );
     refuses(
         d,
-        &[
-            "bake",
-            "gen:studded?bogus=1",
-            "--size",
-            "8x8x4",
-            "-o",
-            "o.ktx2",
-        ],
+        &words("bake gen:studded?bogus=1 --size 8x8x4 -o o.ktx2"),
         &["bogus"],
     );
 
     // Outputs.
+    refuses(d, &words("bake --size 8x8x4 -o o.png"), &["o.png", ".ktx2"]);
     refuses(
         d,
-        &["bake", "--size", "8x8x4", "-o", "o.png"],
-        &["o.png", ".ktx2"],
-    );
-    refuses(
-        d,
-        &["bake", "--size", "8x8x4", "--format", "r8", "-o", "o.npy"],
+        &words("bake --size 8x8x4 --format r8 -o o.npy"),
         &["float32"],
     );
-    refuses(
-        d,
-        &["bake", "--size", "8x8x4", "-o", "nodir/o.ktx2"],
-        &["nodir"],
-    );
+    refuses(d, &words("bake --size 8x8x4 -o nodir/o.ktx2"), &["nodir"]);
 
     // Rays.
     let trace = |rays: &str| -> Vec<String> {
@@ -584,40 +556,10 @@ fn bad_inputs_are_refused_cleanly() {
     .unwrap();
     refuses(
         d,
-        &[
-            "trace",
-            "--height",
-            "gen:studded",
-            "--extent",
-            "2,1,0.1",
-            "--map",
-            "m.ktx2",
-            "--rays",
-            "ok.npy",
-            "-o",
-            "h.npy",
-        ],
+        &words("trace --height gen:studded --extent 2,1,0.1 --map m.ktx2 --rays ok.npy -o h.npy"),
         &["m.ktx2", "aspect"],
     );
-    refuses(
-        d,
-        &[
-            "trace",
-            "--height",
-            "gen:studded",
-            "--extent",
-            "1,1,0.1",
-            "--map",
-            "m.ktx2",
-            "--address",
-            "repeat",
-            "--rays",
-            "ok.npy",
-            "-o",
-            "h.npy",
-        ],
-        &["m.ktx2", "addressing"],
-    );
+    refuses(d, &words("trace --height gen:studded --extent 1,1,0.1 --map m.ktx2 --address repeat --rays ok.npy -o h.npy"), &["m.ktx2", "addressing"]);
 }
 
 #[test]
@@ -626,46 +568,22 @@ fn bakes_cone_maps() {
     let d = dir.path();
     for kind in ["conservative", "relaxed"] {
         let cone = format!("{kind}.npy");
-        let o = displace(
-            &[
-                "bake",
-                "gen:noise",
-                "--height-size",
-                "20x12",
-                "--size",
-                "8x8x4",
-                "-o",
-                "m.npy",
-                "--cone",
-                &cone,
-                "--cone-kind",
-                kind,
-            ],
-            d,
+        let bake = format!(
+            "bake gen:noise --height-size 20x12 --size 8x8x4 -o m.npy --cone {cone} --cone-kind {kind}"
         );
-        assert!(o.status.success(), "{}", stderr(&o));
+        ok(displace(&words(&bake), d));
         let a = npy::read_file(&d.join(&cone)).unwrap();
         assert_eq!(a.shape, vec![12, 20]);
         assert!(a.data.iter().all(|&c| c > 0.0 && c.is_finite()), "{kind}");
     }
     refuses(
         d,
-        &["bake", "--size", "8x8x4", "-o", "x.npy", "--cone", "c.png"],
+        &words("bake --size 8x8x4 -o x.npy --cone c.png"),
         &["--cone c.png", "the cone map is written as .npy"],
     );
     refuses(
         d,
-        &[
-            "bake",
-            "--size",
-            "8x8x4",
-            "-o",
-            "x.npy",
-            "--cone",
-            "c.npy",
-            "--cone-kind",
-            "wide",
-        ],
+        &words("bake --size 8x8x4 -o x.npy --cone c.npy --cone-kind wide"),
         &["cone kind", "wide"],
     );
 }

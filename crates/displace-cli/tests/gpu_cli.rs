@@ -2,6 +2,9 @@
 //! adapter the machine has (lavapipe in CI; see displace-gpu's
 //! `test_support` for the no-adapter policy).
 
+mod cli_common;
+
+use cli_common::{failed, gpu_scratch_dir};
 use displace_gpu::test_support::test_context;
 use std::process::Command;
 
@@ -11,10 +14,9 @@ fn displace() -> Command {
 
 #[test]
 fn gpu_render_writes_a_png_of_the_displaced_plane() {
-    if test_context().is_none() {
+    let Some(dir) = gpu_scratch_dir() else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
+    };
     let out = dir.path().join("plane.png");
     let status = displace()
         .args([
@@ -68,11 +70,8 @@ fn gpu_render_refuses_bad_input_and_writes_nothing() {
             .arg(&out)
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success(), "{args:?} should fail");
-        assert!(stderr.contains(needle), "{args:?}: {stderr}");
-        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
-        assert!(!out.exists());
+        failed(&o, &[needle], &[]);
+        assert!(!out.exists(), "{args:?}");
     }
 }
 
@@ -113,10 +112,9 @@ fn bench_gpu_prints_a_row_per_path_and_variant() {
 /// the frame the PNG holds, each within rounding of the PNG's sRGB bytes.
 #[test]
 fn gpu_render_writes_a_linear_exr() {
-    if test_context().is_none() {
+    let Some(dir) = gpu_scratch_dir() else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
+    };
     for name in ["f.png", "f.exr"] {
         let o = displace()
             .args([

@@ -4,8 +4,10 @@
 //! of pixels), and bad scene input through gpu-render.
 
 mod bad_scenes;
+mod cli_common;
 
 use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
+use cli_common::{displaced_quad, failed, frame, gpu_scratch_dir, lambert, quad, sphere};
 use displace_core::io::npy::read_file;
 use displace_gpu::test_support::test_context;
 use std::path::Path;
@@ -18,54 +20,28 @@ fn displace() -> Command {
     c
 }
 
-/// What every scene here shares: 64x64 pixels, primitive visibility and
-/// direct light only (one sample, no reflections), a pinhole `camera` and
-/// one point `light` (TOML keys of each).
-fn frame(camera: &str, light: &str) -> String {
-    format!(
-        r#"[image]
-width = 64
-height = 64
-spp = 1
-max_depth = 0
-shadow_samples = 1
-
-[camera]
-{camera}
-
-[[lights]]
-type = "point"
-{light}
-"#
-    )
-}
-
 /// The camera and light of [`scene`].
 const QUAD_CAMERA: &str =
     "position = [0.5, -0.45, 0.95]\nlook_at = [0.5, 0.5, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0";
 const QUAD_LIGHT: &str = "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]";
 
-/// One displaced unit quad in material `clay`, without the frame.
-fn displaced_quad(material: &str) -> String {
-    format!(
-        r#"
-[materials.clay]
-{material}
+/// The keys of the clay material most scenes here draw: a Lambert surface.
+const CLAY: &str = "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]";
 
-[[shapes]]
-type = "quad"
-origin = [0.0, 0.0, 0.0]
-edge_u = [1.0, 0.0, 0.0]
-edge_v = [0.0, 1.0, 0.0]
-material = "clay"
-displacement = {{ height = "gen:gaussian", height_size = [64, 64], depth = 0.15, map_size = [64, 64, 16] }}
-"#
-    )
-}
+/// The displacement of [`scene`]'s quad, without the closing brace: a
+/// test adds its own keys.
+const QUAD_DISPLACEMENT: &str =
+    r#"height = "gen:gaussian", height_size = [64, 64], depth = 0.15, map_size = [64, 64, 16]"#;
 
 /// One displaced quad seen from above, lit from the side.
 fn scene(material: &str) -> String {
-    frame(QUAD_CAMERA, QUAD_LIGHT) + &displaced_quad(material)
+    scene_with(material, "")
+}
+
+/// [`scene`] with `extra` keys in the quad's displacement.
+fn scene_with(material: &str, extra: &str) -> String {
+    frame([64, 64], QUAD_CAMERA, QUAD_LIGHT)
+        + &displaced_quad(material, &format!("{QUAD_DISPLACEMENT}{extra}"))
 }
 
 fn run(args: &[&str], dir: &Path) -> Output {
@@ -90,16 +66,19 @@ fn rgb(path: &Path) -> Vec<[f32; 3]> {
 /// Where both renderers see the face: UV within 1e-3 of the CPU's on at
 /// least 99.5% of pixels (hit or miss agreeing too); mean absolute sRGB
 /// difference of the colour at most `max_mean` (8-bit steps) over pixels
-/// both hit. Returns (matching fraction, mean colour difference, hits).
-fn compare(material: &str, intensity: &str, max_mean: f32) -> (f64, f32, usize) {
-    compare_scene(
-        &scene(material).replace("[3.0, 2.5, 2.0]", intensity),
-        material,
-        max_mean,
-    )
+/// both hit; the light of radiant `intensity` (TOML RGB).
+fn compare(material: &str, intensity: &str, max_mean: f32) {
+    let light = format!("position = [-0.3, 0.2, 1.5]\nintensity = {intensity}");
+    let text = frame([64, 64], QUAD_CAMERA, &light) + &displaced_quad(material, QUAD_DISPLACEMENT);
+    compare_scene(&text, material, max_mean);
 }
 
-fn compare_scene(text: &str, label: &str, max_mean: f32) -> (f64, f32, usize) {
+/// [`compare`]'s verdict on the scene `text`, `label` naming it; nothing
+/// where the environment allows running without a GPU.
+fn compare_scene(text: &str, label: &str, max_mean: f32) {
+    if test_context().is_none() {
+        return;
+    }
     let m = measure_scene(text);
     let frac = m.matching as f64 / m.pixels as f64;
     let mean = m.colour_mean();
@@ -111,7 +90,6 @@ fn compare_scene(text: &str, label: &str, max_mean: f32) -> (f64, f32, usize) {
     );
     assert!(frac >= 0.995, "UV AOV matches on {frac}");
     assert!(mean <= max_mean, "mean colour difference {mean}");
-    (frac, mean, hits)
 }
 
 /// Per-pixel agreement of the two renderers' 64x64 UV AOVs and colours.
@@ -187,23 +165,13 @@ fn measure_scene(text: &str) -> Agreement {
 /// texture and the filtered normal map.
 #[test]
 fn lambert_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    compare(
-        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        "[3.0, 2.5, 2.0]",
-        4.0,
-    );
+    compare(CLAY, "[3.0, 2.5, 2.0]", 4.0);
 }
 
 /// Normalised Blinn-Phong with a grey highlight (the GPU's is white: the
 /// mean of specular colour and light is used, so the light here is white).
 #[test]
 fn phong_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
     compare(
         "type = \"phong\"\ncolor = [0.7, 0.5, 0.3]\nspecular = [0.3, 0.3, 0.3]\nshininess = 20.0",
         "[2.5, 2.5, 2.5]",
@@ -215,14 +183,8 @@ fn phong_quad_matches_the_cpu_renderer() {
 /// the UV AOV counts tiles, as on the CPU.
 #[test]
 fn tiled_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
-        "map_size = [64, 64, 16] }",
-        "map_size = [64, 64, 16], address = \"repeat\", tiles = [2.0, 2.0] }",
-    );
-    compare_scene(&text, "tiled", 6.0);
+    let repeat = ", address = \"repeat\", tiles = [2.0, 2.0]";
+    compare_scene(&scene_with(CLAY, repeat), "tiled", 6.0);
 }
 
 /// A `flip_v` quad (a left-handed face frame): drawn with the opposite
@@ -230,14 +192,7 @@ fn tiled_quad_matches_the_cpu_renderer() {
 /// `edge_v`, as on the CPU.
 #[test]
 fn flipped_quad_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]").replace(
-        "map_size = [64, 64, 16] }",
-        "map_size = [64, 64, 16], flip_v = true }",
-    );
-    compare_scene(&text, "flip_v", 4.0);
+    compare_scene(&scene_with(CLAY, ", flip_v = true"), "flip_v", 4.0);
 }
 
 /// Two displaced quads, the upright one in front of the other: one draw
@@ -249,25 +204,19 @@ fn flipped_quad_matches_the_cpu_renderer() {
 /// differences; measured mean difference 14.3/255 (bound 32).
 #[test]
 fn two_quads_occlude_each_other_as_on_the_cpu() {
-    if test_context().is_none() {
-        return;
-    }
-    let text = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
-        .replace("[0.5, -0.45, 0.95]", "[0.5, -0.9, 0.8]")
-        .replace("[0.5, 0.5, 0.0]", "[0.5, 0.5, 0.1]")
-        .replace("vfov = 50.0", "vfov = 55.0")
-        + r#"
-[materials.blue]
-type = "lambert"
-color = [0.2, 0.3, 0.8]
-
-[[shapes]]
-type = "quad"
-origin = [0.2, 0.3, 0.05]
-edge_u = [0.6, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.5]
-material = "blue"
-displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, map_size = [64, 64, 8] }
+    let camera =
+        "position = [0.5, -0.9, 0.8]\nlook_at = [0.5, 0.5, 0.1]\nup = [0.0, 0.0, 1.0]\nvfov = 55.0";
+    let text = frame([64, 64], camera, QUAD_LIGHT)
+        + &displaced_quad(CLAY, QUAD_DISPLACEMENT)
+        + "\n"
+        + &lambert("blue", "[0.2, 0.3, 0.8]")
+        + &quad(
+            "[0.2, 0.3, 0.05]",
+            "[0.6, 0.0, 0.0]",
+            "[0.0, 0.0, 0.5]",
+            "blue",
+        )
+        + r#"displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, map_size = [64, 64, 8] }
 "#;
     compare_scene(&text, "two quads", 32.0);
 }
@@ -276,6 +225,7 @@ displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.05, m
 /// one `[[shapes]]` entry, material `clay`).
 fn mesh_scene(shape: &str) -> String {
     frame(
+        [64, 64],
         "position = [3.3, 2.7, -3.9]\nlook_at = [0.0, 0.0, 0.0]\nvfov = 45.0",
         "position = [1.5, 4.0, -3.0]\nintensity = [12.0, 11.0, 10.0]",
     ) + &format!(
@@ -331,7 +281,7 @@ displacement = { height = "gen:studded?period=8", height_size = [64, 64], depth 
 /// non-zero status, and no output file.
 #[test]
 fn bad_scenes_fail_like_the_cpu_renderer_and_write_nothing() {
-    let good = scene("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]");
+    let good = scene(CLAY);
     for case in bad_scenes(&good, "gen:gaussian") {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
@@ -358,10 +308,9 @@ fn bad_scenes_fail_like_the_cpu_renderer_and_write_nothing() {
 /// differing on no pixel; bounds 99.5% and 0.5%.
 #[test]
 fn displaced_obj_mesh_matches_the_cpu_renderer() {
-    if test_context().is_none() {
+    let Some(dir) = gpu_scratch_dir() else {
         return;
-    }
-    let dir = tempfile::tempdir().unwrap();
+    };
     let obj = dir.path().join("quad.obj");
     std::fs::write(
         &obj,
@@ -417,10 +366,7 @@ fn bad_meshes_fail_with_their_path_and_line() {
             .current_dir(d)
             .output()
             .unwrap();
-        let gpu_err = String::from_utf8_lossy(&gpu.stderr);
-        assert!(!gpu.status.success(), "{path}");
-        assert!(gpu_err.contains(needle), "{path}: {gpu_err}");
-        assert!(!gpu_err.contains("panicked"), "{path}: {gpu_err}");
+        let gpu_err = failed(&gpu, &[needle], &[]);
         assert_eq!(gpu_err, String::from_utf8_lossy(&cpu.stderr), "{path}");
         assert_eq!(std::fs::read_dir(d).unwrap().count(), before, "{path}");
     }
@@ -572,14 +518,18 @@ impl Diffs {
 /// `shapes` (TOML `[[shapes]]` entries, material `wall`) added.
 fn plain_scene(shapes: &str) -> String {
     frame(
+        [64, 64],
         "position = [0.5, -0.8, 1.0]\nlook_at = [0.5, 0.6, 0.2]\nup = [0.0, 0.0, 1.0]\nvfov = 60.0",
         "position = [0.3, -0.3, 1.6]\nintensity = [3.0, 2.5, 2.0]",
-    ) + &displaced_quad("type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]")
-        + r#"
-[materials.wall]
-type = "lambert"
-color = [0.3, 0.6, 0.7]
-"# + shapes
+    ) + &displaced_quad(CLAY, QUAD_DISPLACEMENT)
+        + "\n"
+        + &lambert("wall", "[0.3, 0.6, 0.7]")
+        + shapes
+}
+
+/// A quad of the plain scenes' material `wall`.
+fn wall_quad(origin: &str, edge_u: &str, edge_v: &str) -> String {
+    quad(origin, edge_u, edge_v, "wall")
 }
 
 /// A Lambert wall behind a displaced floor, nothing between either and the
@@ -595,16 +545,8 @@ fn a_plain_wall_matches_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let c = classify(&plain_scene(
-        r#"
-[[shapes]]
-type = "quad"
-origin = [-0.2, 1.2, 0.0]
-edge_u = [1.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 1.0]
-material = "wall"
-"#,
-    ));
+    let wall = wall_quad("[-0.2, 1.2, 0.0]", "[1.4, 0.0, 0.0]", "[0.0, 0.0, 1.0]");
+    let c = classify(&plain_scene(&wall));
     let agree = c.agreement();
     let all = f32::NEG_INFINITY..f32::INFINITY;
     let wall = c.inside(Seen::Plain, all.clone(), 64);
@@ -635,27 +577,13 @@ fn plain_and_displaced_shapes_occlude_each_other() {
     if test_context().is_none() {
         return;
     }
-    let floating = r#"
-[[shapes]]
-type = "quad"
-origin = [0.2, 0.2, 0.4]
-edge_u = [0.6, 0.0, 0.0]
-edge_v = [0.0, 0.6, 0.0]
-material = "wall"
-"#;
-    let under = r#"
-[[shapes]]
-type = "quad"
-origin = [-1.0, -0.5, -0.3]
-edge_u = [3.0, 0.0, 0.0]
-edge_v = [0.0, 3.0, 0.0]
-material = "wall"
-"#;
+    let floating = wall_quad("[0.2, 0.2, 0.4]", "[0.6, 0.0, 0.0]", "[0.0, 0.6, 0.0]");
+    let under = wall_quad("[-1.0, -0.5, -0.3]", "[3.0, 0.0, 0.0]", "[0.0, 3.0, 0.0]");
     let c = classify(&plain_scene(&format!("{floating}{under}")));
     let agree = c.agreement();
     // Where the floating quad hides the floor: the floor on those pixels
     // without it.
-    let bare = classify(&plain_scene(under));
+    let bare = classify(&plain_scene(&under));
     let hidden = c
         .both(Seen::Plain, 0.39..0.41)
         .into_iter()
@@ -774,22 +702,16 @@ fn a_sphere_and_a_visible_area_light_match_the_cpu_renderer() {
     if test_context().is_none() {
         return;
     }
-    let c = classify(&plain_scene(
-        r#"
-[[shapes]]
-type = "sphere"
-center = [0.5, 0.5, 0.42]
-radius = 0.2
-material = "wall"
-
+    let shapes = sphere("[0.5, 0.5, 0.42]", 0.2, "wall")
+        + r#"
 [[lights]]
 type = "area"
 origin = [0.35, 1.3, 0.65]
 edge_u = [0.3, 0.0, 0.0]
 edge_v = [0.0, 0.0, 0.2]
 radiance = [5.0, 5.0, 5.0]
-"#,
-    ));
+"#;
+    let c = classify(&plain_scene(&shapes));
     let agree = c.agreement();
     let sphere = c.both(Seen::Plain, 0.21..0.63);
     let light = c.inside(Seen::Plain, 0.64..0.86, 64);

@@ -3,7 +3,7 @@
 
 mod cli_common;
 
-use cli_common::{stderr, SPHERE_SCENE};
+use cli_common::{ok, stderr, words, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -167,21 +167,8 @@ fn integrator_flag_chooses_the_path_tracer() {
     std::fs::write(dir.path().join("s.toml"), GOOD).unwrap();
     for name in ["path", "whitted"] {
         let out = format!("{name}.png");
-        let o = displace(
-            &[
-                "render",
-                "-q",
-                "s.toml",
-                "--integrator",
-                name,
-                "--spp",
-                "2",
-                "-o",
-                &out,
-            ],
-            dir.path(),
-        );
-        assert!(o.status.success(), "{}", stderr(&o));
+        let render = format!("render -q s.toml --integrator {name} --spp 2 -o {out}");
+        let o = ok(displace(&words(&render), dir.path()));
         assert!(
             stderr(&o).contains(&format!("at 2 spp ({name})")),
             "{}",

@@ -6,7 +6,7 @@
 
 mod cli_common;
 
-use cli_common::{displace, stderr};
+use cli_common::{displace, lambert, point_light, stderr};
 use displace_core::io::npy;
 use std::path::Path;
 
@@ -26,25 +26,17 @@ fn read(path: &Path) -> (Vec<usize>, Vec<f32>) {
     (a.shape, a.data)
 }
 
-const HEADER: &str = r#"
-[image]
-width = 8
-height = 8
-[camera]
-position = [0.5, -2.0, 1.0]
-look_at = [0.5, 0.5, 0.0]
-[materials.white]
-type = "lambert"
-color = [0.5, 0.5, 0.5]
-[[lights]]
-type = "point"
-position = [0.5, 0.5, 3.0]
-intensity = [1.0, 1.0, 1.0]
-"#;
+/// The camera, material `white` and light every scene here has.
+fn header() -> String {
+    "\n[image]\nwidth = 8\nheight = 8\n[camera]\nposition = [0.5, -2.0, 1.0]\nlook_at = [0.5, 0.5, 0.0]\n"
+        .to_string()
+        + &lambert("white", "[0.5, 0.5, 0.5]")
+        + &point_light("[0.5, 0.5, 3.0]", "[1.0, 1.0, 1.0]")
+}
 
-/// Writes `s.toml` in `dir`: [`HEADER`] and then `shapes`.
+/// Writes `s.toml` in `dir`: [`header`] and then `shapes`.
 fn write_scene(dir: &Path, shapes: &str) {
-    std::fs::write(dir.join("s.toml"), format!("{HEADER}\n{shapes}")).unwrap();
+    std::fs::write(dir.join("s.toml"), format!("{}\n{shapes}", header())).unwrap();
 }
 
 /// `displace trace --scene s.toml --rays RAYS -o OUT EXTRA...` in `dir`,
@@ -57,16 +49,12 @@ fn trace_scene(dir: &Path, rays: &str, out: &str, extra: &[&str]) {
 
 /// A `[[shapes]]` quad `origin + a edge_u + b edge_v` of material `white`.
 fn quad(origin: &str, edge_u: &str, edge_v: &str) -> String {
-    format!(
-        "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"white\"\n"
-    )
+    cli_common::quad(origin, edge_u, edge_v, "white")
 }
 
 /// A `[[shapes]]` sphere of material `white`.
 fn sphere(center: &str, radius: f32) -> String {
-    format!(
-        "[[shapes]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius:?}\nmaterial = \"white\"\n"
-    )
+    cli_common::sphere(center, radius, "white")
 }
 
 /// The unit square at the origin in the xy plane (the frame of a lone face

@@ -9,8 +9,10 @@
 //! them knowingly.
 
 mod bad_scenes;
+mod cli_common;
 
 use bad_scenes::{assert_fails_alike, bad_scenes, FILE};
+use cli_common::{displaced_quad, frame};
 use displace_gpu::test_support::test_context;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -20,36 +22,16 @@ const H: u32 = 240;
 
 /// A studded quad seen obliquely, with the image corners on the (black)
 /// background.
-const SCENE: &str = r#"[image]
-width = 64
-height = 48
-spp = 1
-max_depth = 0
-shadow_samples = 1
-
-[camera]
-position = [0.5, -0.55, 0.85]
-look_at = [0.5, 0.45, 0.0]
-up = [0.0, 0.0, 1.0]
-vfov = 50.0
-
-[materials.clay]
-type = "lambert"
-color = [0.8, 0.6, 0.4]
-
-[[lights]]
-type = "point"
-position = [-0.3, 0.2, 1.5]
-intensity = [3.0, 2.5, 2.0]
-
-[[shapes]]
-type = "quad"
-origin = [0.0, 0.0, 0.0]
-edge_u = [1.0, 0.0, 0.0]
-edge_v = [0.0, 1.0, 0.0]
-material = "clay"
-displacement = { height = "gen:studded", height_size = [64, 64], depth = 0.1, map_size = [64, 64, 16] }
-"#;
+fn scene() -> String {
+    frame(
+        [64, 48],
+        "position = [0.5, -0.55, 0.85]\nlook_at = [0.5, 0.45, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0",
+        "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]",
+    ) + &displaced_quad(
+        "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
+        r#"height = "gen:studded", height_size = [64, 64], depth = 0.1, map_size = [64, 64, 16]"#,
+    )
+}
 
 /// An Xvfb server on a display of its own, killed on drop.
 struct Xvfb {
@@ -212,10 +194,13 @@ struct Viewer {
 }
 
 impl Viewer {
+    /// A viewer on its own X server, or `None` where the environment allows
+    /// running without a GPU or without Xvfb.
     fn new() -> Option<Self> {
+        test_context()?;
         let x = Xvfb::start()?;
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("scene.toml"), SCENE).unwrap();
+        std::fs::write(dir.path().join("scene.toml"), scene()).unwrap();
         let runtime = dir.path().join("xdg");
         std::fs::create_dir(&runtime).unwrap();
         #[cfg(unix)]
@@ -253,6 +238,20 @@ impl Viewer {
             .unwrap()
     }
 
+    /// `gpu-render` of `scene` at the viewer's size into `png`, which must
+    /// succeed (`what` names it if not).
+    fn gpu_render(&self, scene: &str, png: &str, what: &str) -> Pixels {
+        let size = format!("{W}x{H}");
+        ok(
+            displace(self.dir.path())
+                .args(["gpu-render", scene, "--size", &size, "-o", png])
+                .output()
+                .unwrap(),
+            what,
+        );
+        Pixels::load(&self.dir.path().join(png))
+    }
+
     /// The screenshot of frame `frames` after `script`.
     fn shot(&self, name: &str, frames: u32, script: &str) -> Pixels {
         let png = format!("{name}.png");
@@ -267,21 +266,10 @@ impl Viewer {
 /// Every scripted check shares one Xvfb, started and killed here.
 #[test]
 fn viewer_frames_match_gpu_render_and_controls_act() {
-    if test_context().is_none() {
-        return;
-    }
     let Some(v) = Viewer::new() else {
         return;
     };
-    let size = format!("{W}x{H}");
-    ok(
-        displace(v.dir.path())
-            .args(["gpu-render", "scene.toml", "--size", &size, "-o", "ref.png"])
-            .output()
-            .unwrap(),
-        "gpu-render",
-    );
-    let reference = Pixels::load(&v.dir.path().join("ref.png"));
+    let reference = v.gpu_render("scene.toml", "ref.png", "gpu-render");
     let bg_share = 1.0 - reference.coverage() as f64 / (W * H) as f64;
     assert!((0.1..0.9).contains(&bg_share), "framing: {bg_share}");
 
@@ -407,26 +395,15 @@ fn viewer_frames_match_gpu_render_and_controls_act() {
 /// rescales the normal map and the light to the live proportions.
 #[test]
 fn live_depth_matches_a_bake_at_that_depth() {
-    if test_context().is_none() {
-        return;
-    }
     let Some(v) = Viewer::new() else {
         return;
     };
     std::fs::write(
         v.dir.path().join("deep.toml"),
-        SCENE.replace("depth = 0.1,", "depth = 0.2,"),
+        scene().replace("depth = 0.1,", "depth = 0.2,"),
     )
     .unwrap();
-    let size = format!("{W}x{H}");
-    ok(
-        displace(v.dir.path())
-            .args(["gpu-render", "deep.toml", "--size", &size, "-o", "deep.png"])
-            .output()
-            .unwrap(),
-        "gpu-render deep",
-    );
-    let deep = Pixels::load(&v.dir.path().join("deep.png"));
+    let deep = v.gpu_render("deep.toml", "deep.png", "gpu-render deep");
     let live = v.shot("live", 1, "hud off; depth 2");
     let shallow = v.shot("shallow", 1, "hud off");
     let (d_live, d_shallow) = (live.mean_diff(&deep), shallow.mean_diff(&deep));
@@ -441,7 +418,7 @@ fn live_depth_matches_a_bake_at_that_depth() {
 /// opened (no display is needed), and write no screenshot.
 #[test]
 fn bad_scenes_fail_like_gpu_render() {
-    for case in bad_scenes(SCENE, "gen:studded") {
+    for case in bad_scenes(&scene(), "gen:studded") {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         case.write(d);
@@ -458,7 +435,7 @@ fn bad_scenes_fail_like_gpu_render() {
     }
     // Bad options fail the same way, naming what is wrong.
     let d = tempfile::tempdir().unwrap();
-    std::fs::write(d.path().join("s.toml"), SCENE).unwrap();
+    std::fs::write(d.path().join("s.toml"), scene()).unwrap();
     for (args, needle) in [
         (
             vec!["--script", "depth 1; warp 9"],

@@ -16,11 +16,7 @@ fn bake_volumes(c: &mut Criterion) {
         for name in ["studded", "noise"] {
             let height = generators::generate(&format!("gen:{name}"), w, h, Address::Clamp)
                 .expect("generator");
-            let opts = BakeOptions {
-                size: [w, h, d],
-                extent: Extent::new(1.0, 1.0, 0.1).expect("extent"),
-                ..BakeOptions::default()
-            };
+            let opts = BakeOptions::new([w, h, d], Extent::new(1.0, 1.0, 0.1).expect("extent"));
             group.throughput(Throughput::Elements((w * h * d) as u64));
             group.bench_with_input(
                 BenchmarkId::new(name, format!("{w}x{h}x{d}")),

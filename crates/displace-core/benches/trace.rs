@@ -86,11 +86,7 @@ fn trace_rays(c: &mut Criterion) {
             .expect("generator");
         let map: DisplacementMap = bake(
             &height,
-            &BakeOptions {
-                size: [256, 256, 16],
-                extent: Extent::new(1.0, 1.0, 0.1).expect("extent"),
-                ..BakeOptions::default()
-            },
+            &BakeOptions::new([256, 256, 16], Extent::new(1.0, 1.0, 0.1).expect("extent")),
         )
         .expect("bake");
         let rays = random_rays(map.aspect(), 0x5EED);

@@ -19,11 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err(format!("size `{size}`: expected WxHxD").into());
     };
     let height = generators::generate(&format!("gen:{name}"), w, h, Address::Clamp)?;
-    let opts = BakeOptions {
-        size: [w, h, d],
-        extent: Extent::new(1.0, 1.0, 0.1)?,
-        ..BakeOptions::default()
-    };
+    let opts = BakeOptions::new([w, h, d], Extent::new(1.0, 1.0, 0.1)?);
     let mut best = f64::INFINITY;
     for _ in 0..runs.max(1) {
         let t = Instant::now();

@@ -51,11 +51,7 @@ fn main() {
         let height = generators::generate(src, texels, texels, Address::Clamp).expect("height");
         let map: DisplacementMap = bake(
             &height,
-            &BakeOptions {
-                size,
-                extent: Extent::new(1.0, 1.0, depth).expect("extent"),
-                ..BakeOptions::default()
-            },
+            &BakeOptions::new(size, Extent::new(1.0, 1.0, depth).expect("extent")),
         )
         .expect("bake");
         let rays = camera_rays(n, depth);

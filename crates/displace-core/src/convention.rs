@@ -53,13 +53,8 @@ impl Address {
 impl std::str::FromStr for Address {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "clamp" => Ok(Address::Clamp),
-            "repeat" => Ok(Address::Repeat),
-            other => Err(Error::UnknownName(format!(
-                "unknown addressing `{other}` (expected clamp or repeat)"
-            ))),
-        }
+        let choices = [Address::Clamp, Address::Repeat].map(|a| (a.name(), a));
+        crate::names::parse_choice("addressing", s, &choices).map_err(Error::UnknownName)
     }
 }
 

@@ -43,6 +43,19 @@ impl Default for BakeOptions {
     }
 }
 
+impl BakeOptions {
+    /// A bake of `size` voxels over tiles of `extent`, silent and not
+    /// cancellable: what a caller without a progress bar or a Ctrl-C
+    /// handler (a test, a benchmark, a one-off tool) asks for.
+    pub fn new(size: [usize; 3], extent: Extent) -> Self {
+        Self {
+            size,
+            extent,
+            ..Self::default()
+        }
+    }
+}
+
 impl std::fmt::Debug for BakeOptions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("BakeOptions")

@@ -65,14 +65,8 @@ impl Format {
 impl std::str::FromStr for Format {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "r8" => Ok(Format::R8),
-            "r16f" => Ok(Format::R16F),
-            "r32f" => Ok(Format::R32F),
-            other => Err(Error::UnknownName(format!(
-                "unknown distance format `{other}` (expected r8, r16f or r32f)"
-            ))),
-        }
+        let choices = [Format::R8, Format::R16F, Format::R32F].map(|f| (f.name(), f));
+        crate::names::parse_choice("distance format", s, &choices).map_err(Error::UnknownName)
     }
 }
 
@@ -640,13 +634,8 @@ mod tests {
 
     #[test]
     fn min_and_nan_match_a_plain_fold() {
-        let mut state = 7u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 3.0
-        };
+        let mut unit = crate::random::xorshift_unit(7);
+        let mut next = || unit() * 8.0 - 3.0;
         for n in [0usize, 1, 15, 16, 17, 100, 1000] {
             let mut v: Vec<f32> = (0..n).map(|_| next()).collect();
             let want = v.iter().copied().fold(f32::INFINITY, f32::min);
@@ -682,13 +671,8 @@ mod tests {
             }
         }
         values.extend([-100.0, r.min - 1.0, r.max, r.max + 1e-3, 1e9, f32::INFINITY]);
-        let mut state = 3u64;
-        values.extend((0..5000).map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            r.min - 0.5 + (state >> 40) as f32 / (1u64 << 24) as f32 * (R8_SPAN + 1.0)
-        }));
+        let mut unit = crate::random::xorshift_unit(3);
+        values.extend((0..5000).map(|_| r.min - 0.5 + unit() * (R8_SPAN + 1.0)));
         let mut codes = vec![0u8; values.len()];
         e.encode_into(&values, &mut codes);
         for (&v, &c) in values.iter().zip(&codes) {

@@ -38,6 +38,7 @@ pub mod generators;
 pub mod heightmap;
 pub mod io;
 pub mod memory;
+pub mod names;
 pub mod normal_map;
 pub mod random;
 pub mod sphere_trace;

@@ -35,6 +35,21 @@ impl SplitMix64 {
     }
 }
 
+/// Marsaglia's xorshift64 (13, 7, 17) from `seed`, each state's top 24
+/// bits as a uniform `f32` in `[0, 1)`: the fixed streams the unit tests of
+/// the bake and the cone maps were written against, kept so their inputs
+/// stay the same numbers.
+#[cfg(test)]
+pub(crate) fn xorshift_unit(seed: u64) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

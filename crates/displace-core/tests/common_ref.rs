@@ -172,11 +172,7 @@ pub fn random_height(kind: u8, w: usize, h: usize, seed: u64, address: Address) 
 pub fn bake_map(height: &HeightMap, size: [usize; 3], [sx, sy, sz]: [f32; 3]) -> DisplacementMap {
     bake(
         height,
-        &BakeOptions {
-            size,
-            extent: Extent::new(sx, sy, sz).unwrap(),
-            ..BakeOptions::default()
-        },
+        &BakeOptions::new(size, Extent::new(sx, sy, sz).unwrap()),
     )
     .unwrap()
 }

@@ -101,11 +101,7 @@ fn repeat_bakes_are_periodic() {
         .map(|k| height.texel(((k % n + shift) % n) as i64, (k / n) as i64))
         .collect();
     let shifted = displace_core::HeightMap::new(n, n, shifted, Address::Repeat).unwrap();
-    let opts = BakeOptions {
-        size: [n, n, 4],
-        extent: Extent::new(2.0, 2.0, 0.5).unwrap(),
-        ..BakeOptions::default()
-    };
+    let opts = BakeOptions::new([n, n, 4], Extent::new(2.0, 2.0, 0.5).unwrap());
     let a = bake(&height, &opts).unwrap();
     let b = bake(&shifted, &opts).unwrap();
     for k in 0..4 {

@@ -21,17 +21,7 @@ fn all_maps(height: HeightMap, extent: Extent, distance: [usize; 3]) -> Maps {
     maps.cones = Some(ConeMap::build(&height, aspect, ConeKind::Conservative));
     maps.relaxed = Some(ConeMap::build(&height, aspect, ConeKind::Relaxed));
     maps.pyramid = Some(MaxPyramid::build(&height));
-    maps.displacement = Some(
-        bake(
-            &height,
-            &BakeOptions {
-                size: distance,
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap(),
-    );
+    maps.displacement = Some(bake(&height, &BakeOptions::new(distance, extent)).unwrap());
     maps
 }
 
@@ -55,6 +45,42 @@ fn ray_from_top(rng: &mut Rng, aspect: [f32; 2], elevation: f32) -> MapRay {
 /// A random height map (`kind` of [`random_height`]) with every technique's
 /// maps, and 32 rays from the top at random elevations with the exact
 /// reference's `t` for each: the shared set-up of the property tests.
+/// A [`random_case`] drawn by proptest, shown by its inputs (height kind,
+/// size, tile width and depth, seed) when a property fails.
+struct RandomCase {
+    inputs: (u8, [usize; 2], [f32; 2], u64),
+    maps: Maps,
+    cases: Vec<(MapRay, Option<f32>)>,
+}
+
+impl std::fmt::Debug for RandomCase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "random_case{:?}", self.inputs)
+    }
+}
+
+/// The [`RandomCase`]s of the techniques' properties: any height kind, 2
+/// to 19 texels a side, tiles 0.5 to 3 wide and 0.05 to 0.5 deep, rays
+/// drawn with `ray_salt`.
+fn random_cases(ray_salt: u64) -> impl Strategy<Value = RandomCase> {
+    let inputs = (
+        0u8..3,
+        2usize..20,
+        2usize..20,
+        0.5f32..3.0,
+        0.05f32..0.5,
+        any::<u64>(),
+    );
+    inputs.prop_map(move |(kind, w, h, sx, sz, seed)| {
+        let (maps, cases) = random_case(kind, [w, h], [sx, sz], seed, ray_salt);
+        RandomCase {
+            inputs: (kind, [w, h], [sx, sz], seed),
+            maps,
+            cases,
+        }
+    })
+}
+
 fn random_case(
     kind: u8,
     [w, h]: [usize; 2],
@@ -223,12 +249,8 @@ proptest! {
     /// except where it is still above the surface inside the face.
     #[test]
     fn cone_steps_never_pass_the_hit(
-        kind in 0u8..3,
-        w in 2usize..20, h in 2usize..20,
-        sx in 0.5f32..3.0, sz in 0.05f32..0.5,
-        seed in any::<u64>(),
+        RandomCase { maps, cases, .. } in random_cases(0x5151),
     ) {
-        let (maps, cases) = random_case(kind, [w, h], [sx, sz], seed, 0x5151);
         for (ray, want) in cases {
             for budget in [1, 2, 3, 5, 8, 13, 21] {
                 let got = Technique::Cone.trace(&maps, &ray, budget).unwrap();
@@ -268,12 +290,8 @@ proptest! {
     /// exact hit (or miss) on every ray.
     #[test]
     fn exact_techniques_match_the_reference_on_random_maps(
-        kind in 0u8..3,
-        w in 2usize..20, h in 2usize..20,
-        sx in 0.5f32..3.0, sz in 0.05f32..0.5,
-        seed in any::<u64>(),
+        RandomCase { maps, cases, .. } in random_cases(0xabcd),
     ) {
-        let (maps, cases) = random_case(kind, [w, h], [sx, sz], seed, 0xabcd);
         for (ray, want) in cases {
             for tech in [Technique::MaxMip, Technique::Distance] {
                 let got = tech.trace(&maps, &ray, 10_000).unwrap().hit.map(|h| h.t);

@@ -25,11 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let height = generators::generate("gen:gaussian", 32, 32, Address::Clamp)?;
     let map = bake(
         &height,
-        &BakeOptions {
-            size: [32, 32, 8],
-            extent: Extent::new(1.0, 1.0, 0.25)?,
-            ..BakeOptions::default()
-        },
+        &BakeOptions::new([32, 32, 8], Extent::new(1.0, 1.0, 0.25)?),
     )?;
     let ctx = GpuContext::new_headless()?;
     println!("{}", ctx.describe());

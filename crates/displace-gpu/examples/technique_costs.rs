@@ -19,14 +19,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let height = generators::generate(spec, size, size, Address::Clamp)?;
     let extent = Extent::new(1.0, 1.0, 0.1)?;
-    let displacement = bake(
-        &height,
-        &BakeOptions {
-            size: [size, size, 16],
-            extent,
-            ..BakeOptions::default()
-        },
-    )?;
+    let displacement = bake(&height, &BakeOptions::new([size, size, 16], extent))?;
     let aspect = displacement.aspect();
     let maps = Maps {
         cones: Some(ConeMap::build(&height, aspect, ConeKind::Conservative)),

@@ -5,8 +5,8 @@
 // fragment stage marches from the fragment's shell point along the
 // interpolated vector (listing 8-2), treating the surface under it as
 // locally flat, and shades the hit (shade.wgsl).
-// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl and shade.wgsl
-// before it.
+// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl, lighting.wgsl
+// and shade.wgsl before it.
 
 struct ShellVertex {
     @location(0) position: vec3f,
@@ -61,23 +61,13 @@ fn vs_mesh(v: ShellVertex) -> MeshVsOut {
 
 @fragment
 fn fs_mesh(in: MeshVsOut) -> FsOut {
-    // Derivatives of the undisplaced coordinates before any branch (8.5.3).
-    let base_uv = in.map_pos.xy / params.aspect;
-    let dx = dpdx(base_uv);
-    let dy = dpdy(base_uv);
-    let dir = normalize(in.tan_eye);
-    let h = trace_map(in.map_pos, dir);
-    if (h.kind == HIT_NONE) {
-        // Out through the bottom, or sideways out of the map window.
-        discard;
-    }
+    // Derivatives, listing 8-2's normalisation and the hit, or a discarded
+    // fragment (shade.wgsl).
+    let m = march_shell(in.map_pos, in.tan_eye);
     let depth = 1.0 / frame.inv_bump_depth;
     let to_phys = vec3f(in.scale / params.aspect, depth);
-    let rgb = shade_hit(h, in.map_pos, dir, in.tan_light, to_phys, dx, dy);
-    let p = in.map_pos + dir * h.t;
-    var out: FsOut;
-    out.color = vec4f(rgb, 1.0);
-    out.uv = vec4f(p.xy / params.aspect + frame.uv_shift, f32(h.kind), h.t);
+    let rgb = shade_hit(m.hit, in.map_pos, m.dir, in.tan_light, to_phys, m.dx, m.dy);
+    let p = in.map_pos + m.dir * m.hit.t;
     // The hit back in the world through the fragment's frame.
     let n = normalize(in.normal);
     let t = normalize(in.tangent.xyz);
@@ -85,7 +75,5 @@ fn fs_mesh(in: MeshVsOut) -> FsOut {
     let d = p - in.map_pos;
     let world = in.world + t * (d.x / params.aspect.x * in.scale.x)
         + b * (d.y / params.aspect.y * in.scale.y) + n * (d.z * depth);
-    let clip = frame.view_proj * vec4f(world, 1.0);
-    out.depth = clamp(clip.z / clip.w, 0.0, 1.0);
-    return out;
+    return shell_out(rgb, p.xy / params.aspect + frame.uv_shift, m.hit, world);
 }

@@ -8,7 +8,7 @@
 // normalised Blinn-Phong, 1 / r^2 falloff, no shadows. Surfaces are
 // two-sided as the CPU renderer's (its integrator turns normals to the
 // viewer); an emitter glows only on its front, as the CPU's area light.
-// Needs convention.wgsl before it.
+// Needs convention.wgsl and lighting.wgsl before it.
 
 struct PlainFrame {
     view_proj: mat4x4f,
@@ -78,8 +78,7 @@ fn fs_plain(in: PlainVsOut) -> PlainOut {
         lit = lit / max(dot(to_light, to_light), 1e-20);
     }
     let half_vec = normalize(l + v);
-    let spec = select(0.0, pow(max(dot(n, half_vec), 0.0), in.shininess), lit > 0.0) * in.specular * lit;
-    var rgb = in.diffuse * (plain.ambient + plain.light_intensity * lit) + vec3f(spec * plain.light_intensity);
+    var rgb = blinn_phong(in.diffuse, n, half_vec, lit, plain.ambient, plain.light_intensity, in.specular, in.shininess);
     if (front) {
         rgb += in.emission;
     }

@@ -3,8 +3,8 @@
 // tangent space (listing 8-1), the fragment stage marches the distance map
 // from the fragment's point on the shell (listing 8-2) and shades the hit
 // (shade.wgsl).
-// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl and shade.wgsl
-// before it.
+// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl, lighting.wgsl
+// and shade.wgsl before it.
 
 struct VsOut {
     @builtin(position) clip: vec4f,
@@ -60,32 +60,16 @@ fn vs_main(@builtin(vertex_index) index: u32) -> VsOut {
 
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
-    // Derivatives of the undisplaced coordinates, taken before any branch
-    // (section 8.5.3: the displaced ones jump at occlusions).
-    let base_uv = in.map_pos.xy / params.aspect;
-    let dx = dpdx(base_uv);
-    let dy = dpdy(base_uv);
-    // Listing 8-2's normalisation: unit length in the map's metric, which is
-    // the texture-space offset times (depth/width, depth/height, 1).
-    let dir = normalize(in.tan_eye);
-    let h = trace_map(in.map_pos, dir);
-    if (h.kind == HIT_NONE) {
-        // The ray leaves the shell through its sides or bottom: a true
-        // silhouette.
-        discard;
-    }
+    // Derivatives, listing 8-2's normalisation and the hit, or a discarded
+    // fragment (shade.wgsl).
+    let m = march_shell(in.map_pos, in.tan_eye);
     let depth = 1.0 / frame.inv_bump_depth;
     // Map units to the face's physical tangent frame: the baked proportions
     // across, the live depth along the normal.
     let to_phys = vec3f(length(frame.face_t.xyz) / params.aspect.x, length(frame.face_b.xyz) / params.aspect.y, depth);
-    let rgb = shade_hit(h, in.map_pos, dir, in.tan_light, to_phys, dx, dy);
-    let p = in.map_pos + dir * h.t;
+    let rgb = shade_hit(m.hit, in.map_pos, m.dir, in.tan_light, to_phys, m.dx, m.dy);
+    let p = in.map_pos + m.dir * m.hit.t;
     let uv = p.xy / params.aspect;
-    var out: FsOut;
-    out.color = vec4f(rgb, 1.0);
-    out.uv = vec4f(uv, f32(h.kind), h.t);
     let world = frame.face_origin.xyz + uv.x * frame.face_t.xyz + uv.y * frame.face_b.xyz + p.z * depth * frame.face_n.xyz;
-    let clip = frame.view_proj * vec4f(world, 1.0);
-    out.depth = clamp(clip.z / clip.w, 0.0, 1.0);
-    return out;
+    return shell_out(rgb, uv, m.hit, world);
 }

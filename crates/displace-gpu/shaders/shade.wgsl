@@ -2,7 +2,8 @@
 // 8.5): the frame uniform, self-shadowing by a second march, and the
 // normal-mapped lighting of a hit with the colour texture sampled with the
 // derivatives of the undisplaced texture coordinates (8.5.3).
-// Needs convention.wgsl, one distance_*.wgsl and surface.wgsl before it.
+// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl and
+// lighting.wgsl before it.
 
 struct Frame {
     view_proj: mat4x4f,
@@ -103,6 +104,45 @@ fn shade_hit(h: TraceHit, start: vec3f, dir: vec3f, to_light_start: vec3f, to_ph
         lit = lit / max(r * r, 1e-20);
     }
     let half_vec = normalize(l - normalize(dir * to_phys));
-    let spec = select(0.0, pow(max(dot(n, half_vec), 0.0), frame.shininess), lit > 0.0) * frame.specular * lit;
-    return albedo * (frame.ambient + frame.light_intensity * lit) + vec3f(spec * frame.light_intensity);
+    return blinn_phong(albedo, n, half_vec, lit, frame.ambient, frame.light_intensity, frame.specular, frame.shininess);
+}
+
+// What both fragment stages (raster.wgsl, mesh.wgsl) begin with, from the
+// map-space shell point map_pos and the interpolated eye vector tan_eye:
+// the derivatives of the undisplaced texture coordinate, taken before any
+// branch (section 8.5.3: the displaced ones jump at occlusions); listing
+// 8-2's normalisation, unit length in the map's metric (the texture-space
+// offset times (depth/width, depth/height, 1)); and the ray's hit. A ray
+// that hits nothing leaves the shell through its sides or bottom (a true
+// silhouette, or out of the map window): its fragment is discarded.
+struct ShellMarch {
+    dir: vec3f,
+    hit: TraceHit,
+    dx: vec2f,
+    dy: vec2f,
+}
+
+fn march_shell(map_pos: vec3f, tan_eye: vec3f) -> ShellMarch {
+    let base_uv = map_pos.xy / params.aspect;
+    var m: ShellMarch;
+    m.dx = dpdx(base_uv);
+    m.dy = dpdy(base_uv);
+    m.dir = normalize(tan_eye);
+    m.hit = trace_map(map_pos, m.dir);
+    if (m.hit.kind == HIT_NONE) {
+        discard;
+    }
+    return m;
+}
+
+// What both fragment stages write for hit h: the shaded colour rgb, the uv
+// AOV (texture coordinate uv, hit kind, t) and the exact depth of the hit
+// at world position world, so it meets other draws in one depth buffer.
+fn shell_out(rgb: vec3f, uv: vec2f, h: TraceHit, world: vec3f) -> FsOut {
+    var out: FsOut;
+    out.color = vec4f(rgb, 1.0);
+    out.uv = vec4f(uv, f32(h.kind), h.t);
+    let clip = frame.view_proj * vec4f(world, 1.0);
+    out.depth = clamp(clip.z / clip.w, 0.0, 1.0);
+    return out;
 }

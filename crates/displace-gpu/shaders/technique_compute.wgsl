@@ -1,6 +1,7 @@
 // Batch query of one technique (displace_core::techniques): one invocation per map-space ray,
 // technique and budget from a uniform, so one pipeline serves them all.
 // Rust mirrors: `TechniqueParams`, `TechniqueHitOut` (src/techniques.rs).
+// Needs batch.wgsl (the rays, the flags) and techniques.wgsl before it.
 
 struct TechniqueParams {
     technique: u32,
@@ -20,7 +21,6 @@ struct TechniqueHitOut {
 // Bit 0 of `flags`: the technique reports a hit.
 const TECHNIQUE_FOUND: u32 = 1u;
 
-@group(1) @binding(0) var<storage, read> rays: array<RayIn>;
 @group(1) @binding(1) var<storage, read_write> technique_hits: array<TechniqueHitOut>;
 @group(1) @binding(2) var<uniform> technique: TechniqueParams;
 
@@ -33,15 +33,6 @@ fn technique_main(@builtin(global_invocation_id) gid: vec3u) {
     let ray = rays[index];
     let h = trace_technique(ray.origin, ray.dir, technique.technique, technique.budget);
     let p = ray.origin + ray.dir * h.t;
-    var flags = 0u;
-    if (h.found) {
-        flags |= TECHNIQUE_FOUND;
-    }
-    if (cell_cap_reached) {
-        flags |= FLAG_CELL_CAP;
-    }
-    if (loop_cut) {
-        flags |= FLAG_LOOP_CUT;
-    }
+    let flags = result_flags(h.found, TECHNIQUE_FOUND);
     technique_hits[index] = TechniqueHitOut(p, h.t, p.xy / params.aspect, h.fetches, flags);
 }

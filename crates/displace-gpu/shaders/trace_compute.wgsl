@@ -1,5 +1,6 @@
 // Batch ray query: one invocation per map-space ray, the march of
 // Donnelly's listing 8-2 as a compute shader. Rust mirrors: `RayIn`, `HitOut`.
+// Needs batch.wgsl (the rays, the flags) before it.
 
 struct HitOut {
     position: vec3f,
@@ -11,7 +12,6 @@ struct HitOut {
     flags: u32,
 }
 
-@group(1) @binding(0) var<storage, read> rays: array<RayIn>;
 @group(1) @binding(1) var<storage, read_write> hits: array<HitOut>;
 
 @compute @workgroup_size(64)
@@ -23,15 +23,6 @@ fn trace_main(@builtin(global_invocation_id) gid: vec3u) {
     let ray = rays[index];
     let h = trace_map(ray.origin, ray.dir);
     let p = ray.origin + ray.dir * h.t;
-    var flags = 0u;
-    if (h.converged) {
-        flags |= FLAG_CONVERGED;
-    }
-    if (cell_cap_reached) {
-        flags |= FLAG_CELL_CAP;
-    }
-    if (loop_cut) {
-        flags |= FLAG_LOOP_CUT;
-    }
+    let flags = result_flags(h.converged, FLAG_CONVERGED);
     hits[index] = HitOut(p, h.t, h.normal, h.kind, p.xy / params.aspect, h.iterations, flags);
 }

@@ -3,36 +3,15 @@
 //! and a group 1 of rays and results, one invocation per ray in workgroups
 //! of [`WORKGROUP`], dispatched to read the results back or to be timed.
 
+use crate::descriptors::{bind_group, buffer_of, empty_buffer, pipeline_layout, shader_module};
+use crate::gpu_map::GpuMap;
 use crate::timing::{compute_writes, time_frames, Timing};
+use crate::trace::RayIn;
 use crate::{Error, GpuContext, Result};
 use bytemuck::Pod;
-use wgpu::util::DeviceExt;
+use displace_core::MapRay;
 
 pub(crate) const WORKGROUP: u32 = 64;
-
-/// A storage-buffer entry of a compute bind group layout.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform buffer holding `value`.
-pub(crate) fn uniform_buffer<T: Pod>(ctx: &GpuContext, label: &str, value: &T) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
-}
 
 /// Compiles `source` and builds the pipeline of `entry` over `layouts`;
 /// shader and layout mistakes come back as [`Error::Gpu`].
@@ -44,30 +23,29 @@ pub(crate) fn compute_pipeline(
     layouts: &[&wgpu::BindGroupLayout],
 ) -> Result<wgpu::ComputePipeline> {
     ctx.checked(&format!("building the {label} pipeline"), || {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
-        let layouts: Vec<_> = layouts.iter().map(|l| Some(*l)).collect();
-        let layout = ctx
-            .device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &layouts,
-                immediate_size: 0,
-            });
-        ctx.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        compute_pipeline_unchecked(ctx, label, &source, entry, layouts)
     })
+}
+
+/// [`compute_pipeline`] inside the caller's own error scope.
+pub(crate) fn compute_pipeline_unchecked(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    entry: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> wgpu::ComputePipeline {
+    let module = shader_module(ctx, label, source);
+    let layout = pipeline_layout(ctx, label, layouts);
+    ctx.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
 }
 
 /// Rays per dispatch: what one storage binding of `per_hit`-byte results
@@ -93,12 +71,12 @@ pub(crate) fn dispatch_and_read<T: Pod>(
     let size = (rays * std::mem::size_of::<T>()) as u64;
     ctx.checked("tracing rays", || {
         let (group, results) = rays_group();
-        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("results readback"),
+        let readback = empty_buffer(
+            ctx,
+            "results readback",
             size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        );
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -157,18 +135,143 @@ pub(crate) fn time_dispatches(
             ),
         });
     }
+    time_compute(ctx, "timed rays", pipeline, groups, [workgroups, 1], frames)
+}
+
+/// GPU time of `frames` dispatches of `workgroups` (x, y) with `groups` as
+/// groups 0 and 1 (timestamps around them, [`crate::timing`]).
+pub(crate) fn time_compute(
+    ctx: &GpuContext,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    groups: [&wgpu::BindGroup; 2],
+    [x, y]: [u32; 2],
+    frames: u32,
+) -> Result<Timing> {
     let frames = frames.max(1);
     time_frames(ctx, frames, |encoder, query| {
         for f in 0..frames {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("timed rays"),
+                label: Some(label),
                 timestamp_writes: compute_writes(query, f, frames),
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, groups[0], &[]);
             pass.set_bind_group(1, groups[1], &[]);
-            pass.dispatch_workgroups(workgroups, 1, 1);
+            pass.dispatch_workgroups(x, y, 1);
         }
         Ok(())
     })
+}
+
+/// Group 1 of a batch query: the `rays` (binding 0), a storage buffer for
+/// one `H` per ray (binding 1), then `extra` (bindings 2, 3, ...). Returns
+/// the group and the result buffer.
+fn ray_buffers<H>(
+    ctx: &GpuContext,
+    rays_label: &str,
+    hits_label: &str,
+    layout: &wgpu::BindGroupLayout,
+    rays: &[MapRay],
+    extra: &[wgpu::BindingResource],
+) -> (wgpu::BindGroup, wgpu::Buffer) {
+    let ray_buf = buffer_of(
+        ctx,
+        rays_label,
+        bytemuck::cast_slice(&RayIn::all(rays)),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let hit_buf = empty_buffer(
+        ctx,
+        hits_label,
+        (rays.len() * std::mem::size_of::<H>()) as u64,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let mut resources = vec![ray_buf.as_entire_binding(), hit_buf.as_entire_binding()];
+    resources.extend(extra.iter().cloned());
+    let group = bind_group(ctx, rays_label, layout, &resources);
+    (group, hit_buf)
+}
+
+/// What every batch query holds: the map (group 0), the layout of its
+/// group 1 of rays, results and extras, and the pipeline over both.
+pub(crate) struct BatchQuery {
+    pub(crate) map: GpuMap,
+    rays_layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    /// Labels of the ray and result buffers of each dispatch.
+    labels: [&'static str; 2],
+}
+
+impl BatchQuery {
+    /// Compiles `source`'s `entry` over `map`'s group 0 and `rays_layout`
+    /// ([`compute_pipeline`]); `labels` name the ray and result buffers.
+    pub(crate) fn new(
+        ctx: &GpuContext,
+        [label, entry]: [&str; 2],
+        source: String,
+        map: GpuMap,
+        rays_layout: wgpu::BindGroupLayout,
+        labels: [&'static str; 2],
+    ) -> Result<Self> {
+        let pipeline = compute_pipeline(ctx, label, source, entry, &[&map.layout, &rays_layout])?;
+        Ok(Self {
+            map,
+            rays_layout,
+            pipeline,
+            labels,
+        })
+    }
+
+    /// One dispatch over `rays` (at most one chunk) with `map_group` and a
+    /// group 1 of the rays, `H` results and `extra` ([`ray_buffers`]), the
+    /// results read back.
+    pub(crate) fn dispatch<H: Pod>(
+        &self,
+        ctx: &GpuContext,
+        map_group: &wgpu::BindGroup,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+    ) -> Result<Vec<H>> {
+        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
+            self.rays_group::<H>(ctx, rays, extra)
+        })
+    }
+
+    /// GPU time of `frames` such dispatches ([`time_dispatches`]); the
+    /// results are discarded.
+    pub(crate) fn time<H>(
+        &self,
+        ctx: &GpuContext,
+        map_group: &wgpu::BindGroup,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+        frames: u32,
+    ) -> Result<Timing> {
+        let (rays_group, _results) = self.rays_group::<H>(ctx, rays, extra);
+        time_dispatches(
+            ctx,
+            &self.pipeline,
+            [map_group, &rays_group],
+            rays.len(),
+            frames,
+        )
+    }
+
+    fn rays_group<H>(
+        &self,
+        ctx: &GpuContext,
+        rays: &[MapRay],
+        extra: &[wgpu::BindingResource],
+    ) -> (wgpu::BindGroup, wgpu::Buffer) {
+        let [rays_label, results_label] = self.labels;
+        ray_buffers::<H>(
+            ctx,
+            rays_label,
+            results_label,
+            &self.rays_layout,
+            rays,
+            extra,
+        )
+    }
 }

@@ -2,13 +2,17 @@
 //! timed by GPU timestamps, for the raster path, the compute path and the
 //! bare loop of dependent trilinear fetches that bounds them both.
 
+use crate::batch::{compute_pipeline_unchecked, time_compute};
+use crate::descriptors::{
+    bind_group, bind_group_layout, buffer_of, empty_buffer, storage_entry, uniform_buffer,
+    uniform_entry,
+};
 use crate::gpu_map::GpuMap;
 use crate::raster::{PlaneScene, Renderer, Shadows};
 use crate::shaders::{fetch_loop_source, DistanceTexture};
-use crate::timing::{compute_writes, time_frames, Timing};
+use crate::timing::Timing;
 use crate::{GpuContext, RayTracer, Result};
 use displace_core::{DisplacementMap, MapRay, Method, TraceOptions};
-use wgpu::util::DeviceExt;
 
 /// One measured configuration.
 #[derive(Clone, Debug)]
@@ -123,99 +127,50 @@ pub fn time_fetch_loop(
 ) -> Result<Timing> {
     let gpu_map = GpuMap::new(ctx, map, DistanceTexture::R8Linear)?;
     let params = gpu_map.params(&TraceOptions::default())?;
-    let params_buf = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("fetch params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+    let params_buf = uniform_buffer(ctx, "fetch params", &params);
     let map_group = gpu_map.bind_group(ctx, &params_buf);
-    let loop_buf = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("fetch loop"),
-            contents: bytemuck::cast_slice(&[size[0], size[1], steps, 0u32]),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-    let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("fetch out"),
-        size: size[0] as u64 * size[1] as u64 * 4,
-        usage: wgpu::BufferUsages::STORAGE,
-        mapped_at_creation: false,
-    });
-    let pipeline = ctx.checked("building the fetch loop", || {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("fetch loop"),
-                source: wgpu::ShaderSource::Wgsl(fetch_loop_source().into()),
-            });
-        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let loop_layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("fetch loop"),
-                entries: &[
-                    entry(0, wgpu::BufferBindingType::Uniform),
-                    entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
-                ],
-            });
-        let layout = ctx
-            .device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("fetch loop"),
-                bind_group_layouts: &[Some(&gpu_map.layout), Some(&loop_layout)],
-                immediate_size: 0,
-            });
-        let pipeline = ctx
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("fetch loop"),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some("fetch_main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("fetch loop"),
-            layout: &loop_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: loop_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: out.as_entire_binding(),
-                },
+    let loop_buf = buffer_of(
+        ctx,
+        "fetch loop",
+        bytemuck::cast_slice(&[size[0], size[1], steps, 0u32]),
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let out = empty_buffer(
+        ctx,
+        "fetch out",
+        size[0] as u64 * size[1] as u64 * 4,
+        wgpu::BufferUsages::STORAGE,
+    );
+    let (pipeline, group) = ctx.checked("building the fetch loop", || {
+        let loop_layout = bind_group_layout(
+            ctx,
+            "fetch loop",
+            &[
+                uniform_entry(0, wgpu::ShaderStages::COMPUTE, None),
+                storage_entry(1, false),
             ],
-        });
+        );
+        let pipeline = compute_pipeline_unchecked(
+            ctx,
+            "fetch loop",
+            &fetch_loop_source(),
+            "fetch_main",
+            &[&gpu_map.layout, &loop_layout],
+        );
+        let group = bind_group(
+            ctx,
+            "fetch loop",
+            &loop_layout,
+            &[loop_buf.as_entire_binding(), out.as_entire_binding()],
+        );
         (pipeline, group)
     })?;
-    let (pipeline, group) = pipeline;
-    let frames = frames.max(1);
-    time_frames(ctx, frames, |encoder, query| {
-        for f in 0..frames {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("fetch loop"),
-                timestamp_writes: compute_writes(query, f, frames),
-            });
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &map_group, &[]);
-            pass.set_bind_group(1, &group, &[]);
-            pass.dispatch_workgroups(size[0].div_ceil(8), size[1].div_ceil(8), 1);
-        }
-        Ok(())
-    })
+    time_compute(
+        ctx,
+        "fetch loop",
+        &pipeline,
+        [&map_group, &group],
+        [size[0].div_ceil(8), size[1].div_ceil(8)],
+        frames,
+    )
 }

@@ -3,6 +3,9 @@
 //! [`DistanceTexture`] format, and the constants every trace needs.
 
 use crate::convention::{address_code, method_code, BAND_FACTOR, FILTER_WEIGHT_BITS, TAU_VOXELS};
+use crate::descriptors::{
+    bind_group, bind_group_layout, sampler_entry, texture_entry, uniform_entry,
+};
 use crate::shaders::DistanceTexture;
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
@@ -162,7 +165,7 @@ impl GpuMap {
                 ..Default::default()
             })
         });
-        let layout = map_layout(&ctx.device, texture);
+        let layout = map_layout(ctx, texture);
         Ok(Self {
             texture,
             layout,
@@ -216,31 +219,15 @@ impl GpuMap {
 
     /// Bind group 0 with `params` as its uniform buffer.
     pub fn bind_group(&self, ctx: &GpuContext, params: &wgpu::Buffer) -> wgpu::BindGroup {
-        let mut entries = vec![
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::TextureView(&self.height_view),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: wgpu::BindingResource::TextureView(&self.distance_view),
-            },
+        let mut resources = vec![
+            params.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&self.height_view),
+            wgpu::BindingResource::TextureView(&self.distance_view),
         ];
         if let Some(s) = &self.sampler {
-            entries.push(wgpu::BindGroupEntry {
-                binding: 3,
-                resource: wgpu::BindingResource::Sampler(s),
-            });
+            resources.push(wgpu::BindingResource::Sampler(s));
         }
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("map"),
-            layout: &self.layout,
-            entries: &entries,
-        })
+        bind_group(ctx, "map", &self.layout, &resources)
     }
 }
 
@@ -350,52 +337,19 @@ pub(crate) fn upload(
 
 /// Group 0: params, height, distance (and its sampler when filtered), seen
 /// by every stage that traces.
-fn map_layout(device: &wgpu::Device, texture: DistanceTexture) -> wgpu::BindGroupLayout {
+fn map_layout(ctx: &GpuContext, texture: DistanceTexture) -> wgpu::BindGroupLayout {
     let vis = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
     let mut entries = vec![
-        wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: vis | wgpu::ShaderStages::VERTEX,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<MapParams>() as u64),
-            },
-            count: None,
-        },
-        wgpu::BindGroupLayoutEntry {
-            binding: 1,
-            visibility: vis,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        },
-        wgpu::BindGroupLayoutEntry {
-            binding: 2,
-            visibility: vis,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float {
-                    filterable: texture.filtered(),
-                },
-                view_dimension: wgpu::TextureViewDimension::D3,
-                multisampled: false,
-            },
-            count: None,
-        },
+        uniform_entry(
+            0,
+            vis | wgpu::ShaderStages::VERTEX,
+            wgpu::BufferSize::new(std::mem::size_of::<MapParams>() as u64),
+        ),
+        texture_entry(1, vis, false, wgpu::TextureViewDimension::D2),
+        texture_entry(2, vis, texture.filtered(), wgpu::TextureViewDimension::D3),
     ];
     if texture.filtered() {
-        entries.push(wgpu::BindGroupLayoutEntry {
-            binding: 3,
-            visibility: vis,
-            ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-            count: None,
-        });
+        entries.push(sampler_entry(3, vis));
     }
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("map"),
-        entries: &entries,
-    })
+    bind_group_layout(ctx, "map", &entries)
 }

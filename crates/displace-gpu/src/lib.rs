@@ -19,6 +19,7 @@ mod batch;
 pub mod bench;
 pub mod context;
 pub mod convention;
+mod descriptors;
 pub mod error;
 pub mod gpu_map;
 pub mod mesh;

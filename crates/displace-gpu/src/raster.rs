@@ -6,15 +6,20 @@
 //! buffer, rendered offscreen, with a UV AOV (uv, hit kind, t) beside the
 //! colour so renders can be checked against the CPU trace pixel by pixel.
 
+use crate::descriptors::{
+    bind_group, bind_group_layout, buffer_of, cleared_attachment, color_target, empty_buffer,
+    extent_2d, frame_uniform_entry, pipeline_layout, render_pipeline, sampler_entry, shader_module,
+    texture_2d_descriptor, texture_entry, uniform_buffer, RenderStages,
+};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::mesh::{ShellMesh, ShellVertex};
 use crate::plain::{PlainFrame, PlainMesh, PLAIN_VERTEX_LAYOUT};
 use crate::shaders::{mesh_source, plain_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
+use displace_core::names::parse_choice;
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
 use glam::{Mat4, Vec2, Vec3};
-use wgpu::util::DeviceExt;
 
 /// Largest image edge accepted before anything is allocated.
 pub const MAX_IMAGE_EDGE: u32 = 16384;
@@ -36,14 +41,12 @@ pub enum Shadows {
 impl std::str::FromStr for Shadows {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "none" => Ok(Self::None),
-            "hard" => Ok(Self::Hard),
-            "soft" => Ok(Self::Soft),
-            o => Err(Error::InvalidOption(format!(
-                "unknown shadows `{o}` (expected none, hard or soft)"
-            ))),
-        }
+        let choices = [
+            ("none", Self::None),
+            ("hard", Self::Hard),
+            ("soft", Self::Soft),
+        ];
+        parse_choice("shadows", s, &choices).map_err(Error::InvalidOption)
     }
 }
 
@@ -426,70 +429,35 @@ impl Renderer {
     pub fn plain(ctx: &GpuContext, mesh: &PlainMesh) -> Result<Self> {
         mesh.check()?;
         let (pipeline, frame_layout) = ctx.checked("building the plain pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("plain"),
-                    source: wgpu::ShaderSource::Wgsl(plain_source().into()),
-                });
-            let frame_layout =
-                ctx.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("plain frame"),
-                        entries: &[wgpu::BindGroupLayoutEntry {
-                            binding: 0,
-                            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                            ty: wgpu::BindingType::Buffer {
-                                ty: wgpu::BufferBindingType::Uniform,
-                                has_dynamic_offset: false,
-                                min_binding_size: None,
-                            },
-                            count: None,
-                        }],
-                    });
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("plain"),
-                    bind_group_layouts: &[Some(&frame_layout)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("plain"),
-                    layout: Some(&layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_plain"),
-                        compilation_options: Default::default(),
-                        buffers: &[PLAIN_VERTEX_LAYOUT],
-                    },
-                    // Two-sided, as the CPU renderer's surfaces.
-                    primitive: wgpu::PrimitiveState {
-                        cull_mode: None,
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(depth_state()),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("fs_plain"),
-                        compilation_options: Default::default(),
-                        targets: &color_targets(),
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                });
+            let module = shader_module(ctx, "plain", &plain_source());
+            let frame_layout = bind_group_layout(ctx, "plain frame", &[frame_uniform_entry()]);
+            let layout = pipeline_layout(ctx, "plain", &[&frame_layout]);
+            let pipeline = render_pipeline(
+                ctx,
+                "plain",
+                &layout,
+                RenderStages {
+                    module: &module,
+                    vertex: "vs_plain",
+                    fragment: "fs_plain",
+                    buffers: &[PLAIN_VERTEX_LAYOUT],
+                    targets: &color_targets(),
+                },
+                // Two-sided, as the CPU renderer's surfaces.
+                wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                Some(depth_state()),
+            );
             (pipeline, frame_layout)
         })?;
-        let vertices = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("plain vertices"),
-                contents: bytemuck::cast_slice(&mesh.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
+        let vertices = buffer_of(
+            ctx,
+            "plain vertices",
+            bytemuck::cast_slice(&mesh.vertices),
+            wgpu::BufferUsages::VERTEX,
+        );
         Ok(Self {
             pipeline,
             kind: Kind::Plain {
@@ -551,113 +519,62 @@ impl Renderer {
             ..Default::default()
         });
         let (pipeline, shade_group) = ctx.checked("building the raster pipeline", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("raster"),
-                    source: wgpu::ShaderSource::Wgsl(
-                        match shape {
-                            Shape::Box { .. } => raster_source(texture),
-                            Shape::Mesh(_) => mesh_source(texture),
-                        }
-                        .into(),
-                    ),
-                });
-            let tex = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
+            let source = match shape {
+                Shape::Box { .. } => raster_source(texture),
+                Shape::Mesh(_) => mesh_source(texture),
             };
-            let shade_group =
-                ctx.device
-                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                        label: Some("shading"),
-                        entries: &[
-                            wgpu::BindGroupLayoutEntry {
-                                binding: 0,
-                                visibility: wgpu::ShaderStages::VERTEX
-                                    | wgpu::ShaderStages::FRAGMENT,
-                                ty: wgpu::BindingType::Buffer {
-                                    ty: wgpu::BufferBindingType::Uniform,
-                                    has_dynamic_offset: false,
-                                    min_binding_size: None,
-                                },
-                                count: None,
-                            },
-                            tex(1),
-                            tex(2),
-                            wgpu::BindGroupLayoutEntry {
-                                binding: 3,
-                                visibility: wgpu::ShaderStages::FRAGMENT,
-                                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                                count: None,
-                            },
-                        ],
-                    });
-            let layout = ctx
-                .device
-                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("raster"),
-                    bind_group_layouts: &[Some(&gpu_map.layout), Some(&shade_group)],
-                    immediate_size: 0,
-                });
-            let pipeline = ctx
-                .device
-                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("raster"),
-                    layout: Some(&layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some(match shape {
-                            Shape::Box { .. } => "vs_main",
-                            Shape::Mesh(_) => "vs_mesh",
-                        }),
-                        compilation_options: Default::default(),
-                        buffers: match shape {
-                            Shape::Box { .. } => &[],
-                            Shape::Mesh(_) => &[SHELL_VERTEX_LAYOUT],
-                        },
+            let module = shader_module(ctx, "raster", &source);
+            let fragment = wgpu::ShaderStages::FRAGMENT;
+            let tex =
+                |binding| texture_entry(binding, fragment, true, wgpu::TextureViewDimension::D2);
+            let shade_group = bind_group_layout(
+                ctx,
+                "shading",
+                &[
+                    frame_uniform_entry(),
+                    tex(1),
+                    tex(2),
+                    sampler_entry(3, fragment),
+                ],
+            );
+            let layout = pipeline_layout(ctx, "raster", &[&gpu_map.layout, &shade_group]);
+            let (vertex, fragment, buffers): (_, _, &[_]) = match shape {
+                Shape::Box { .. } => ("vs_main", "fs_main", &[]),
+                Shape::Mesh(_) => ("vs_mesh", "fs_mesh", &[SHELL_VERTEX_LAYOUT]),
+            };
+            let pipeline = render_pipeline(
+                ctx,
+                "raster",
+                &layout,
+                RenderStages {
+                    module: &module,
+                    vertex,
+                    fragment,
+                    buffers,
+                    targets: &color_targets(),
+                },
+                wgpu::PrimitiveState {
+                    front_face: if matches!(shape, Shape::Box { mirrored: true }) {
+                        wgpu::FrontFace::Cw
+                    } else {
+                        wgpu::FrontFace::Ccw
                     },
-                    primitive: wgpu::PrimitiveState {
-                        front_face: if matches!(shape, Shape::Box { mirrored: true }) {
-                            wgpu::FrontFace::Cw
-                        } else {
-                            wgpu::FrontFace::Ccw
-                        },
-                        cull_mode: Some(wgpu::Face::Back),
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(depth_state()),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some(match shape {
-                            Shape::Box { .. } => "fs_main",
-                            Shape::Mesh(_) => "fs_mesh",
-                        }),
-                        compilation_options: Default::default(),
-                        targets: &color_targets(),
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                });
+                    cull_mode: Some(wgpu::Face::Back),
+                    ..Default::default()
+                },
+                Some(depth_state()),
+            );
             (pipeline, shade_group)
         })?;
         let geometry = match shape {
             Shape::Box { mirrored } => Geometry::ShellBox { mirrored },
             Shape::Mesh(mesh) => Geometry::Mesh {
-                vertices: ctx
-                    .device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("shell vertices"),
-                        contents: bytemuck::cast_slice(&mesh.vertices),
-                        usage: wgpu::BufferUsages::VERTEX,
-                    }),
+                vertices: buffer_of(
+                    ctx,
+                    "shell vertices",
+                    bytemuck::cast_slice(&mesh.vertices),
+                    wgpu::BufferUsages::VERTEX,
+                ),
                 count: mesh.vertices.len() as u32,
                 uv_shift: mesh.uv_shift,
                 tiles: mesh.tiles,
@@ -770,43 +687,20 @@ impl MapShading {
             uv_shift: uv_shift.to_array(),
             _pad: [0.0; 2],
         };
-        let params_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("raster params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let frame_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("frame"),
-                contents: bytemuck::bytes_of(&frame),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let params_buf = uniform_buffer(ctx, "raster params", &params);
+        let frame_buf = uniform_buffer(ctx, "frame", &frame);
         let map_group = self.map.bind_group(ctx, &params_buf);
-        let shade = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shading"),
-            layout: &self.shade_group,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&self.normal_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&self.color_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
-                },
+        let shade = bind_group(
+            ctx,
+            "shading",
+            &self.shade_group,
+            &[
+                frame_buf.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&self.normal_view),
+                wgpu::BindingResource::TextureView(&self.color_view),
+                wgpu::BindingResource::Sampler(&self.sampler),
             ],
-        });
+        );
         Ok(vec![map_group, shade])
     }
 }
@@ -827,32 +721,13 @@ fn plain_uniforms(
         falloff: scene.falloff as u32,
         _pad: 0.0,
     };
-    let buffer = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("plain frame"),
-            contents: bytemuck::bytes_of(&frame),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("plain frame"),
-        layout,
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: buffer.as_entire_binding(),
-        }],
-    })
+    let buffer = uniform_buffer(ctx, "plain frame", &frame);
+    bind_group(ctx, "plain frame", layout, &[buffer.as_entire_binding()])
 }
 
 /// The colour and AOV targets every pipeline writes.
 fn color_targets() -> [Option<wgpu::ColorTargetState>; 2] {
-    [COLOR_FORMAT, AOV_FORMAT].map(|format| {
-        Some(wgpu::ColorTargetState {
-            format,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        })
-    })
+    [COLOR_FORMAT, AOV_FORMAT].map(|format| color_target(format, None))
 }
 
 /// One depth test for every draw, so the nearest surface wins whichever
@@ -942,34 +817,24 @@ fn record(
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("displace"),
             color_attachments: &[
-                Some(wgpu::RenderPassColorAttachment {
-                    view: &targets.color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: clear[0],
-                            g: clear[1],
-                            b: clear[2],
-                            a: 1.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
+                cleared_attachment(
+                    &targets.color,
+                    wgpu::Color {
+                        r: clear[0],
+                        g: clear[1],
+                        b: clear[2],
+                        a: 1.0,
                     },
-                }),
-                Some(wgpu::RenderPassColorAttachment {
-                    view: &targets.aov,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: -1.0,
-                            g: -1.0,
-                            b: 0.0,
-                            a: -1.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
+                ),
+                cleared_attachment(
+                    &targets.aov,
+                    wgpu::Color {
+                        r: -1.0,
+                        g: -1.0,
+                        b: 0.0,
+                        a: -1.0,
                     },
-                }),
+                ),
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &targets.depth,
@@ -1064,12 +929,12 @@ pub(crate) fn copy_to_readback(
 ) -> (wgpu::Buffer, u32) {
     let row = (w * texel_bytes).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
         * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size: row as u64 * h as u64,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let buffer = empty_buffer(
+        ctx,
+        "readback",
+        row as u64 * h as u64,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
     encoder.copy_texture_to_buffer(
         texture.as_image_copy(),
         wgpu::TexelCopyBufferInfo {
@@ -1080,11 +945,7 @@ pub(crate) fn copy_to_readback(
                 rows_per_image: Some(h),
             },
         },
-        wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
+        extent_2d([w, h]),
     );
     (buffer, row)
 }
@@ -1159,20 +1020,8 @@ impl Targets {
     /// Allocates the three targets at `w x h`.
     pub fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
         let make = |format, usage| {
-            ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("target"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            ctx.device
+                .create_texture(&texture_2d_descriptor("target", [w, h], 1, format, usage))
         };
         let rt = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let color_tex = make(COLOR_FORMAT, rt | wgpu::TextureUsages::TEXTURE_BINDING);
@@ -1252,20 +1101,13 @@ pub(crate) fn texture_2d(
     format: wgpu::TextureFormat,
     mips: &[Vec<u8>],
 ) -> wgpu::TextureView {
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: mips.len() as u32,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
+    let texture = ctx.device.create_texture(&texture_2d_descriptor(
+        label,
+        [w, h],
+        mips.len() as u32,
         format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+    ));
     for (level, data) in mips.iter().enumerate() {
         let (lw, lh) = ((w >> level).max(1), (h >> level).max(1));
         ctx.queue.write_texture(
@@ -1281,11 +1123,7 @@ pub(crate) fn texture_2d(
                 bytes_per_row: Some(lw * 4),
                 rows_per_image: Some(lh),
             },
-            wgpu::Extent3d {
-                width: lw,
-                height: lh,
-                depth_or_array_layers: 1,
-            },
+            extent_2d([lw, lh]),
         );
     }
     texture.create_view(&Default::default())

@@ -25,8 +25,13 @@ pub const SURFACE: &str = include_str!("../shaders/surface.wgsl");
 pub const BINDINGS_LOAD: &str = include_str!("../shaders/bindings_load.wgsl");
 /// The same for the filtered distance textures (with the sampler).
 pub const BINDINGS_FILTERED: &str = include_str!("../shaders/bindings_filtered.wgsl");
+/// What both batch queries share: group 1's rays and the result flags.
+pub const BATCH: &str = include_str!("../shaders/batch.wgsl");
 /// The batch ray query's compute entry point.
 pub const TRACE_COMPUTE: &str = include_str!("../shaders/trace_compute.wgsl");
+/// Lambert plus normalised Blinn-Phong of one point light, shared by the
+/// displaced hits and the plain triangles so both light alike.
+pub const LIGHTING: &str = include_str!("../shaders/lighting.wgsl");
 /// Normal-mapped Blinn-Phong shading with self-shadowing, texture lookups
 /// with the base coordinate's derivatives (section 8.5.3).
 pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
@@ -91,14 +96,9 @@ impl DistanceTexture {
 impl std::str::FromStr for DistanceTexture {
     type Err = crate::Error;
     fn from_str(s: &str) -> crate::Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|d| d.name() == s)
-            .ok_or_else(|| {
-                crate::Error::InvalidOption(format!(
-                    "unknown distance texture `{s}` (expected r32-load, r8-load, r16-linear or r8-linear)"
-                ))
-            })
+        let choices = Self::ALL.map(|d| (d.name(), d));
+        displace_core::names::parse_choice("distance texture", s, &choices)
+            .map_err(crate::Error::InvalidOption)
     }
 }
 
@@ -130,13 +130,14 @@ pub fn join(parts: &[&str]) -> String {
 
 /// The batch ray query kernel.
 pub fn compute_trace_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), TRACE_COMPUTE].join("\n")
+    [map_trace_source(texture).as_str(), BATCH, TRACE_COMPUTE].join("\n")
 }
 
-/// The batch query of every issue-5 technique (`shaders/techniques.wgsl`).
+/// The batch query of every technique (`shaders/techniques.wgsl`).
 pub fn technique_compute_source(texture: DistanceTexture) -> String {
     [
         map_trace_source(texture).as_str(),
+        BATCH,
         TECHNIQUES,
         TECHNIQUE_COMPUTE,
     ]
@@ -146,18 +147,18 @@ pub fn technique_compute_source(texture: DistanceTexture) -> String {
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
 /// shadowing variants are uniforms of one module).
 pub fn raster_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), SHADE, RASTER].join("\n")
+    [map_trace_source(texture).as_str(), LIGHTING, SHADE, RASTER].join("\n")
 }
 
 /// The mesh variant of the raster path: the same fragment work, started
 /// from each mesh triangle's shell in its MikkTSpace frame.
 pub fn mesh_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), SHADE, MESH].join("\n")
+    [map_trace_source(texture).as_str(), LIGHTING, SHADE, MESH].join("\n")
 }
 
 /// Non-displaced triangles beside the displaced draws (no map).
 pub fn plain_source() -> String {
-    join(&[CONVENTION, PLAIN])
+    join(&[CONVENTION, LIGHTING, PLAIN])
 }
 
 /// The bare loop of dependent filtered fetches (benchmarks only).
@@ -214,15 +215,9 @@ pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&s
     assert_eq!(wgsl, rust, "{wgsl_name}: member names and offsets");
 }
 
-/// `[(name, offset)]` of a Rust mirror's fields, for [`assert_layout`].
+/// [`crate::field_offsets`], for [`assert_layout`].
 #[cfg(test)]
-macro_rules! offsets {
-    ($t:ty { $($field:ident),* $(,)? }) => {
-        &[$((stringify!($field), std::mem::offset_of!($t, $field))),*]
-    };
-}
-#[cfg(test)]
-pub(crate) use offsets;
+pub(crate) use crate::field_offsets as offsets;
 
 #[cfg(test)]
 mod tests {

@@ -10,22 +10,21 @@
 //! uploaded as [`DistanceTexture::R8Load`], the CPU tracer's own 8-bit codes,
 //! so distance mapping reads bit for bit what the CPU reads.
 
-use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
-    time_dispatches, uniform_buffer,
-};
+use crate::batch::{check_cell_cap, chunk_size, BatchQuery};
 use crate::convention::technique_code;
+use crate::descriptors::{
+    bind_group_layout, storage_entry, texture_entry, uniform_buffer, uniform_entry,
+};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{technique_compute_source, DistanceTexture};
 use crate::technique_maps::TechniqueTextures;
 use crate::timing::Timing;
-use crate::trace::{check_rays, RayIn};
+use crate::trace::check_rays;
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::techniques::{Hit, Maps, Needs, Technique, Traced};
 use displace_core::{MapRay, Method, TraceOptions};
 use glam::{Vec2, Vec3};
-use wgpu::util::DeviceExt;
 
 /// Mirror of WGSL `TechniqueParams`.
 #[repr(C)]
@@ -52,12 +51,13 @@ const TECHNIQUE_FOUND: u32 = 1;
 
 /// The textures of one [`Maps`] and the pipeline that traces them.
 pub struct TechniqueTracer {
-    map: GpuMap,
+    query: BatchQuery,
     has_distance: bool,
     textures: TechniqueTextures,
-    pipeline: wgpu::ComputePipeline,
-    rays_layout: wgpu::BindGroupLayout,
 }
+
+/// Labels of the query's ray and hit buffers.
+const LABELS: [&str; 2] = ["technique rays", "technique hits"];
 
 impl TechniqueTracer {
     /// Uploads `maps` (whatever precomputations it holds) and builds the
@@ -77,20 +77,19 @@ impl TechniqueTracer {
             None => GpuMap::for_height(ctx, &maps.height, maps.aspect)?,
         };
         let textures = TechniqueTextures::new(ctx, maps)?;
-        let rays_layout = rays_layout(&ctx.device);
-        let pipeline = compute_pipeline(
+        let rays_layout = rays_layout(ctx);
+        let query = BatchQuery::new(
             ctx,
-            "techniques",
+            ["techniques", "technique_main"],
             technique_compute_source(texture),
-            "technique_main",
-            &[&map.layout, &rays_layout],
+            map,
+            rays_layout,
+            LABELS,
         )?;
         Ok(Self {
-            map,
+            query,
             has_distance: maps.displacement.is_some(),
             textures,
-            pipeline,
-            rays_layout,
         })
     }
 
@@ -108,7 +107,11 @@ impl TechniqueTracer {
         let chunk = chunk_size(ctx, std::mem::size_of::<TechniqueHitOut>() as u64);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
-            for h in self.trace_chunk(ctx, &uniforms, batch)? {
+            let extra = self.extra(&uniforms);
+            for h in
+                self.query
+                    .dispatch::<TechniqueHitOut>(ctx, &uniforms.map_group, batch, &extra)?
+            {
                 check_cell_cap(h.flags, &format!("tracing rays with {}", technique.name()))?;
                 out.push(to_traced(&h));
             }
@@ -136,12 +139,11 @@ impl TechniqueTracer {
             });
         }
         let uniforms = self.uniforms(ctx, technique, budget)?;
-        let (rays_group, _hits) = self.ray_buffers(ctx, &uniforms, rays);
-        time_dispatches(
+        self.query.time::<TechniqueHitOut>(
             ctx,
-            &self.pipeline,
-            [&uniforms.map_group, &rays_group],
-            rays.len(),
+            &uniforms.map_group,
+            rays,
+            &self.extra(&uniforms),
             frames,
         )
     }
@@ -171,7 +173,7 @@ impl TechniqueTracer {
             iterations: budget,
             ..TraceOptions::default()
         };
-        let params: MapParams = self.map.params(&opts)?;
+        let params: MapParams = self.query.map.params(&opts)?;
         let map_buf = uniform_buffer(ctx, "technique map params", &params);
         let technique = TechniqueParams {
             technique: technique_code(technique),
@@ -180,73 +182,21 @@ impl TechniqueTracer {
         };
         let technique_buf = uniform_buffer(ctx, "technique params", &technique);
         Ok(Uniforms {
-            map_group: self.map.bind_group(ctx, &map_buf),
+            map_group: self.query.map.bind_group(ctx, &map_buf),
             technique: technique_buf,
         })
     }
 
-    fn ray_buffers(
-        &self,
-        ctx: &GpuContext,
-        uniforms: &Uniforms,
-        rays: &[MapRay],
-    ) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let ray_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("technique rays"),
-                contents: bytemuck::cast_slice(&RayIn::all(rays)),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("technique hits"),
-            size: (rays.len() * std::mem::size_of::<TechniqueHitOut>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+    /// Bindings 2 to 5 of group 1: the technique's uniform, cones,
+    /// relaxed cones and the pyramid.
+    fn extra<'a>(&'a self, uniforms: &'a Uniforms) -> [wgpu::BindingResource<'a>; 4] {
         let view = wgpu::BindingResource::TextureView;
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("technique rays"),
-            layout: &self.rays_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: hit_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: uniforms.technique.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: view(&self.textures.cones),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: view(&self.textures.relaxed),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: view(&self.textures.pyramid),
-                },
-            ],
-        });
-        (group, hit_buf)
-    }
-
-    fn trace_chunk(
-        &self,
-        ctx: &GpuContext,
-        uniforms: &Uniforms,
-        rays: &[MapRay],
-    ) -> Result<Vec<TechniqueHitOut>> {
-        dispatch_and_read(ctx, &self.pipeline, &uniforms.map_group, rays.len(), || {
-            self.ray_buffers(ctx, uniforms, rays)
-        })
+        [
+            uniforms.technique.as_entire_binding(),
+            view(&self.textures.cones),
+            view(&self.textures.relaxed),
+            view(&self.textures.pyramid),
+        ]
     }
 }
 
@@ -268,38 +218,25 @@ fn to_traced(h: &TechniqueHitOut) -> Traced {
 
 /// Group 1: rays, hits, the technique's uniform, cones, relaxed cones and
 /// the pyramid.
-fn rays_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
-    let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty,
-        count: None,
-    };
-    let texture = wgpu::BindingType::Texture {
-        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    };
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("technique rays"),
-        entries: &[
+fn rays_layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let texture = |binding| texture_entry(binding, compute, false, wgpu::TextureViewDimension::D2);
+    bind_group_layout(
+        ctx,
+        "technique rays",
+        &[
             storage_entry(0, true),
             storage_entry(1, false),
-            entry(
+            uniform_entry(
                 2,
-                wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: wgpu::BufferSize::new(
-                        std::mem::size_of::<TechniqueParams>() as u64
-                    ),
-                },
+                compute,
+                wgpu::BufferSize::new(std::mem::size_of::<TechniqueParams>() as u64),
             ),
-            entry(3, texture),
-            entry(4, texture),
-            entry(5, texture),
+            texture(3),
+            texture(4),
+            texture(5),
         ],
-    })
+    )
 }
 
 /// GPU cost of one technique at one budget over a batch of rays.

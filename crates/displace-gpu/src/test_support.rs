@@ -30,3 +30,14 @@ pub fn test_context() -> Option<&'static GpuContext> {
         }
     }
 }
+
+/// `&[(name, offset)]` of the fields of a `repr(C)` Rust mirror of a WGSL
+/// struct, for checking it against the offsets naga lays the WGSL out with:
+/// one spelling for this crate's layout tests and its integration tests, so
+/// a field list cannot drift from the names it is compared by.
+#[macro_export]
+macro_rules! field_offsets {
+    ($t:ty { $($field:ident),* $(,)? }) => {
+        &[$((stringify!($field), std::mem::offset_of!($t, $field))),*]
+    };
+}

@@ -3,11 +3,9 @@
 //! returning the CPU's own [`MapHit`] so the two backends are
 //! interchangeable.
 
-use crate::batch::{
-    check_cell_cap, chunk_size, compute_pipeline, dispatch_and_read, storage_entry,
-    time_dispatches, uniform_buffer,
-};
+use crate::batch::{check_cell_cap, chunk_size, BatchQuery};
 use crate::convention::{FLAG_CONVERGED, HIT_NONE, HIT_SURFACE, HIT_WALL};
+use crate::descriptors::{bind_group_layout, storage_entry, uniform_buffer};
 use crate::gpu_map::{GpuMap, MapParams};
 use crate::shaders::{compute_trace_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
@@ -15,7 +13,6 @@ use bytemuck::{Pod, Zeroable};
 use displace_core::sphere_trace::HitKind;
 use displace_core::{DisplacementMap, MapHit, MapRay, TraceOptions};
 use glam::{Vec2, Vec3};
-use wgpu::util::DeviceExt;
 
 /// What [`trace_rays`] returns per ray: the CPU's hit record.
 pub type GpuHit = MapHit;
@@ -87,33 +84,30 @@ pub struct GpuTraceOptions {
 
 /// A compiled ray-query pipeline for one map, reusable across batches.
 pub struct RayTracer {
-    map: GpuMap,
-    pipeline: wgpu::ComputePipeline,
-    rays_layout: wgpu::BindGroupLayout,
+    query: BatchQuery,
 }
+
+/// Labels of the query's ray and hit buffers.
+const LABELS: [&str; 2] = ["rays", "hits"];
 
 impl RayTracer {
     /// Uploads `map` and compiles the query for `texture`.
     pub fn new(ctx: &GpuContext, map: &DisplacementMap, texture: DistanceTexture) -> Result<Self> {
         let gpu_map = GpuMap::new(ctx, map, texture)?;
-        let rays_layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("rays"),
-                entries: &[storage_entry(0, true), storage_entry(1, false)],
-            });
-        let pipeline = compute_pipeline(
+        let rays_layout = bind_group_layout(
             ctx,
-            "ray-query",
+            "rays",
+            &[storage_entry(0, true), storage_entry(1, false)],
+        );
+        let query = BatchQuery::new(
+            ctx,
+            ["ray-query", "trace_main"],
             compute_trace_source(texture),
-            "trace_main",
-            &[&gpu_map.layout, &rays_layout],
-        )?;
-        Ok(Self {
-            map: gpu_map,
-            pipeline,
+            gpu_map,
             rays_layout,
-        })
+            LABELS,
+        )?;
+        Ok(Self { query })
     }
 
     /// Traces `rays` (map space, `dir` unit length as for the CPU).
@@ -123,14 +117,14 @@ impl RayTracer {
         rays: &[MapRay],
         opts: &TraceOptions,
     ) -> Result<Vec<Option<GpuHit>>> {
-        let params = self.map.params(opts)?;
+        let params = self.query.map.params(opts)?;
         check_rays(rays)?;
         let chunk = chunk_size(ctx, std::mem::size_of::<HitOut>() as u64);
         let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
-        let map_group = self.map.bind_group(ctx, &params_buf);
+        let map_group = self.query.map.bind_group(ctx, &params_buf);
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(chunk) {
-            for h in self.trace_chunk(ctx, &map_group, batch)? {
+            for h in self.query.dispatch::<HitOut>(ctx, &map_group, batch, &[])? {
                 check_cell_cap(h.flags, "tracing rays")?;
                 out.push(to_hit(&h)?);
             }
@@ -147,61 +141,11 @@ impl RayTracer {
         opts: &TraceOptions,
         frames: u32,
     ) -> Result<crate::timing::Timing> {
-        let params = self.map.params(opts)?;
+        let params = self.query.map.params(opts)?;
         let params_buf = uniform_buffer::<MapParams>(ctx, "trace params", &params);
-        let map_group = self.map.bind_group(ctx, &params_buf);
-        let (rays_group, _hits) = self.ray_buffers(ctx, rays);
-        time_dispatches(
-            ctx,
-            &self.pipeline,
-            [&map_group, &rays_group],
-            rays.len(),
-            frames,
-        )
-    }
-
-    fn ray_buffers(&self, ctx: &GpuContext, rays: &[MapRay]) -> (wgpu::BindGroup, wgpu::Buffer) {
-        let input = RayIn::all(rays);
-        let size = (rays.len() * std::mem::size_of::<HitOut>()) as u64;
-        let ray_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("rays"),
-                contents: bytemuck::cast_slice(&input),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let hit_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("rays"),
-            layout: &self.rays_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: hit_buf.as_entire_binding(),
-                },
-            ],
-        });
-        (group, hit_buf)
-    }
-
-    fn trace_chunk(
-        &self,
-        ctx: &GpuContext,
-        map_group: &wgpu::BindGroup,
-        rays: &[MapRay],
-    ) -> Result<Vec<HitOut>> {
-        dispatch_and_read(ctx, &self.pipeline, map_group, rays.len(), || {
-            self.ray_buffers(ctx, rays)
-        })
+        let map_group = self.query.map.bind_group(ctx, &params_buf);
+        self.query
+            .time::<HitOut>(ctx, &map_group, rays, &[], frames)
     }
 }
 

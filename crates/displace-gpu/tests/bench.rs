@@ -4,16 +4,15 @@
 
 mod common;
 
-use common::{random_map, Rng};
-use displace_core::{Address, TraceOptions};
+use common::clamped_map;
+use displace_core::TraceOptions;
 use displace_gpu::bench::{bench_config, filled_view, frame_rays};
 use displace_gpu::test_support::test_context;
 
 #[test]
 fn every_row_is_timed() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(21);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(21);
     let rows = bench_config(ctx, &map, [64, 48], 8, 3).unwrap();
     let paths: Vec<&str> = rows.iter().map(|r| r.path.as_str()).collect();
     assert_eq!(
@@ -38,8 +37,7 @@ fn every_row_is_timed() {
 
 #[test]
 fn filled_view_displaces_every_pixel() {
-    let mut rng = Rng::new(22);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(22);
     let scene = filled_view(&map, [40, 30]);
     let rays = frame_rays(&map, &scene);
     let hits = rays

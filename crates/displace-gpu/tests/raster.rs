@@ -5,20 +5,32 @@
 
 mod common;
 
-use common::{random_map, Rng};
-use displace_core::{Address, Method, TraceOptions};
+use common::clamped_map;
+use displace_core::DisplacementMap;
+use displace_core::{Method, TraceOptions};
 use displace_gpu::test_support::test_context;
-use displace_gpu::{DistanceTexture, PlaneScene, Renderer, Shadows};
+use displace_gpu::{DistanceTexture, GpuContext, PlaneScene, Renderer, Shadows};
+
+/// The GPU, the clamped map of `seed`, its renderer reading `texture` and
+/// the built-in view of it at `size`; `None` without a GPU where the test
+/// policy allows that.
+fn setup(
+    seed: u64,
+    texture: DistanceTexture,
+    size: [u32; 2],
+) -> Option<(&'static GpuContext, DisplacementMap, Renderer, PlaneScene)> {
+    let ctx = test_context()?;
+    let map = clamped_map(seed);
+    let renderer = Renderer::new(ctx, &map, texture).unwrap();
+    let scene = PlaneScene::for_map(&map, size);
+    Some((ctx, map, renderer, scene))
+}
 
 fn uv_agreement(texture: DistanceTexture, seed: u64) {
-    let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(seed);
-    let map = random_map(&mut rng, Address::Clamp);
-    let scene = PlaneScene::for_map(&map, [64, 64]);
-    let image = Renderer::new(ctx, &map, texture)
-        .unwrap()
-        .render(ctx, &scene)
-        .unwrap();
+    let Some((ctx, map, renderer, scene)) = setup(seed, texture, [64, 64]) else {
+        return;
+    };
+    let image = renderer.render(ctx, &scene).unwrap();
     let (mut agree, mut covered) = (0, 0);
     for y in 0..64 {
         for x in 0..64 {
@@ -64,11 +76,9 @@ fn raster_uv_matches_cpu_r16() {
 
 #[test]
 fn variants_differ_as_they_should() {
-    let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(13);
-    let map = random_map(&mut rng, Address::Clamp);
-    let renderer = Renderer::new(ctx, &map, DistanceTexture::R8Linear).unwrap();
-    let base = PlaneScene::for_map(&map, [64, 64]);
+    let Some((ctx, _, renderer, base)) = setup(13, DistanceTexture::R8Linear, [64, 64]) else {
+        return;
+    };
     let render = |scene: PlaneScene| renderer.render(ctx, &scene).unwrap();
     let lum = |img: &displace_gpu::Image| {
         img.rgba8
@@ -130,11 +140,9 @@ fn variants_differ_as_they_should() {
 
 #[test]
 fn bad_scenes_are_refused() {
-    let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(14);
-    let map = random_map(&mut rng, Address::Clamp);
-    let renderer = Renderer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
-    let base = PlaneScene::for_map(&map, [8, 8]);
+    let Some((ctx, _, renderer, base)) = setup(14, DistanceTexture::R32Load, [8, 8]) else {
+        return;
+    };
     for bad in [
         PlaneScene {
             size: [0, 8],

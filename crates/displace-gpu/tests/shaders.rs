@@ -118,30 +118,25 @@ fn map_params_layout_matches_wgsl() {
         panic!("MapParams is a struct")
     };
     assert_eq!(*span as usize, std::mem::size_of::<MapParams>());
-    let rust_offsets: BTreeMap<&str, usize> = [
-        ("aspect", std::mem::offset_of!(MapParams, aspect)),
-        ("tiles", std::mem::offset_of!(MapParams, tiles)),
-        ("dist_size", std::mem::offset_of!(MapParams, dist_size)),
-        ("address", std::mem::offset_of!(MapParams, address)),
-        ("height_size", std::mem::offset_of!(MapParams, height_size)),
-        ("tau", std::mem::offset_of!(MapParams, tau)),
-        ("band", std::mem::offset_of!(MapParams, band)),
-        (
-            "decode_scale",
-            std::mem::offset_of!(MapParams, decode_scale),
-        ),
-        (
-            "decode_offset",
-            std::mem::offset_of!(MapParams, decode_offset),
-        ),
-        ("max_cells", std::mem::offset_of!(MapParams, max_cells)),
-        ("method", std::mem::offset_of!(MapParams, method)),
-        ("iterations", std::mem::offset_of!(MapParams, iterations)),
-        ("t_min", std::mem::offset_of!(MapParams, t_min)),
-        ("t_max", std::mem::offset_of!(MapParams, t_max)),
-        ("pad_end", std::mem::offset_of!(MapParams, pad_end)),
-    ]
-    .into_iter()
+    let rust_offsets: BTreeMap<&str, usize> = displace_gpu::field_offsets!(MapParams {
+        aspect,
+        tiles,
+        dist_size,
+        address,
+        height_size,
+        tau,
+        band,
+        decode_scale,
+        decode_offset,
+        max_cells,
+        method,
+        iterations,
+        t_min,
+        t_max,
+        pad_end,
+    })
+    .iter()
+    .copied()
     .collect();
     assert_eq!(members.len(), rust_offsets.len());
     for m in members {

@@ -16,7 +16,7 @@
 
 mod common;
 
-use common::{random_map, random_rays, Rng};
+use common::{random_map, random_rays, HitAgreement, Rng};
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique, Traced};
 use displace_core::Address;
 use displace_gpu::test_support::test_context;
@@ -25,43 +25,28 @@ use glam::Vec3;
 
 #[derive(Default, Debug)]
 struct Tally {
-    rays: usize,
-    hits: usize,
-    hit_miss_differ: usize,
-    far: usize,
+    h: HitAgreement,
     fetches_differ: usize,
-    worst: f32,
     cpu_fetches: u64,
     gpu_fetches: u64,
 }
 
 impl Tally {
     fn add(&mut self, cpu: &Traced, gpu: &Traced) {
-        self.rays += 1;
         self.cpu_fetches += cpu.fetches as u64;
         self.gpu_fetches += gpu.fetches as u64;
         if cpu.fetches != gpu.fetches {
             self.fetches_differ += 1;
         }
-        match (&cpu.hit, &gpu.hit) {
-            (Some(c), Some(g)) => {
-                self.hits += 1;
-                let e = (c.position - g.position).length();
-                self.worst = self.worst.max(e);
-                if e > 1e-3 {
-                    self.far += 1;
-                }
-            }
-            (None, None) => {}
-            _ => self.hit_miss_differ += 1,
-        }
+        let at = |t: &Traced| t.hit.map(|h| h.position);
+        self.h.add(at(cpu), at(gpu));
     }
 
     /// Maximum mipmaps' fetch counts (see the module documentation): equal
     /// on most rays, within 2% on average.
     fn check_boundary_counts(&self, what: &str) {
         assert!(
-            self.fetches_differ * 2 <= self.rays,
+            self.fetches_differ * 2 <= self.h.rays,
             "{what}: fetch counts differ on half the rays: {self:?}"
         );
         let (c, g) = (self.cpu_fetches as f64, self.gpu_fetches as f64);
@@ -74,9 +59,12 @@ impl Tally {
     /// Maximum mipmaps within a budget: the same answer on 90% of rays.
     fn check_budget_limited(&self, what: &str) {
         eprintln!("{what}: {self:?}");
-        assert!(self.hits * 3 > self.rays, "{what}: too few hits: {self:?}");
         assert!(
-            (self.hit_miss_differ + self.far) * 10 <= self.rays,
+            self.h.hits * 3 > self.h.rays,
+            "{what}: too few hits: {self:?}"
+        );
+        assert!(
+            (self.h.hit_miss_differ + self.h.far) * 10 <= self.h.rays,
             "{what}: answers differ on more than 10% of rays: {self:?}"
         );
         self.check_boundary_counts(what);
@@ -84,23 +72,16 @@ impl Tally {
 
     fn check(&self, what: &str, exact_counts: bool) {
         eprintln!("{what}: {self:?}");
-        let allowed = self.rays / 1000;
+        let allowed = self.h.rays / 1000;
         assert!(
-            self.hits * 3 > self.rays,
+            self.h.hits * 3 > self.h.rays,
             "{what}: too few hits to mean anything: {self:?}"
         );
         assert!(
-            self.cpu_fetches >= self.hits as u64,
+            self.cpu_fetches >= self.h.hits as u64,
             "{what}: hits that cost nothing: {self:?}"
         );
-        assert!(
-            self.hit_miss_differ <= allowed,
-            "{what}: hit/miss differs on more than 0.1% of rays: {self:?}"
-        );
-        assert!(
-            self.far <= allowed,
-            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {self:?}"
-        );
+        self.h.check(what, self);
         if exact_counts {
             assert!(
                 self.fetches_differ <= allowed,

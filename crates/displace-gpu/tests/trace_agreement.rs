@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{clamped_case, random_map, random_rays, Rng};
+use common::{clamped_case, clamped_map, random_map, random_rays, HitAgreement, Rng};
 use displace_core::{Address, MapHit, Method, TraceOptions};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, RayTracer};
@@ -12,49 +12,29 @@ use glam::Vec3;
 
 #[derive(Default, Debug)]
 struct Tally {
-    rays: usize,
-    hit_miss_differ: usize,
-    far: usize,
+    h: HitAgreement,
     kind_differ: usize,
-    worst: f32,
-    hits: usize,
 }
 
 impl Tally {
     fn add(&mut self, cpu: &Option<MapHit>, gpu: &Option<MapHit>) {
-        self.rays += 1;
-        match (cpu, gpu) {
-            (Some(c), Some(g)) => {
-                self.hits += 1;
-                let e = (c.position - g.position).length();
-                self.worst = self.worst.max(e);
-                if e > 1e-3 {
-                    self.far += 1;
-                }
-                if c.kind != g.kind {
-                    self.kind_differ += 1;
-                }
+        let at = |h: &Option<MapHit>| h.as_ref().map(|h| h.position);
+        self.h.add(at(cpu), at(gpu));
+        if let (Some(c), Some(g)) = (cpu, gpu) {
+            if c.kind != g.kind {
+                self.kind_differ += 1;
             }
-            (None, None) => {}
-            _ => self.hit_miss_differ += 1,
         }
     }
 
     fn check(&self, what: &str) {
         eprintln!("{what}: {self:?}");
-        let allowed = self.rays / 1000;
+        let allowed = self.h.rays / 1000;
         assert!(
-            self.hits * 2 > self.rays / 2,
+            self.h.hits * 2 > self.h.rays / 2,
             "{what}: too few hits to mean anything: {self:?}"
         );
-        assert!(
-            self.hit_miss_differ <= allowed,
-            "{what}: hit/miss differs on more than 0.1% of rays: {self:?}"
-        );
-        assert!(
-            self.far <= allowed,
-            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {self:?}"
-        );
+        self.h.check(what, self);
         assert!(
             self.kind_differ <= allowed,
             "{what}: surface/wall differs on more than 0.1% of rays: {self:?}"
@@ -204,8 +184,7 @@ fn fixed_steps_agree_when_enough_and_stop_short_when_too_few() {
 #[test]
 fn bad_rays_and_options_are_refused() {
     let Some(ctx) = test_context() else { return };
-    let mut rng = Rng::new(8);
-    let map = random_map(&mut rng, Address::Clamp);
+    let map = clamped_map(8);
     let tracer = RayTracer::new(ctx, &map, DistanceTexture::R32Load).unwrap();
     let ok = displace_core::MapRay::new(Vec3::new(0.5, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0));
     let nan = displace_core::MapRay {

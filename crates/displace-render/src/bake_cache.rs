@@ -152,14 +152,7 @@ impl BakeCache {
         size: [usize; 3],
         extent: Extent,
     ) -> Result<DisplacementMap> {
-        let m = bake(
-            height,
-            &BakeOptions {
-                size,
-                extent,
-                ..BakeOptions::default()
-            },
-        )?;
+        let m = bake(height, &BakeOptions::new(size, extent))?;
         self.baked.fetch_add(1, Ordering::Relaxed);
         Ok(m)
     }

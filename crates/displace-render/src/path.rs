@@ -27,6 +27,7 @@ use crate::geometry::Ray;
 use crate::integrator::{emitted, facing, shadow_query};
 use crate::sampler::Rng;
 use crate::scene::{Interaction, Scene};
+use displace_core::names::parse_known;
 use glam::Vec3;
 
 /// Bounces before Russian roulette may end a path (pbrt-v3's choice; pbrt-v4
@@ -58,13 +59,8 @@ impl Integrator {
 impl std::str::FromStr for Integrator {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self, Error> {
-        match s {
-            "whitted" => Ok(Integrator::Whitted),
-            "path" => Ok(Integrator::Path),
-            _ => Err(Error::Option(format!(
-                "unknown integrator `{s}` (known: whitted, path)"
-            ))),
-        }
+        let choices = [Self::Whitted, Self::Path].map(|i| (i.name(), i));
+        parse_known("integrator", s, &choices).map_err(Error::Option)
     }
 }
 
@@ -87,14 +83,12 @@ pub enum Sampling {
 impl std::str::FromStr for Sampling {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self, Error> {
-        match s {
-            "mis" => Ok(Sampling::Mis),
-            "light" => Ok(Sampling::Light),
-            "bsdf" => Ok(Sampling::Bsdf),
-            _ => Err(Error::Option(format!(
-                "unknown sampling `{s}` (known: mis, light, bsdf)"
-            ))),
-        }
+        let choices = [
+            ("mis", Self::Mis),
+            ("light", Self::Light),
+            ("bsdf", Self::Bsdf),
+        ];
+        parse_known("sampling", s, &choices).map_err(Error::Option)
     }
 }
 

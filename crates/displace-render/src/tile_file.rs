@@ -252,6 +252,7 @@ pub fn read_tile(path: &Path) -> Result<TileImage> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     fn sample() -> (TileMeta, Image) {
         let rect = Crop {
@@ -278,12 +279,18 @@ mod tests {
         )
     }
 
+    /// [`sample`] written as `t.exr` in `dir`: its path, metadata and pixels.
+    fn written_sample(dir: &Path) -> (PathBuf, TileMeta, Image) {
+        let p = dir.join("t.exr");
+        let (meta, img) = sample();
+        write_tile(&p, &meta, &img).unwrap();
+        (p, meta, img)
+    }
+
     #[test]
     fn tiles_round_trip_bit_exactly_with_their_metadata() {
         let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("t.exr");
-        let (meta, img) = sample();
-        write_tile(&p, &meta, &img).unwrap();
+        let (p, meta, img) = written_sample(dir.path());
         let back = read_tile(&p).unwrap();
         assert_eq!(back.meta, meta);
         let bits = |v: &[Vec3]| -> Vec<u32> {
@@ -298,9 +305,7 @@ mod tests {
     #[test]
     fn cut_short_and_foreign_files_are_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("t.exr");
-        let (meta, img) = sample();
-        write_tile(&p, &meta, &img).unwrap();
+        let (p, _, img) = written_sample(dir.path());
         let good = std::fs::read(&p).unwrap();
         for keep in [good.len() - 1, good.len() / 2, 10, 0] {
             std::fs::write(&p, &good[..keep]).unwrap();

@@ -187,11 +187,7 @@ fn small_map() -> displace_core::DisplacementMap {
     let h = displace_core::generators::generate("gen:studded", 16, 16, Address::Clamp).unwrap();
     bake(
         &h,
-        &BakeOptions {
-            size: [8, 8, 4],
-            extent: Extent::new(1.0, 1.0, 0.25).unwrap(),
-            ..BakeOptions::default()
-        },
+        &BakeOptions::new([8, 8, 4], Extent::new(1.0, 1.0, 0.25).unwrap()),
     )
     .unwrap()
 }

@@ -94,8 +94,13 @@ fn depth_aov(text: &str, method: Option<Method>) -> Vec<f32> {
         &SceneOptions { method, ..opts() },
     )
     .unwrap();
+    scene_depth(&s)
+}
+
+/// The depth AOV of a render of `s`.
+fn scene_depth(s: &Scene) -> Vec<f32> {
     let r = render(
-        &s,
+        s,
         &RenderOptions {
             aovs: vec![Aov::Depth],
             ..Default::default()
@@ -287,45 +292,52 @@ fn displaced_surfaces_shadow_themselves() {
 #[test]
 fn bad_scenes_are_refused_with_clear_messages() {
     let good = studded_scene("gen:gaussian", 8);
+    // `good` with its first `from` replaced by `to` is refused, the message
+    // holding every needle.
+    let refused = |from: &str, to: &str, needles: &[&str]| {
+        assert!(good.contains(from), "{from}");
+        let e = scene_err(&good.replacen(from, to, 1));
+        for needle in needles {
+            assert!(e.contains(needle), "{e}");
+        }
+    };
     // Malformed TOML: file, line and column.
     let bad = good.replacen("width = 8", "width = = 8", 1);
     let line = 1 + bad.lines().position(|l| l == "width = = 8").unwrap();
     let e = scene_err(&bad);
     assert!(e.starts_with(&format!("test.toml:{line}:")), "{e}");
     // Unknown keys anywhere are errors, with their position.
-    let e = scene_err(&good.replacen("vfov = 45", "vfov = 45\nfov = 3", 1));
-    assert!(e.contains("fov") && e.contains("test.toml:"), "{e}");
-    let e = scene_err(&good.replacen("depth = 0.25", "depth = 0.25\ndepht = 1", 1));
-    assert!(e.contains("depht"), "{e}");
+    refused("vfov = 45", "vfov = 45\nfov = 3", &["fov", "test.toml:"]);
+    refused("depth = 0.25", "depth = 0.25\ndepht = 1", &["depht"]);
     // Camera looking nowhere; up parallel to the view.
-    let e = scene_err(&good.replacen("look_at = [0, 0, 0]", "look_at = [0.3, 1.6, -2.2]", 1));
-    assert!(e.contains("looks nowhere"), "{e}");
-    let e = scene_err(&good.replacen("vfov = 45", "vfov = 45\nup = [0.3, 1.6, -2.2]", 1));
-    assert!(e.contains("parallel"), "{e}");
+    refused(
+        "look_at = [0, 0, 0]",
+        "look_at = [0.3, 1.6, -2.2]",
+        &["looks nowhere"],
+    );
+    refused(
+        "vfov = 45",
+        "vfov = 45\nup = [0.3, 1.6, -2.2]",
+        &["parallel"],
+    );
     // Zero size, negative samples, NaN.
-    let e = scene_err(&good.replacen("width = 8", "width = 0", 1));
-    assert!(e.contains("image.width"), "{e}");
-    let e = scene_err(&good.replacen("spp = 1", "spp = -4", 1));
-    assert!(e.contains("image.spp") && e.contains("-4"), "{e}");
-    let e = scene_err(&good.replacen("position = [1, 3, -1]", "position = [1, nan, -1]", 1));
-    assert!(
-        e.contains("lights[0].position") && e.contains("finite"),
-        "{e}"
+    refused("width = 8", "width = 0", &["image.width"]);
+    refused("spp = 1", "spp = -4", &["image.spp", "-4"]);
+    refused(
+        "position = [1, 3, -1]",
+        "position = [1, nan, -1]",
+        &["lights[0].position", "finite"],
     );
     // Missing texture: its path.
-    let e = scene_err(&good.replacen(
+    refused(
         "method = \"sphere\"",
         "method = \"sphere\"\ncolor_texture = \"no/such/bricks.png\"",
-        1,
-    ));
-    assert!(e.contains("no/such/bricks.png"), "{e}");
+        &["no/such/bricks.png"],
+    );
     // Unknown material, method and generator.
-    let e = scene_err(&good.replacen("material = \"m\"", "material = \"gold\"", 1));
-    assert!(e.contains("gold"), "{e}");
-    let e = scene_err(&good.replacen("method = \"sphere\"", "method = \"magic\"", 1));
-    assert!(e.contains("magic"), "{e}");
-    let e = scene_err(&good.replacen("gen:gaussian", "gen:nothing", 1));
-    assert!(e.contains("nothing"), "{e}");
+    refused("material = \"m\"", "material = \"gold\"", &["gold"]);
+    refused("method = \"sphere\"", "method = \"magic\"", &["magic"]);
+    refused("gen:gaussian", "gen:nothing", &["nothing"]);
     // A missing scene file names its path.
     let e = Scene::load(Path::new("/no/such/scene.toml"), &opts())
         .err()
@@ -419,18 +431,11 @@ fn obj_meshes_load_and_displace() {
     std::fs::write(dir.path().join("s.toml"), &text).unwrap();
     let s = Scene::load(&dir.path().join("s.toml"), &opts()).unwrap();
     assert_eq!(s.primitive_count(), 2);
-    let r = render(
-        &s,
-        &RenderOptions {
-            aovs: vec![Aov::Depth],
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let mesh = scene_depth(&s);
     let quad = depth_aov(&base, None);
     let differ = quad
         .iter()
-        .zip(&r.aovs[0].data)
+        .zip(&mesh)
         .filter(|(a, b)| {
             a.is_finite() != b.is_finite() || (a.is_finite() && (*a - *b).abs() > 1e-3)
         })

@@ -479,21 +479,12 @@ mod tests {
         let dim = "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = [5, 5, 5]\n";
         let bright =
             "[[lights]]\ntype = \"point\"\nposition = [1, 2, 3]\nintensity = [50, 50, 50]\n";
-        for toml in [format!("{area}{dim}"), format!("{dim}{area}")] {
-            let (p, i) = lights(&toml).expect("a light");
-            assert_eq!(
-                (p, i),
-                (Vec3::new(1.0, 4.0, 0.5), Vec3::splat(20.0)),
-                "{toml}"
-            );
-        }
-        for toml in [format!("{area}{bright}"), format!("{bright}{area}")] {
-            let (p, i) = lights(&toml).expect("a light");
-            assert_eq!(
-                (p, i),
-                (Vec3::new(1.0, 2.0, 3.0), Vec3::splat(50.0)),
-                "{toml}"
-            );
+        let area_wins = (Vec3::new(1.0, 4.0, 0.5), Vec3::splat(20.0));
+        let bright_wins = (Vec3::new(1.0, 2.0, 3.0), Vec3::splat(50.0));
+        for (point, want) in [(dim, area_wins), (bright, bright_wins)] {
+            for toml in [format!("{area}{point}"), format!("{point}{area}")] {
+                assert_eq!(lights(&toml), Some(want), "{toml}");
+            }
         }
         assert_eq!(lights(""), None);
     }

@@ -1,10 +1,18 @@
 //! What several CLI test files share: running the binary, reading a run's
-//! stderr, listing what a run left in its directory, and the smallest scene
-//! `render` draws.
+//! stderr, listing what a run left in its directory, the smallest scene
+//! `render` draws, and the parts of the scenes the GPU tests compare
+//! renderers on.
 #![allow(dead_code)]
 
 use std::path::Path;
 use std::process::{Command, Output};
+
+/// A scratch directory for a test that needs the GPU, or `None` where
+/// displace-gpu's test policy lets such a test pass without one.
+pub fn gpu_scratch_dir() -> Option<tempfile::TempDir> {
+    displace_gpu::test_support::test_context()?;
+    Some(tempfile::tempdir().unwrap())
+}
 
 /// Runs `displace ARGS` in `dir` and returns what it did.
 pub fn displace(args: &[&str], dir: &Path) -> Output {
@@ -17,6 +25,26 @@ pub fn displace(args: &[&str], dir: &Path) -> Output {
 
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `o` failed without a panic, its message holding every needle and none
+/// of the `absent` ones.
+pub fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
+    let msg = stderr(o);
+    assert!(!o.status.success(), "succeeded: {msg}");
+    assert!(!msg.contains("panicked"), "{msg}");
+    for n in needles {
+        assert!(msg.contains(n), "`{n}` not in: {msg}");
+    }
+    for a in absent {
+        assert!(!msg.contains(a), "`{a}` in: {msg}");
+    }
+    msg
+}
+
+/// The arguments of a command line without quoting: its words.
+pub fn words(command: &str) -> Vec<&str> {
+    command.split_whitespace().collect()
 }
 
 /// The names in `dir`, sorted.
@@ -105,13 +133,67 @@ origin = [-0.3, 2, -0.3]
 edge_u = [0.6, 0, 0]
 edge_v = [0, 0, 0.6]
 radiance = [6, 6, 6]
-[[shapes]]
-type = "quad"
-origin = [-1, 0, -1]
-edge_u = [2, 0, 0]
-edge_v = [0, 0, 2]
-material = "floor"
-displacement = {{ {displacement} }}
+{floor}displacement = {{ {displacement} }}
+"#,
+        floor = quad("[-1, 0, -1]", "[2, 0, 0]", "[0, 0, 2]", "floor"),
+    )
+}
+
+/// What the GPU comparison scenes share: `width` x `height` pixels,
+/// primitive visibility and direct light only (one sample, no reflections),
+/// a pinhole `camera` and one point `light` (TOML keys of each).
+pub fn frame([width, height]: [u32; 2], camera: &str, light: &str) -> String {
+    format!(
+        r#"[image]
+width = {width}
+height = {height}
+spp = 1
+max_depth = 0
+shadow_samples = 1
+
+[camera]
+{camera}
+
+[[lights]]
+type = "point"
+{light}
 "#
+    )
+}
+
+/// One displaced unit quad in the xy plane, in material `clay` (`material`
+/// holds its TOML keys), displaced by the inline table `displacement`.
+pub fn displaced_quad(material: &str, displacement: &str) -> String {
+    format!("\n[materials.clay]\n{material}\n\n")
+        + &quad(
+            "[0.0, 0.0, 0.0]",
+            "[1.0, 0.0, 0.0]",
+            "[0.0, 1.0, 0.0]",
+            "clay",
+        )
+        + &format!("displacement = {{ {displacement} }}\n")
+}
+
+/// `[materials.NAME]`: a Lambert surface of linear RGB `color`.
+pub fn lambert(name: &str, color: &str) -> String {
+    format!("[materials.{name}]\ntype = \"lambert\"\ncolor = {color}\n")
+}
+
+/// One `[[lights]]` point light of radiant `intensity` at `position`.
+pub fn point_light(position: &str, intensity: &str) -> String {
+    format!("[[lights]]\ntype = \"point\"\nposition = {position}\nintensity = {intensity}\n")
+}
+
+/// A `[[shapes]]` quad `origin + a edge_u + b edge_v` of `material`.
+pub fn quad(origin: &str, edge_u: &str, edge_v: &str, material: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"quad\"\norigin = {origin}\nedge_u = {edge_u}\nedge_v = {edge_v}\nmaterial = \"{material}\"\n"
+    )
+}
+
+/// A `[[shapes]]` sphere of `material`.
+pub fn sphere(center: &str, radius: f32, material: &str) -> String {
+    format!(
+        "[[shapes]]\ntype = \"sphere\"\ncenter = {center}\nradius = {radius:?}\nmaterial = \"{material}\"\n"
     )
 }

@@ -234,14 +234,7 @@ pub fn from_bytes(
             0.0,
         ),
     };
-    if let Some(i) = data.iter().position(|v| v.is_nan()) {
-        return Err(FormatError::Invalid(format!(
-            "voxel ({}, {}, {}) is NaN",
-            i % size[0],
-            (i / size[0]) % size[1],
-            i / (size[0] * size[1])
-        )));
-    }
+    super::check_no_nan(&data, size)?;
     let bound = super::bake_underestimate(size, extent.aspect(), quantum);
     let map = DistanceMap::from_raw(size, extent.aspect(), address, data, bound)?;
     Ok((map, format))
@@ -259,20 +252,13 @@ pub fn read(path: &Path, extent: Extent, address: Address) -> Result<DistanceMap
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::assert_refused;
     use crate::{bake, generators, BakeOptions};
 
     fn baked() -> (DistanceMap, Extent) {
         let extent = Extent::new(1.0, 1.0, 0.2).unwrap();
         let height = generators::generate("gen:gaussian", 16, 16, Address::Clamp).unwrap();
-        let map = bake(
-            &height,
-            &BakeOptions {
-                size: [12, 10, 6],
-                extent,
-                ..BakeOptions::default()
-            },
-        )
-        .unwrap();
+        let map = bake(&height, &BakeOptions::new([12, 10, 6], extent)).unwrap();
         (map.distance, extent)
     }
 
@@ -304,6 +290,32 @@ mod tests {
         }
     }
 
+    /// A 4x4 DXGI file (`depth` deep) of one mip level, as another writer
+    /// would make it.
+    fn dxgi_file(
+        depth: Option<u32>,
+        format: DxgiFormat,
+        caps2: Option<Caps2>,
+        resource_dimension: D3D10ResourceDimension,
+    ) -> Vec<u8> {
+        let dds = Dds::new_dxgi(NewDxgiParams {
+            height: 4,
+            width: 4,
+            depth,
+            format,
+            mipmap_levels: Some(1),
+            array_layers: None,
+            caps2,
+            is_cubemap: false,
+            resource_dimension,
+            alpha_mode: AlphaMode::Unknown,
+        })
+        .unwrap();
+        let mut b = Vec::new();
+        dds.write(&mut b).unwrap();
+        b
+    }
+
     #[test]
     fn refuses_what_r8_cannot_hold_and_malformed_files() {
         let (map, extent) = baked();
@@ -321,55 +333,32 @@ mod tests {
                 .unwrap_err()
                 .to_string()
         };
-        assert!(err(b"").contains("bad magic"));
-        assert!(err(b"\x89PNG\r\n\x1a\n").contains("bad magic"));
-        assert!(
-            err(&good[..60]).contains("truncated"),
-            "{}",
-            err(&good[..60])
-        );
-        let e = err(&good[..good.len() - 10]);
-        assert!(e.contains("truncated") && e.contains("12x10x6"), "{e}");
+        assert_refused(&err, b"", &["bad magic"]);
+        assert_refused(&err, b"\x89PNG\r\n\x1a\n", &["bad magic"]);
+        assert_refused(&err, &good[..60], &["truncated"]);
+        assert_refused(&err, &good[..good.len() - 10], &["truncated", "12x10x6"]);
         // A 2D texture is not a distance map.
-        let flat = Dds::new_dxgi(NewDxgiParams {
-            height: 4,
-            width: 4,
-            depth: None,
-            format: DxgiFormat::R32_Float,
-            mipmap_levels: Some(1),
-            array_layers: None,
-            caps2: None,
-            is_cubemap: false,
-            resource_dimension: D3D10ResourceDimension::Texture2D,
-            alpha_mode: AlphaMode::Unknown,
-        })
-        .unwrap();
-        let mut b = Vec::new();
-        flat.write(&mut b).unwrap();
-        assert!(err(&b).contains("volume texture"));
+        let flat = dxgi_file(
+            None,
+            DxgiFormat::R32_Float,
+            None,
+            D3D10ResourceDimension::Texture2D,
+        );
+        assert_refused(&err, &flat, &["volume texture"]);
         // Wrong pixel format.
-        let rgba = Dds::new_dxgi(NewDxgiParams {
-            height: 4,
-            width: 4,
-            depth: Some(4),
-            format: DxgiFormat::R8G8B8A8_UNorm,
-            mipmap_levels: Some(1),
-            array_layers: None,
-            caps2: Some(Caps2::VOLUME),
-            is_cubemap: false,
-            resource_dimension: D3D10ResourceDimension::Texture3D,
-            alpha_mode: AlphaMode::Unknown,
-        })
-        .unwrap();
-        let mut b = Vec::new();
-        rgba.write(&mut b).unwrap();
-        assert!(err(&b).contains("R8G8B8A8"), "{}", err(&b));
+        let rgba = dxgi_file(
+            Some(4),
+            DxgiFormat::R8G8B8A8_UNorm,
+            Some(Caps2::VOLUME),
+            D3D10ResourceDimension::Texture3D,
+        );
+        assert_refused(&err, &rgba, &["R8G8B8A8"]);
         // An absurd size in the header is refused before allocating.
         let mut huge = good.clone();
         for (off, v) in [(12usize, 100_000u32), (16, 100_000), (24, 1000)] {
             huge[off..off + 4].copy_from_slice(&v.to_le_bytes());
         }
-        assert!(err(&huge).contains("too large"), "{}", err(&huge));
+        assert_refused(&err, &huge, &["too large"]);
     }
 
     #[test]

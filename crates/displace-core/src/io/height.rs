@@ -27,15 +27,14 @@ pub enum Channel {
 impl std::str::FromStr for Channel {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "r" => Ok(Channel::R),
-            "g" => Ok(Channel::G),
-            "b" => Ok(Channel::B),
-            "a" => Ok(Channel::A),
-            other => Err(Error::InvalidHeightMap(format!(
-                "unknown channel `{other}` (expected r, g, b or a)"
-            ))),
-        }
+        let name = s.to_ascii_lowercase();
+        let choices = [
+            ("r", Channel::R),
+            ("g", Channel::G),
+            ("b", Channel::B),
+            ("a", Channel::A),
+        ];
+        crate::names::parse_choice("channel", &name, &choices).map_err(Error::InvalidHeightMap)
     }
 }
 
@@ -402,6 +401,14 @@ mod tests {
         HeightOptions::default()
     }
 
+    /// The default options reading channel `c`.
+    fn channel(c: Channel) -> HeightOptions {
+        HeightOptions {
+            channel: Some(c),
+            ..opts()
+        }
+    }
+
     fn load_path(p: &Path, o: &HeightOptions) -> Result<HeightMap> {
         load(p.to_str().unwrap(), o)
     }
@@ -434,14 +441,7 @@ mod tests {
             .unwrap();
         let m = load_path(&grey, &opts()).unwrap();
         assert_eq!(m.texel(1, 1), 150.0 / 255.0);
-        let e = load_path(
-            &grey,
-            &HeightOptions {
-                channel: Some(Channel::A),
-                ..opts()
-            },
-        )
-        .unwrap_err();
+        let e = load_path(&grey, &channel(Channel::A)).unwrap_err();
         assert!(
             e.to_string().contains("no alpha") && e.to_string().contains("g.png"),
             "{e}"
@@ -451,14 +451,7 @@ mod tests {
         ImageBuffer::<LumaA<u8>, _>::from_fn(2, 2, |_, _| LumaA([10, 200]))
             .save(&la)
             .unwrap();
-        let m = load_path(
-            &la,
-            &HeightOptions {
-                channel: Some(Channel::A),
-                ..opts()
-            },
-        )
-        .unwrap();
+        let m = load_path(&la, &channel(Channel::A)).unwrap();
         assert_eq!(m.texel(0, 0), 200.0 / 255.0);
         assert_eq!(load_path(&la, &opts()).unwrap().texel(0, 0), 10.0 / 255.0);
 
@@ -468,37 +461,16 @@ mod tests {
             .unwrap();
         let m = load_path(&rgb, &opts()).unwrap();
         assert!((m.texel(0, 0) - (0.2126 + 0.0722 * 0.2)).abs() < 1e-6);
-        let m = load_path(
-            &rgb,
-            &HeightOptions {
-                channel: Some(Channel::B),
-                ..opts()
-            },
-        )
-        .unwrap();
+        let m = load_path(&rgb, &channel(Channel::B)).unwrap();
         assert_eq!(m.texel(0, 0), 0.2);
-        assert!(load_path(
-            &rgb,
-            &HeightOptions {
-                channel: Some(Channel::A),
-                ..opts()
-            }
-        )
-        .is_err());
+        assert!(load_path(&rgb, &channel(Channel::A)).is_err());
 
         let rgba16 = dir.path().join("c16.png");
         ImageBuffer::<Rgba<u16>, _>::from_fn(2, 2, |_, _| Rgba([65535, 65535, 65535, 1]))
             .save(&rgba16)
             .unwrap();
         assert_eq!(load_path(&rgba16, &opts()).unwrap().texel(1, 0), 1.0);
-        let m = load_path(
-            &rgba16,
-            &HeightOptions {
-                channel: Some(Channel::A),
-                ..opts()
-            },
-        )
-        .unwrap();
+        let m = load_path(&rgba16, &channel(Channel::A)).unwrap();
         assert_eq!(m.texel(1, 0), 1.0 / 65535.0);
     }
 
@@ -572,24 +544,9 @@ mod tests {
         );
         let m = load_path(&p, &opts()).unwrap();
         assert!((m.texel(3, 2) - (0.2126 + 0.7152 * 0.5)).abs() < 1e-6);
-        let m = load_path(
-            &p,
-            &HeightOptions {
-                channel: Some(Channel::G),
-                ..opts()
-            },
-        )
-        .unwrap();
+        let m = load_path(&p, &channel(Channel::G)).unwrap();
         assert_eq!(m.texel(0, 0), 0.5);
-        let e = load_path(
-            &p,
-            &HeightOptions {
-                channel: Some(Channel::A),
-                ..opts()
-            },
-        )
-        .unwrap_err()
-        .to_string();
+        let e = load_path(&p, &channel(Channel::A)).unwrap_err().to_string();
         assert!(e.contains("no A channel"), "{e}");
 
         let mut nan = vals.clone();

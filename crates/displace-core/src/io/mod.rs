@@ -246,3 +246,28 @@ pub fn bake_underestimate(size: [usize; 3], aspect: [f32; 2], quantum: f32) -> f
     );
     h.truncate().length() + h.length() + quantum
 }
+
+/// Refuses decoded voxels of a map of `size` that hold NaN, naming the
+/// first by its `(x, y, z)`: no reader hands a NaN distance to a tracer.
+pub(crate) fn check_no_nan(data: &[f32], size: [usize; 3]) -> Result<(), FormatError> {
+    match data.iter().position(|v| v.is_nan()) {
+        None => Ok(()),
+        Some(i) => Err(FormatError::Invalid(format!(
+            "voxel ({}, {}, {}) is NaN",
+            i % size[0],
+            (i / size[0]) % size[1],
+            i / (size[0] * size[1])
+        ))),
+    }
+}
+
+/// Asserts that the reader `err` (bytes to its error message) refuses
+/// `bytes` with a message holding every one of `needles`: the malformed
+/// file tests of each format.
+#[cfg(test)]
+pub(crate) fn assert_refused(err: &dyn Fn(&[u8]) -> String, bytes: &[u8], needles: &[&str]) {
+    let message = err(bytes);
+    for needle in needles {
+        assert!(message.contains(needle), "no `{needle}` in: {message}");
+    }
+}

@@ -327,29 +327,11 @@ fn relaxed(
                         if (q - apex_xy).length() >= *best * (hq - apex) {
                             return;
                         }
-                        // From (apex_xy, 1) through (q, hq), on down: per unit of
-                        // horizontal travel the ray falls `fall`.
-                        let along = (q - apex_xy).normalize();
-                        let fall = (1.0 - hq) / (q - apex_xy).length();
-                        let mut s = march;
-                        loop {
-                            let xy = q + along * s;
-                            let z = hq - fall * s;
-                            if z <= 0.0
-                                || xy.x < 0.0
-                                || xy.y < 0.0
-                                || xy.x > aspect[0]
-                                || xy.y > aspect[1]
-                            {
-                                break;
-                            }
-                            if !inside(xy, z) && z > surface(xy) {
-                                if z > apex {
-                                    *best = best.min((xy - apex_xy).length() / (z - apex));
-                                }
-                                break;
-                            }
-                            s += march;
+                        let exit = relaxed_exit(apex_xy, q, hq, march, aspect, |xy, z| {
+                            !inside(xy, z) && z > surface(xy)
+                        });
+                        if let Some((xy, z)) = exit.filter(|&(_, z)| z > apex) {
+                            *best = best.min((xy - apex_xy).length() / (z - apex));
                         }
                     });
                     best
@@ -359,6 +341,35 @@ fn relaxed(
             row
         })
         .collect()
+}
+
+/// Where the relaxed cone's ray from `(apex_xy, 1)` through texel centre
+/// `(q, hq)` first comes out above the surface past `q`, stepping `march`
+/// across (per unit of horizontal travel it falls `fall`): the first step
+/// at which `above(xy, z)` holds, or `None` when the ray leaves the face or
+/// the shell's floor first.
+fn relaxed_exit(
+    apex_xy: Vec2,
+    q: Vec2,
+    hq: f32,
+    march: f32,
+    aspect: [f32; 2],
+    mut above: impl FnMut(Vec2, f32) -> bool,
+) -> Option<(Vec2, f32)> {
+    let along = (q - apex_xy).normalize();
+    let fall = (1.0 - hq) / (q - apex_xy).length();
+    let mut s = march;
+    loop {
+        let xy = q + along * s;
+        let z = hq - fall * s;
+        if z <= 0.0 || xy.x < 0.0 || xy.y < 0.0 || xy.x > aspect[0] || xy.y > aspect[1] {
+            return None;
+        }
+        if above(xy, z) {
+            return Some((xy, z));
+        }
+        s += march;
+    }
 }
 
 /// Maxima of per-texel values over aligned blocks of 2^k x 2^k texels, for
@@ -568,27 +579,11 @@ mod tests {
                         continue;
                     }
                     let q = centre(ii, jj);
-                    let along = (q - apex_xy).normalize();
-                    let fall = (1.0 - hq) / (q - apex_xy).length();
-                    let mut s = march;
-                    loop {
-                        let xy = q + along * s;
-                        let z = hq - fall * s;
-                        if z <= 0.0
-                            || xy.x < 0.0
-                            || xy.y < 0.0
-                            || xy.x > aspect[0]
-                            || xy.y > aspect[1]
-                        {
-                            break;
-                        }
-                        if z > height.sample(xy.x / aspect[0], xy.y / aspect[1]) {
-                            if z > apex {
-                                best = best.min((xy - apex_xy).length() / (z - apex));
-                            }
-                            break;
-                        }
-                        s += march;
+                    let exit = relaxed_exit(apex_xy, q, hq, march, aspect, |xy, z| {
+                        z > height.sample(xy.x / aspect[0], xy.y / aspect[1])
+                    });
+                    if let Some((xy, z)) = exit.filter(|&(_, z)| z > apex) {
+                        best = best.min((xy - apex_xy).length() / (z - apex));
                     }
                 }
                 assert_eq!(
@@ -659,13 +654,7 @@ mod tests {
     fn block_search_finds_the_brute_force_minimum() {
         // Random values; the ratio of texel q from p is its distance over
         // its value, as the cone bakes' bounds are shaped.
-        let mut state = 11u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = crate::random::xorshift_unit(11);
         for (w, h) in [(1i64, 1i64), (7, 5), (16, 16), (33, 9)] {
             let values: Vec<f32> = (0..w * h).map(|_| next()).collect();
             let peaks = BlockMax::new(values.clone(), w, h);

@@ -227,11 +227,7 @@ mod tests {
         let h = HeightMap::new(4, 4, vec![0.5; 16], Address::Clamp).unwrap();
         let map = bake(
             &h,
-            &BakeOptions {
-                size: [4, 4, 2],
-                extent: Extent::new(1.0, 1.0, 0.1).unwrap(),
-                ..BakeOptions::default()
-            },
+            &BakeOptions::new([4, 4, 2], Extent::new(1.0, 1.0, 0.1).unwrap()),
         )
         .unwrap();
         PlaneScene::for_map(&map, [64, 48])

@@ -3,6 +3,11 @@
 //! pass that copies the rendered frame to the window's surface and blends
 //! the text over it (`shaders/present.wgsl`).
 
+use crate::descriptors::{
+    bind_group, bind_group_layout, cleared_attachment, color_target, frame_uniform_entry,
+    pipeline_layout, render_pipeline, shader_module, texture_2d_descriptor, texture_entry,
+    uniform_buffer, RenderStages,
+};
 use crate::shaders::PRESENT;
 use crate::{GpuContext, Result};
 use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
@@ -103,48 +108,18 @@ impl Presenter {
     /// first use.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         ctx.checked("building the present pass", || {
-            let module = ctx
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("present"),
-                    source: wgpu::ShaderSource::Wgsl(PRESENT.into()),
-                });
-            let tex = |binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
+            let module = shader_module(ctx, "present", PRESENT);
+            let tex = |binding| {
+                texture_entry(
+                    binding,
+                    wgpu::ShaderStages::FRAGMENT,
+                    false,
+                    wgpu::TextureViewDimension::D2,
+                )
             };
-            let layout = ctx
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("present"),
-                    entries: &[
-                        wgpu::BindGroupLayoutEntry {
-                            binding: 0,
-                            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                            ty: wgpu::BindingType::Buffer {
-                                ty: wgpu::BufferBindingType::Uniform,
-                                has_dynamic_offset: false,
-                                min_binding_size: None,
-                            },
-                            count: None,
-                        },
-                        tex(1),
-                        tex(2),
-                    ],
-                });
-            let pipeline_layout =
-                ctx.device
-                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("present"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
+            let layout =
+                bind_group_layout(ctx, "present", &[frame_uniform_entry(), tex(1), tex(2)]);
+            let pipeline_layout = pipeline_layout(ctx, "present", &[&layout]);
             Self {
                 module,
                 layout,
@@ -164,20 +139,13 @@ impl Presenter {
         let (w, h, texels) = rasterise(lines)?;
         let texture = ctx.device.create_texture_with_data(
             &ctx.queue,
-            &wgpu::TextureDescriptor {
-                label: Some("overlay text"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8Unorm,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
+            &texture_2d_descriptor(
+                "overlay text",
+                [w, h],
+                1,
+                wgpu::TextureFormat::Rgba8Unorm,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            ),
             wgpu::util::TextureDataOrder::LayerMajor,
             &texels,
         );
@@ -193,35 +161,23 @@ impl Presenter {
     ) -> Result<&(wgpu::RenderPipeline, wgpu::RenderPipeline)> {
         if !self.pipelines.contains_key(&format) {
             let make = |vs: &str, fs: &str, blend, topology| {
-                ctx.device
-                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                        label: Some(fs),
-                        layout: Some(&self.pipeline_layout),
-                        vertex: wgpu::VertexState {
-                            module: &self.module,
-                            entry_point: Some(vs),
-                            compilation_options: Default::default(),
-                            buffers: &[],
-                        },
-                        primitive: wgpu::PrimitiveState {
-                            topology,
-                            ..Default::default()
-                        },
-                        depth_stencil: None,
-                        multisample: Default::default(),
-                        fragment: Some(wgpu::FragmentState {
-                            module: &self.module,
-                            entry_point: Some(fs),
-                            compilation_options: Default::default(),
-                            targets: &[Some(wgpu::ColorTargetState {
-                                format,
-                                blend,
-                                write_mask: wgpu::ColorWrites::ALL,
-                            })],
-                        }),
-                        multiview_mask: None,
-                        cache: None,
-                    })
+                render_pipeline(
+                    ctx,
+                    fs,
+                    &self.pipeline_layout,
+                    RenderStages {
+                        module: &self.module,
+                        vertex: vs,
+                        fragment: fs,
+                        buffers: &[],
+                        targets: &[color_target(format, blend)],
+                    },
+                    wgpu::PrimitiveState {
+                        topology,
+                        ..Default::default()
+                    },
+                    None,
+                )
             };
             let pair = ctx.checked("building the present pipelines", || {
                 (
@@ -267,44 +223,22 @@ impl Presenter {
             encode_srgb: (!format.is_srgb()) as u32,
             pad: 0,
         };
-        let buffer = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("present"),
-                contents: bytemuck::bytes_of(&uniform),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("present"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(frame),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&overlay_view),
-                },
+        let buffer = uniform_buffer(ctx, "present", &uniform);
+        let group = bind_group(
+            ctx,
+            "present",
+            &self.layout,
+            &[
+                buffer.as_entire_binding(),
+                wgpu::BindingResource::TextureView(frame),
+                wgpu::BindingResource::TextureView(&overlay_view),
             ],
-        });
+        );
         let (frame_pipe, overlay_pipe) = self.pipelines(ctx, format)?;
         ctx.checked("presenting", || {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("present"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
+                color_attachments: &[cleared_attachment(view, wgpu::Color::BLACK)],
                 depth_stencil_attachment: None,
                 timestamp_writes: None,
                 occlusion_query_set: None,

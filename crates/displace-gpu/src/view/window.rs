@@ -12,6 +12,7 @@
 use super::controls::{key_action, key_name, Action, ZOOM_STEP};
 use super::overlay::{Output, Presenter};
 use super::{ViewScene, ViewState};
+use crate::descriptors::texture_2d_descriptor;
 use crate::raster::{copy_to_readback, encode_faces, Targets, COLOR_FORMAT};
 use crate::{Error, GpuContext, PlaneScene, Renderer};
 use std::sync::Arc;
@@ -378,20 +379,13 @@ impl Running {
         )?;
         let last = frames.is_some_and(|n| self.frames + 1 >= n);
         let readback = if last && screenshot {
-            let shot = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("screenshot"),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: COLOR_FORMAT,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            let shot = self.ctx.device.create_texture(&texture_2d_descriptor(
+                "screenshot",
+                [w, h],
+                1,
+                COLOR_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            ));
             self.presenter.encode(
                 &self.ctx,
                 &mut encoder,

@@ -75,15 +75,7 @@ pub fn random_map(rng: &mut Rng, address: Address) -> DisplacementMap {
         rng.range(0.05, 0.6),
     )
     .unwrap();
-    bake(
-        &height,
-        &BakeOptions {
-            size,
-            extent,
-            ..BakeOptions::default()
-        },
-    )
-    .unwrap()
+    bake(&height, &BakeOptions::new(size, extent)).unwrap()
 }
 
 /// Rays from around and above the shell `[0, hi.x] x [0, hi.y] x [0, 1]`,
@@ -122,6 +114,12 @@ pub fn random_rays(rng: &mut Rng, hi: Vec3, n: usize) -> Vec<MapRay> {
         .collect()
 }
 
+/// The clamped map of seed `seed`: what a test that needs one map and no
+/// rays draws.
+pub fn clamped_map(seed: u64) -> DisplacementMap {
+    random_map(&mut Rng::new(seed), Address::Clamp)
+}
+
 /// The map of seed `seed` (clamped) and `n` rays around its one tile, drawn
 /// in that order from the one generator.
 pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
@@ -130,4 +128,55 @@ pub fn clamped_case(seed: u64, n: usize) -> (DisplacementMap, Vec<MapRay>) {
     let [ax, ay] = map.aspect();
     let rays = random_rays(&mut rng, Vec3::new(ax, ay, 1.0), n);
     (map, rays)
+}
+
+/// How a GPU query's answers agree with the CPU's over a batch of rays:
+/// hit or miss, and how far apart the hit points lie; every GPU-against-CPU
+/// tally counts these the same way and holds them to the same bounds.
+#[derive(Default, Debug)]
+pub struct HitAgreement {
+    /// Rays counted.
+    pub rays: usize,
+    /// Rays both sides hit.
+    pub hits: usize,
+    /// Rays one side hits and the other misses.
+    pub hit_miss_differ: usize,
+    /// Rays both hit at points more than 1e-3 apart.
+    pub far: usize,
+    /// The largest distance between two hit points.
+    pub worst: f32,
+}
+
+impl HitAgreement {
+    /// Counts one ray the CPU and the GPU hit at `cpu` and `gpu` (`None`: a
+    /// miss).
+    pub fn add(&mut self, cpu: Option<Vec3>, gpu: Option<Vec3>) {
+        self.rays += 1;
+        match (cpu, gpu) {
+            (Some(c), Some(g)) => {
+                self.hits += 1;
+                let e = (c - g).length();
+                self.worst = self.worst.max(e);
+                if e > 1e-3 {
+                    self.far += 1;
+                }
+            }
+            (None, None) => {}
+            _ => self.hit_miss_differ += 1,
+        }
+    }
+
+    /// At most 0.1% of the rays differ in hit or miss, and at most 0.1% in
+    /// where they hit; a failure prints `tally` whole.
+    pub fn check(&self, what: &str, tally: &impl std::fmt::Debug) {
+        let allowed = self.rays / 1000;
+        assert!(
+            self.hit_miss_differ <= allowed,
+            "{what}: hit/miss differs on more than 0.1% of rays: {tally:?}"
+        );
+        assert!(
+            self.far <= allowed,
+            "{what}: hit points further than 1e-3 apart on more than 0.1% of rays: {tally:?}"
+        );
+    }
 }

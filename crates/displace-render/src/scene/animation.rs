@@ -171,20 +171,11 @@ impl Animation {
                 .iter()
                 .filter_map(move |k| f(k).map(|p| (k.frame, p)))
         };
-        let camera_position = path(
-            name,
-            keys(|k| k.position),
-            frames,
-            interpolation,
-            "animation.camera (position)",
-        )?;
-        let camera_look_at = path(
-            name,
-            keys(|k| k.look_at),
-            frames,
-            interpolation,
-            "animation.camera (look_at)",
-        )?;
+        let camera_path = |f: fn(&super::spec::CameraKeySpec) -> Option<V3>, what: &str| {
+            path(name, keys(f), frames, interpolation, what)
+        };
+        let camera_position = camera_path(|k| k.position, "animation.camera (position)")?;
+        let camera_look_at = camera_path(|k| k.look_at, "animation.camera (look_at)")?;
         let light_path = path(
             name,
             a.light_path
