@@ -74,27 +74,10 @@ fn batches_answer_as_the_one_ray_queries_do() {
                 break;
             }
             let end = (start + size).min(world.len());
-            scene.intersect_many(
-                &world[start..end],
-                0.0,
-                &limits[start..end],
-                &mut batch,
-                &mut hits,
-            );
-            scene.intersect_geometry_many(
-                &world[start..end],
-                0.0,
-                &limits[start..end],
-                &mut batch,
-                &mut geometry,
-            );
-            scene.occluded_many(
-                &world[start..end],
-                0.0,
-                &limits[start..end],
-                &mut batch,
-                &mut blocked,
-            );
+            let (w, l, b) = (&world[start..end], &limits[start..end], &mut batch);
+            scene.intersect_many(w, 0.0, l, b, &mut hits);
+            scene.intersect_geometry_many(w, 0.0, l, b, &mut geometry);
+            scene.occluded_many(w, 0.0, l, b, &mut blocked);
             for (k, r) in (start..end).enumerate() {
                 let one = scene.intersect_primitive(&world[r], 0.0, limits[r]);
                 match (&hits[k], &one) {

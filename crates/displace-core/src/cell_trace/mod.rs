@@ -478,17 +478,7 @@ fn walk<const ANY: bool>(height: &HeightMap, g: &Grid, cells: [f64; 2], t0: f32,
     if t1 < t0 {
         return Walk::Miss { cells: 0 };
     }
-    let (ci, tx) = g.x.start(t0);
-    let (cj, ty) = g.y.start(t0);
-    let at = Cursor {
-        ci,
-        cj,
-        tx,
-        ty,
-        ta: t0,
-        cells: 0,
-    };
-    walk_from::<ANY>(height, g, cells, at, t1)
+    walk_from::<ANY>(height, g, cells, Cursor::start(g, t0), t1)
 }
 
 /// Where a walk stands: the cell it is in, the parameters at which the
@@ -505,6 +495,21 @@ pub(crate) struct Cursor {
 }
 
 impl Cursor {
+    /// The walk's start: the cell holding the ray at `t0`, none counted.
+    #[inline(always)]
+    fn start(g: &Grid, t0: f32) -> Self {
+        let (ci, tx) = g.x.start(t0);
+        let (cj, ty) = g.y.start(t0);
+        Cursor {
+            ci,
+            cj,
+            tx,
+            ty,
+            ta: t0,
+            cells: 0,
+        }
+    }
+
     /// Where the ray leaves the cell (or the walk ends).
     #[inline(always)]
     fn tb(&self, t1: f32) -> f32 {
@@ -638,16 +643,7 @@ mod tests {
             // Cell by cell along the walk, as the scalar loop goes: at each
             // cell before the one that ends it, the walk after that cell is
             // what is left of the whole walk.
-            let (ci, tx) = g.x.start(0.0);
-            let (cj, ty) = g.y.start(0.0);
-            let mut at = Cursor {
-                ci,
-                cj,
-                tx,
-                ty,
-                ta: 0.0,
-                cells: 0,
-            };
+            let mut at = Cursor::start(&g, 0.0);
             let end = match whole {
                 Walk::Hit(hit) => hit.cells,
                 Walk::Miss { cells } | Walk::StartsInside { cells, .. } => cells,
