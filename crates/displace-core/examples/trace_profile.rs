@@ -2,7 +2,7 @@
 //! (`scripts/bench_render_peers.py`: `studded` 256x256 heights, 1 x 1 x 0.1,
 //! 256x256x16 map; `gaussian` 512x512, 1 x 1 x 0.3, 256x256x32), with its
 //! camera (45 degrees down onto the face centre, 20 degree field of view):
-//! first hits per second on one thread for the GPU-mirroring trilinear loop
+//! first hits and shadow rays to its light per second on one thread for the GPU-mirroring trilinear loop
 //! ([`DisplacementMap::trace_counted`]) and the CPU's throughput tracer
 //! ([`DisplacementMap::trace`]), and the mean cost per ray. A profiling aid:
 //!
@@ -16,6 +16,9 @@ use displace_core::{
 };
 use glam::Vec3;
 use std::time::Instant;
+
+/// The benchmark's point light (world units).
+const LIGHT: [f32; 3] = [-0.2, 0.3, 0.9];
 
 fn camera_rays(n: usize, depth: f32) -> Vec<MapRay> {
     let centre = Vec3::new(0.5, 0.5, 0.0);
@@ -94,6 +97,37 @@ fn main() {
         println!(
             "{name}: packets of eight {many:.2} Mrays/s ({} hits)",
             hits.iter().flatten().count()
+        );
+        // The render's shadow rays: from each hit, just off the surface on
+        // the camera's side, to the benchmark's point light (any-hit).
+        let light = Vec3::from(LIGHT) / depth;
+        let (shadow, shadow_opts): (Vec<MapRay>, Vec<TraceOptions>) = hits
+            .iter()
+            .flatten()
+            .filter_map(|h| {
+                let o = h.position + h.normal * (1e-4 / depth);
+                let to = light - o;
+                (to.dot(h.normal) > 0.0).then(|| {
+                    let o2 = TraceOptions {
+                        t_max: to.length() * (1.0 - 1e-4),
+                        ..opts
+                    };
+                    (MapRay::new(o, to), o2)
+                })
+            })
+            .unzip();
+        let mut blocked = vec![false; shadow.len()];
+        let mut best = f64::INFINITY;
+        for _ in 0..if mode == "one" { 0 } else { 3 } {
+            let start = Instant::now();
+            map.occluded_many(&shadow, &shadow_opts, &mut blocked);
+            best = best.min(start.elapsed().as_secs_f64());
+        }
+        println!(
+            "{name}: shadow rays in packets {:.2} Mrays/s ({} of {} blocked)",
+            shadow.len() as f64 / best / 1e6,
+            blocked.iter().filter(|&&b| b).count(),
+            shadow.len()
         );
         println!(
             "{name}: trilinear {old:.2} Mrays/s ({h0} hits, {:.1} fetches/hit), cell {new:.2} Mrays/s ({h1} hits, {:.1} fetches/hit)",
