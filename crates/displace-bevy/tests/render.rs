@@ -4,6 +4,8 @@
 //! - the displaced texture coordinate the fragment computes agrees with the
 //!   exact hit's, and with gpu-render's, on >= 99% of the pixels both
 //!   cover;
+//! - the two pictures agree: the same checkerboard at the displaced
+//!   coordinate, judged by FLIP's mean and 99th percentile;
 //! - the depth the prepass holds is the depth of the displaced point;
 //! - the shadow map holds the displaced shape: a bump shadows the floor
 //!   where the exact trace says it does.
@@ -311,14 +313,7 @@ fn displaced_uv_agrees_with_gpu_render() {
     let Some(ctx) = displace_gpu::test_support::test_context() else {
         return;
     };
-    // displace-gpu's built-in plane is this test's: the same eye, target,
-    // field of view, face and depth; the same step budget.
-    let mut plane = displace_gpu::PlaneScene::for_map(&map, [W, H]);
-    plane.iterations = scene.iterations;
-    assert_eq!(
-        (plane.eye, plane.target, plane.fov_y_degrees, plane.depth),
-        (scene.eye, scene.target, scene.fov_y_degrees, scene.depth)
-    );
+    let plane = gpu_plane(&map, &scene);
     let image = displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear)
         .unwrap()
         .render(ctx, &plane)
@@ -383,6 +378,239 @@ fn assert_uv_agreement(other: &str, agree: usize, both: usize, only_bevy: usize)
         only_bevy as f64 <= 0.01 * both as f64,
         "{only_bevy} pixels covered by Bevy and not by {other}"
     );
+}
+
+/// displace-gpu's built-in plane, which is this test's: the same eye,
+/// target, field of view, face and depth; the same step budget.
+fn gpu_plane(map: &DisplacementMap, scene: &PlaneScene) -> displace_gpu::PlaneScene {
+    let mut plane = displace_gpu::PlaneScene::for_map(map, [W, H]);
+    plane.iterations = scene.iterations;
+    assert_eq!(
+        (plane.eye, plane.target, plane.fov_y_degrees, plane.depth),
+        (scene.eye, scene.target, scene.fov_y_degrees, scene.depth)
+    );
+    plane
+}
+
+/// Mean FLIP allowed over the pixels both renderers cover. Measured on
+/// lavapipe (Mesa 22.3): 0.0002 over 9582 pixels; gpu-render's quad drawn
+/// 5% shallower gives 0.147, undisplaced (the checker at the shell's top,
+/// no parallax) 0.49, so the threshold sits fifty times above the
+/// agreement and fifteen times below the nearest wrong picture.
+const MEAN_FLIP: f32 = 0.01;
+/// 99th-percentile FLIP allowed over the same pixels (rend3's second
+/// threshold: an error confined to a few cells, which the mean dilutes).
+/// Measured: 0.0034; 5% shallower 0.46, undisplaced 0.87.
+const P99_FLIP: f32 = 0.05;
+
+/// The plugin against `displace gpu-render`'s renderer as pictures: the
+/// same face, camera and map, both showing displace-gpu's checkerboard
+/// (the very texels and mips, sRGB) at the displaced texture coordinate
+/// with the undisplaced coordinate's derivatives, compared by FLIP over the
+/// pixels both cover. The two light differently (Bevy's PBR against
+/// Blinn-Phong), so both show the texture's colour alone: the plugin's
+/// material unlit, gpu-render's shading with ambient 1, no light, no
+/// specular (`albedo * (ambient + intensity * lit) + specular` is the
+/// albedo). Both write 8-bit sRGB targets without tonemapping, so the
+/// bytes FLIP reads are the same encoding of linear colour on both sides.
+/// The comparison is shown able to fail: gpu-render's quad 5% shallower,
+/// and undisplaced, must exceed both thresholds.
+#[test]
+fn displaced_checker_image_agrees_with_gpu_render() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let map = map("gen:studded");
+    let scene = PlaneScene::for_map(&map);
+    let Some(ours) = checker_frame(&map, &scene) else {
+        return;
+    };
+    let Some(ctx) = displace_gpu::test_support::test_context() else {
+        return;
+    };
+    let mut plane = gpu_plane(&map, &scene);
+    plane.ambient = 1.0;
+    plane.light_intensity = 0.0;
+    plane.specular = 0.0;
+    plane.shadows = displace_gpu::Shadows::None;
+    // `Renderer::new`'s colour map is `checker_mips(256, 16)`, as ours.
+    let renderer =
+        displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear).unwrap();
+    let theirs = renderer.render(ctx, &plane).unwrap();
+    let flip = masked_flip(&ours, &theirs);
+    eprintln!(
+        "FLIP against gpu-render over {} pixels: mean {:.4} (allowed {MEAN_FLIP}), 99th percentile {:.4} (allowed {P99_FLIP})",
+        flip.pixels, flip.mean, flip.p99
+    );
+    assert!(
+        flip.pixels > (W * H / 4) as usize,
+        "both cover {} pixels",
+        flip.pixels
+    );
+    if flip.mean > MEAN_FLIP || flip.p99 > P99_FLIP {
+        let dir = flip.write("displaced_checker");
+        panic!(
+            "plugin against gpu-render: mean FLIP {} (allowed {MEAN_FLIP}), 99th percentile {} (allowed {P99_FLIP}); images in {}",
+            flip.mean,
+            flip.p99,
+            dir.display()
+        );
+    }
+
+    // The controls: the same comparison against gpu-render's quad drawn 5%
+    // shallower, and with (almost) no depth (the checker where the
+    // undisplaced face has it), fails both thresholds.
+    for (what, f) in [("5% shallower", 0.95), ("undisplaced", 1e-4 / plane.depth)] {
+        let mut wrong = plane;
+        wrong.depth = plane.depth * f;
+        let c = masked_flip(&ours, &renderer.render(ctx, &wrong).unwrap());
+        eprintln!(
+            "FLIP against gpu-render's quad {what}: mean {:.4}, 99th percentile {:.4}",
+            c.mean, c.p99
+        );
+        assert!(
+            c.mean > MEAN_FLIP && c.p99 > P99_FLIP,
+            "the thresholds pass gpu-render's quad {what}: mean {}, 99th percentile {}",
+            c.mean,
+            c.p99
+        );
+    }
+}
+
+/// displace-gpu's checkerboard (`Renderer::new`'s colour map: the same
+/// texels and box-filtered mips) as a Bevy image with displace-gpu's
+/// sampler: sRGB, trilinear, clamped as the map is.
+fn checker_image() -> Image {
+    use bevy::image::{ImageAddressMode, ImageFilterMode, ImageSampler, ImageSamplerDescriptor};
+    const SIZE: u32 = 256;
+    let mips = displace_gpu::raster::checker_mips(SIZE, 16);
+    let mut image = Image::new_uninit(
+        Extent3d {
+            width: SIZE,
+            height: SIZE,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    image.texture_descriptor.mip_level_count = mips.len() as u32;
+    // One layer: the levels in order, as Bevy's default data order reads them.
+    image.data = Some(mips.concat());
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: ImageAddressMode::ClampToEdge,
+        address_mode_v: ImageAddressMode::ClampToEdge,
+        mag_filter: ImageFilterMode::Linear,
+        min_filter: ImageFilterMode::Linear,
+        mipmap_filter: ImageFilterMode::Linear,
+        ..default()
+    });
+    image
+}
+
+/// The plugin's quad unlit with [`checker_image`] as its base colour
+/// texture, in an 8-bit sRGB target (four bytes a pixel, alpha 0 where
+/// nothing is drawn); `None` where the adapter policy allows no GPU.
+fn checker_frame(map: &DisplacementMap, scene: &PlaneScene) -> Option<Vec<u8>> {
+    let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
+    {
+        let world = app.world_mut();
+        let texture = world.resource_mut::<Assets<Image>>().add(checker_image());
+        let base = StandardMaterial {
+            base_color: Color::WHITE,
+            base_color_texture: Some(texture),
+            unlit: true,
+            ..default()
+        };
+        spawn_displaced(world, map, scene, base, |m| m);
+        world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
+    }
+    let target = app.target();
+    app.world_mut().spawn(camera(scene, target));
+    let image = frame(&mut app)?;
+    assert_eq!(
+        image.texture_descriptor.format,
+        TextureFormat::Rgba8UnormSrgb
+    );
+    let data = image.data.unwrap();
+    assert_eq!(data.len(), (W * H * 4) as usize);
+    Some(data)
+}
+
+/// FLIP between the plugin's frame and gpu-render's image over the pixels
+/// both cover.
+struct MaskedFlip {
+    pixels: usize,
+    mean: f32,
+    p99: f32,
+    /// The two sRGB images FLIP compared and its error map (magma), for a
+    /// failure's report.
+    ours: Vec<u8>,
+    theirs: Vec<u8>,
+    error: Vec<u8>,
+}
+
+/// Pixels either side leaves empty are set to one grey in both images
+/// before FLIP runs, so its spatial filters see no difference there (the
+/// shell's side walls, which gpu-render draws and the plugin does not, and
+/// the rasterisers' edge pixels are not the comparison's business), and
+/// only the pixels both cover are pooled: their mean, and their 99th
+/// percentile (nearest rank).
+fn masked_flip(ours: &[u8], theirs: &displace_gpu::Image) -> MaskedFlip {
+    assert_eq!((theirs.width, theirs.height), (W, H));
+    let n = (W * H) as usize;
+    let both: Vec<bool> = (0..n)
+        .map(|i| ours[i * 4 + 3] > 127 && theirs.uv[i][2] != 0.0)
+        .collect();
+    let rgb = |rgba: &[u8]| -> Vec<u8> {
+        (0..n)
+            .flat_map(|i| {
+                if both[i] {
+                    [rgba[i * 4], rgba[i * 4 + 1], rgba[i * 4 + 2]]
+                } else {
+                    [128; 3]
+                }
+            })
+            .collect()
+    };
+    let (a, b) = (rgb(ours), rgb(&theirs.rgba8));
+    let err = nv_flip::flip(
+        nv_flip::FlipImageRgb8::with_data(W, H, &a),
+        nv_flip::FlipImageRgb8::with_data(W, H, &b),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    );
+    let values = err.to_vec();
+    let mut pooled: Vec<f32> = (0..n).filter(|&i| both[i]).map(|i| values[i]).collect();
+    pooled.sort_by(f32::total_cmp);
+    let pixels = pooled.len();
+    let mean = pooled.iter().sum::<f32>() / pixels.max(1) as f32;
+    let rank = ((0.99 * pixels as f64).ceil() as usize).max(1);
+    let p99 = pooled.get(rank - 1).copied().unwrap_or(0.0);
+    MaskedFlip {
+        pixels,
+        mean,
+        p99,
+        ours: a,
+        theirs: b,
+        error: err.apply_color_lut(&nv_flip::magma_lut()).to_vec(),
+    }
+}
+
+impl MaskedFlip {
+    /// Writes `NAME.bevy.png`, `NAME.gpu.png` and `NAME.flip.png` under
+    /// Cargo's temporary directory for integration tests, and returns it.
+    fn write(&self, name: &str) -> std::path::PathBuf {
+        let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+        for (what, rgb) in [
+            ("bevy", &self.ours),
+            ("gpu", &self.theirs),
+            ("flip", &self.error),
+        ] {
+            image::RgbImage::from_raw(W, H, rgb.clone())
+                .unwrap()
+                .save(dir.join(format!("{name}.{what}.png")))
+                .unwrap();
+        }
+        dir
+    }
 }
 
 /// The prepass depth copied out before the main pass, as in Bevy's

@@ -111,6 +111,28 @@ pub fn texel_lerp(t: f32, n: usize) -> (i64, f32) {
     (i, x - i as f32)
 }
 
+/// The sRGB transfer function, decoded (IEC 61966-2-1): colour textures
+/// and 8-bit colours in scene files are sRGB, while both renderers shade in
+/// linear RGB.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The sRGB transfer function, encoded (IEC 61966-2-1), clamped to
+/// `[0, 1]`: PNG output and the GPU's 8-bit colour texels are sRGB.
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
 /// `floor` as an integer without a libm call (baseline x86-64 has no
 /// rounding instruction, and this sits in every texture fetch). Values
 /// beyond the `i64` range saturate, which no texel index reaches.

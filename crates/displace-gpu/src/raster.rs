@@ -17,6 +17,7 @@ use crate::plain::{PlainFrame, PlainMesh, PLAIN_VERTEX_LAYOUT};
 use crate::shaders::{mesh_source, plain_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use bytemuck::{Pod, Zeroable};
+use displace_core::convention::linear_to_srgb;
 use displace_core::names::parse_choice;
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
 use glam::{Mat4, Vec2, Vec3};
@@ -783,16 +784,8 @@ const SHELL_VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 6] = {
 /// One 8-bit sRGB texel of the linear colour `albedo`, each channel clamped
 /// to `[0, 1]`.
 fn albedo_texel(albedo: [f32; 3]) -> Vec<u8> {
-    let e = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+    let e = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
     vec![e(albedo[0]), e(albedo[1]), e(albedo[2]), 255]
-}
-
-fn linear_to_srgb(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 type Draw<'a> = (&'a Renderer, Vec<wgpu::BindGroup>);

@@ -16,25 +16,9 @@ pub struct Texture {
     data: Vec<Vec3>,
 }
 
-/// The sRGB transfer function, decoded (IEC 61966-2-1).
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB transfer function, encoded (IEC 61966-2-1), clamped to
-/// `[0, 1]`: PNG output is sRGB while the renderer works in linear RGB.
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
+/// The sRGB transfer functions, whose one definition is
+/// [`displace_core::convention`]'s (the GPU's colour texels use it too).
+pub use displace_core::convention::{linear_to_srgb, srgb_to_linear};
 
 /// The size of the image file `path` (a `kind` of input, as messages name
 /// it), from its header alone, after the checks every image input gets: a
