@@ -15,11 +15,12 @@ use clap::Args;
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::{write_atomic, Batch};
 use displace_core::io::height::{self, HeightOptions};
+use displace_core::random::rays::{tile_rays, Elevation, Start};
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique};
 use displace_core::{
     bake, generators, Address, BakeOptions, Extent, HeightMap, MapRay, Method, TraceOptions,
 };
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -275,15 +276,13 @@ fn timed<T>(
 /// `n` rays entering the top of the face at uniform random points,
 /// `elevation` degrees above it, uniform random azimuth.
 fn rays(aspect: [f32; 2], elevation: f32, n: usize, seed: u64) -> Vec<MapRay> {
-    let mut rng = displace_core::random::SplitMix64::new(seed);
-    let e = elevation.to_radians();
-    (0..n)
-        .map(|_| {
-            let o = Vec3::new(rng.next_f32() * aspect[0], rng.next_f32() * aspect[1], 1.0);
-            let a = rng.next_f32() * std::f32::consts::TAU;
-            MapRay::new(o, Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()))
-        })
-        .collect()
+    tile_rays(
+        aspect,
+        n,
+        seed,
+        Start::Above(1.0),
+        Elevation::Fixed(elevation),
+    )
 }
 
 /// The exact hit's texture coordinate, per ray.

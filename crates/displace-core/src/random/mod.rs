@@ -1,8 +1,25 @@
 //! SplitMix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number
 //! generators", OOPSLA 2014): the one seeded, dependency-free generator the
 //! benchmarks, `displace compare` and the tests draw their rays and maps
-//! from, so that a seed means the same numbers everywhere. Not for
-//! rendering: the renderer's samples come from its own per-pixel streams.
+//! from, so that a seed means the same numbers everywhere, and the seeded
+//! ray sets they trace ([`rays`]). Its output function ([`mix64`]) is also
+//! the hash of the noise generator's lattice and of the renderer's sample
+//! seeds. Not for rendering: the renderer's samples come from its own
+//! per-pixel streams.
+
+pub mod rays;
+
+/// SplitMix64's output function (Steele et al. 2014, the variant "Mix13" of
+/// Stafford's MurmurHash3 finaliser search): every input bit changes every
+/// output bit with probability near 1/2, so consecutive or structured
+/// inputs (a counter, lattice coordinates, pixel indices) come out as
+/// unrelated 64-bit words.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
 
 /// A SplitMix64 stream from `seed`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -17,10 +34,7 @@ impl SplitMix64 {
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        mix64(self.0)
     }
 
     /// Uniform in `[0, 1)` from the top 24 bits: every value is exact in
