@@ -8,8 +8,8 @@
 //! each technique returns, tinted by height.
 
 use super::plot::{register_font, FAMILY};
-use super::{exact_hits, texel_error};
 use anyhow::{anyhow, Result};
+use displace_core::compare::{exact_hits, texel_error};
 use displace_core::io::height::write_rgb8_png;
 use displace_core::random::rays::downward;
 use displace_core::techniques::{Maps, Technique};
