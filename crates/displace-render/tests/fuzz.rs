@@ -280,7 +280,7 @@ fn mutated_inputs_never_panic() {
     let entry = std::fs::read_dir(cache_dir.path())
         .unwrap()
         .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|x| x == "dmap"))
+        .find(|p| p.extension().is_some_and(|x| x == "ktx2"))
         .expect("the bake wrote its cache entry");
     let entry_name = entry.file_name().unwrap().to_string_lossy().into_owned();
     let corpus = [std::fs::read(&entry).unwrap()];
