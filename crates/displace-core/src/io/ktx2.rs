@@ -81,15 +81,13 @@ fn dfd(format: Format) -> Vec<u8> {
     out
 }
 
-/// The key/value pairs (sorted by key, as the KTX 2.0 spec's key/value
-/// data requires) for `map`, with the caller's `extra` ones.
+/// The writer's own key/value pairs for `map`, unsorted.
 fn key_values(
     address: Address,
     underestimate: f32,
     extent: Extent,
     format: Format,
     range: Option<R8Range>,
-    extra: &[(&str, &str)],
 ) -> Vec<(String, String)> {
     let [ax, ay] = extent.aspect();
     let encoding = match format {
@@ -117,8 +115,6 @@ fn key_values(
     if let Some(r) = range {
         kv.push(("displace.r8_range".into(), format!("{},{}", r.min, r.max)));
     }
-    kv.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
-    kv.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
     kv
 }
 
@@ -154,14 +150,11 @@ pub(crate) fn header(
     let [w, h, d] = size;
     let (vk, type_size) = vk_format(format);
     let dfd = dfd(format);
-    let kvd = kvd_bytes(&key_values(
-        address,
-        underestimate,
-        extent,
-        format,
-        range,
-        extra,
-    ));
+    let mut kv = key_values(address, underestimate, extent, format, range);
+    kv.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+    // Sorted by key, as the KTX 2.0 spec's key/value data requires.
+    kv.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
+    let kvd = kvd_bytes(&kv);
     let dfd_offset = HEADER_LEN + LEVEL_INDEX_LEN;
     let kvd_offset = dfd_offset + dfd.len();
     // Level data aligns to lcm(texel block size, 4) = 4 for these formats.
@@ -213,7 +206,7 @@ pub fn to_bytes_with_keys(
     format: Format,
     extra: &[(&str, &str)],
 ) -> std::result::Result<Vec<u8>, FormatError> {
-    let own = key_values(map.address(), 0.0, extent, format, None, &[]);
+    let own = key_values(map.address(), 0.0, extent, format, None);
     if let Some((k, _)) = extra
         .iter()
         .find(|(k, _)| *k == "displace.r8_range" || own.iter().any(|(o, _)| o == k))
