@@ -55,7 +55,7 @@ pub struct Measured {
     pub hits: Vec<Option<Vec2>>,
     /// Mean texture fetches per ray.
     pub fetches: f64,
-    /// Time per ray, nanoseconds: the median over chunks of [`CHUNK`] rays,
+    /// Time per ray, nanoseconds: the median over chunks of 100 rays,
     /// so that a chunk preempted by another process on a shared machine
     /// does not move the figure.
     pub ns_per_ray: f64,

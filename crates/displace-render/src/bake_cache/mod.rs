@@ -4,7 +4,7 @@
 //! everything the bake depends on.
 //!
 //! On disk an entry is `<key>.ktx2`, the KTX2 container `displace bake`
-//! writes, in r32f and with a checksum of the whole file ([`entry`]): a
+//! writes, in r32f and with a checksum of the whole file (module `entry`): a
 //! corrupt entry (a flipped bit on disk) or a foreign one is warned about
 //! and baked again rather than trusted, since a wrong distance would make
 //! the tracer step through the surface. The normal map is rebuilt from the
