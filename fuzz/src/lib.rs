@@ -120,7 +120,7 @@ fn entry() -> &'static Entry {
             .expect("the cache directory")
             .filter_map(|e| e.ok())
             .map(|e| e.file_name().to_string_lossy().into_owned())
-            .find(|n| n.ends_with(".dmap"))
+            .find(|n| n.ends_with(".ktx2"))
             .expect("the bake wrote its entry");
         Entry { height, map, name }
     })

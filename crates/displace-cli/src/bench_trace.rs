@@ -6,10 +6,10 @@ use crate::bake::parse_extent;
 use crate::bench_bake::{height_for, pool};
 use anyhow::{Context, Result};
 use clap::Args;
+use displace_core::random::rays::{tile_rays, Elevation, Start};
 use displace_core::{
     generators, BakeOptions, DisplacementMap, Extent, MapRay, Method, TraceOptions,
 };
-use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -32,27 +32,6 @@ pub struct BenchTraceArgs {
     pub seed: u64,
     #[arg(long, default_value = "1,1,0.1", value_parser = parse_extent)]
     pub extent: Extent,
-}
-
-/// Rays from just above the shell top, at uniformly random points of the
-/// tile, random azimuths and elevations between 5 and 90 degrees, downwards.
-fn random_rays(aspect: [f32; 2], n: usize, seed: u64) -> Vec<MapRay> {
-    let mut rng = displace_core::random::SplitMix64::new(seed);
-    (0..n)
-        .map(|_| {
-            let o = Vec3::new(
-                rng.next_f32() * aspect[0],
-                rng.next_f32() * aspect[1],
-                1.0 + 1e-3,
-            );
-            let az = rng.next_f32() * std::f32::consts::TAU;
-            let el = (5.0 + rng.next_f32() * 85.0).to_radians();
-            MapRay::new(
-                o,
-                Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), -el.sin()),
-            )
-        })
-        .collect()
 }
 
 struct TraceRun {
@@ -95,7 +74,14 @@ pub fn run(args: BenchTraceArgs) -> Result<()> {
         [256, 256, 16]
     };
     let extent = args.extent;
-    let rays = random_rays(extent.aspect(), n, args.seed);
+    // From just above the shell top, at elevations from 5 to 90 degrees.
+    let rays = tile_rays(
+        extent.aspect(),
+        n,
+        args.seed,
+        Start::Above(1.0 + 1e-3),
+        Elevation::Uniform(5.0, 90.0),
+    );
     println!(
         "trace: {}x{}x{} maps, extent {},{},{}, {n} rays from above the shell (seed {}), \
          1 thread vs {} threads; iterations/hit = distance-map steps + patches walked",
@@ -138,25 +124,4 @@ pub fn run(args: BenchTraceArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn random_rays_start_above_the_shell_and_go_down() {
-        let rays = random_rays([10.0, 5.0], 1000, 7);
-        assert_eq!(rays, random_rays([10.0, 5.0], 1000, 7));
-        for r in &rays {
-            assert!(
-                r.origin.z > 1.0
-                    && (0.0..=10.0).contains(&r.origin.x)
-                    && (0.0..=5.0).contains(&r.origin.y)
-            );
-            let elevation = (-r.dir.z).asin().to_degrees();
-            assert!((4.99..=90.0).contains(&elevation), "{elevation}");
-            assert!((r.dir.length() - 1.0).abs() < 1e-5);
-        }
-    }
 }

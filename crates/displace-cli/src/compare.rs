@@ -1,6 +1,8 @@
 //! `displace compare`: every technique of [`displace_core::techniques`]
 //! against the exact reference on seeded rays, over height maps, view
-//! elevations and budgets (BENCHMARKS.md). Writes `compare.csv` (one row per map,
+//! elevations and budgets (BENCHMARKS.md), measured by
+//! [`displace_core::compare`]; this command reads the maps, times on the
+//! GPU when asked and writes the files. Writes `compare.csv` (one row per map,
 //! elevation, technique and budget), `precompute.csv` (time and memory of
 //! each technique's precomputation per map), one plot of error against cost
 //! per map, and an image grid of one view rendered by each technique at
@@ -12,14 +14,14 @@ mod plot;
 use crate::bake::{load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use displace_core::compare::{
+    csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan, Row,
+};
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::{write_atomic, Batch};
 use displace_core::io::height::{self, HeightOptions};
-use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Technique};
-use displace_core::{
-    bake, generators, Address, BakeOptions, Extent, HeightMap, MapRay, Method, TraceOptions,
-};
-use glam::{Vec2, Vec3};
+use displace_core::techniques::{Maps, Technique};
+use displace_core::{generators, Address, Extent, HeightMap, MapRay};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -85,34 +87,6 @@ pub struct CompareArgs {
     pub quick: bool,
 }
 
-/// One row of compare.csv.
-#[derive(Clone, Debug)]
-pub struct Row {
-    pub map: String,
-    pub elevation: f32,
-    pub technique: Technique,
-    pub budget: u32,
-    pub rays: usize,
-    pub wrong: f64,
-    pub mean_error: f64,
-    pub p99_error: f64,
-    pub fetches: f64,
-    pub ns_per_ray: f64,
-    /// With `--gpu`: GPU time per ray (compute path), nanoseconds.
-    pub gpu_ns_per_ray: Option<f64>,
-}
-
-pub const CSV_HEADER: &str = "map,elevation_deg,technique,budget,rays,wrong_fraction,mean_error_texels,p99_error_texels,fetches_per_ray,ns_per_ray,gpu_ns_per_ray";
-
-/// The settings after defaults and `--quick`.
-struct Plan {
-    techniques: Vec<Technique>,
-    budgets: Vec<u32>,
-    elevations: Vec<f32>,
-    rays: usize,
-    size: [usize; 2],
-}
-
 fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
     let v: Result<Vec<T>> = s
         .split(',')
@@ -129,7 +103,9 @@ fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> Result<Vec<T>> {
     Ok(v)
 }
 
-fn plan(args: &CompareArgs) -> Result<Plan> {
+/// The settings after defaults and `--quick`: what to measure, and the
+/// texels of generated maps.
+fn plan(args: &CompareArgs) -> Result<(Plan, [usize; 2])> {
     let techniques = match &args.techniques {
         None => Technique::ALL.to_vec(),
         Some(names) => names
@@ -169,13 +145,13 @@ fn plan(args: &CompareArgs) -> Result<Plan> {
     if args.depth < 2 {
         bail!("--depth must be at least 2");
     }
-    Ok(Plan {
+    let plan = Plan {
         techniques,
         budgets,
         elevations,
         rays,
-        size,
-    })
+    };
+    Ok((plan, size))
 }
 
 /// Short name of a height source for the CSV and file names.
@@ -200,191 +176,6 @@ fn map_name(spec: &str) -> String {
         .collect()
 }
 
-/// Time and memory of one precomputation.
-struct Precompute {
-    name: &'static str,
-    seconds: f64,
-    bytes: usize,
-}
-
-/// Builds every precomputation the plan's techniques need, timed.
-fn prepare(
-    height: displace_core::HeightMap,
-    extent: Extent,
-    depth: usize,
-    techniques: &[Technique],
-) -> Result<(Maps, Vec<Precompute>)> {
-    use displace_core::techniques::Needs;
-    let aspect = extent.aspect();
-    let mut maps = Maps::new(height.clone(), aspect);
-    let mut report = Vec::new();
-    let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
-    if needs(Needs::ConservativeCones) {
-        let build = || ConeMap::build(&height, aspect, ConeKind::Conservative);
-        maps.cones = Some(timed(&mut report, "cone map", build, ConeMap::bytes));
-    }
-    if needs(Needs::RelaxedCones) {
-        let build = || ConeMap::build(&height, aspect, ConeKind::Relaxed);
-        maps.relaxed = Some(timed(
-            &mut report,
-            "relaxed cone map",
-            build,
-            ConeMap::bytes,
-        ));
-    }
-    if needs(Needs::Pyramid) {
-        let build = || MaxPyramid::build(&height);
-        maps.pyramid = Some(timed(&mut report, "max pyramid", build, MaxPyramid::bytes));
-    }
-    // The exact reference traces through the baked map's `Method::Exact`,
-    // so the distance map is always built; it is reported only when a
-    // distance technique is compared.
-    let opts = BakeOptions::new([height.width(), height.height(), depth], extent);
-    let start = Instant::now();
-    let baked = bake(&height, &opts).context("baking the distance map")?;
-    let seconds = start.elapsed().as_secs_f64();
-    if needs(Needs::DistanceMap) {
-        report.push(Precompute {
-            name: "distance map",
-            seconds,
-            bytes: baked.distance.data().len() * 4,
-        });
-    }
-    maps.displacement = Some(baked);
-    Ok((maps, report))
-}
-
-/// Builds one precomputation and reports the time it took and its size.
-fn timed<T>(
-    report: &mut Vec<Precompute>,
-    name: &'static str,
-    build: impl FnOnce() -> T,
-    bytes: impl Fn(&T) -> usize,
-) -> T {
-    let start = Instant::now();
-    let built = build();
-    let seconds = start.elapsed().as_secs_f64();
-    report.push(Precompute {
-        name,
-        seconds,
-        bytes: bytes(&built),
-    });
-    built
-}
-
-/// `n` rays entering the top of the face at uniform random points,
-/// `elevation` degrees above it, uniform random azimuth.
-fn rays(aspect: [f32; 2], elevation: f32, n: usize, seed: u64) -> Vec<MapRay> {
-    let mut rng = displace_core::random::SplitMix64::new(seed);
-    let e = elevation.to_radians();
-    (0..n)
-        .map(|_| {
-            let o = Vec3::new(rng.next_f32() * aspect[0], rng.next_f32() * aspect[1], 1.0);
-            let a = rng.next_f32() * std::f32::consts::TAU;
-            MapRay::new(o, Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()))
-        })
-        .collect()
-}
-
-/// The exact hit's texture coordinate, per ray.
-pub fn exact_hits(maps: &Maps, rays: &[MapRay]) -> Vec<Option<Vec2>> {
-    let map = maps.displacement.as_ref().expect("always baked");
-    let opts = TraceOptions {
-        method: Method::Exact,
-        ..TraceOptions::default()
-    };
-    rays.iter()
-        .map(|r| map.trace(r, &opts).map(|h| h.uv))
-        .collect()
-}
-
-/// Hit error in texels (`None`: wrong hit/miss; `Some(0)` for agreeing
-/// misses is not counted as a hit error).
-pub fn texel_error(
-    height: [usize; 2],
-    want: Option<Vec2>,
-    got: Option<Vec2>,
-) -> Option<Option<f32>> {
-    match (want, got) {
-        (Some(w), Some(g)) => Some(Some(
-            ((g - w) * Vec2::new(height[0] as f32, height[1] as f32)).length(),
-        )),
-        (None, None) => Some(None),
-        _ => None,
-    }
-}
-
-/// Rays per timed chunk of [`measure`].
-const CHUNK: usize = 100;
-
-/// Runs `tech` at `budget` on `rays` on this thread. Returns the hits, the
-/// mean fetches per ray and the time per ray: the median over chunks of
-/// [`CHUNK`] rays, so that a chunk preempted by another process on a
-/// shared machine does not move the figure.
-fn measure(
-    maps: &Maps,
-    tech: Technique,
-    budget: u32,
-    rays: &[MapRay],
-) -> Result<(Vec<Option<Vec2>>, f64, f64)> {
-    let mut got = Vec::with_capacity(rays.len());
-    let mut fetches = 0u64;
-    let mut per_ray = Vec::new();
-    for chunk in rays.chunks(CHUNK) {
-        let start = Instant::now();
-        for ray in chunk {
-            let t = tech.trace(maps, ray, budget)?;
-            fetches += t.fetches as u64;
-            got.push(t.hit.map(|h| h.uv));
-        }
-        per_ray.push(start.elapsed().as_nanos() as f64 / chunk.len() as f64);
-    }
-    per_ray.sort_by(f64::total_cmp);
-    Ok((
-        got,
-        fetches as f64 / rays.len() as f64,
-        per_ray[per_ray.len() / 2],
-    ))
-}
-
-fn score(size: [usize; 2], exact: &[Option<Vec2>], got: &[Option<Vec2>]) -> (f64, f64, f64) {
-    let mut wrong = 0usize;
-    let mut errors = Vec::new();
-    for (w, g) in exact.iter().zip(got) {
-        match texel_error(size, *w, *g) {
-            None => wrong += 1,
-            Some(Some(e)) => errors.push(e as f64),
-            Some(None) => {}
-        }
-    }
-    errors.sort_by(f64::total_cmp);
-    let mean = if errors.is_empty() {
-        0.0
-    } else {
-        errors.iter().sum::<f64>() / errors.len() as f64
-    };
-    let p99 = if errors.is_empty() {
-        0.0
-    } else {
-        errors[((errors.len() as f64 * 0.99) as usize).min(errors.len() - 1)]
-    };
-    (wrong as f64 / exact.len() as f64, mean, p99)
-}
-
-/// Rows one elevation of one map adds to compare.csv.
-fn runs_per_elevation(plan: &Plan) -> usize {
-    plan.techniques
-        .iter()
-        .map(|t| {
-            if t.uses_budget() {
-                plan.budgets.len()
-            } else {
-                1
-            }
-        })
-        .sum()
-}
-
 /// Fills `gpu_ns_per_ray` of `rows` (one elevation of one map): the rays
 /// repeated to `n` per dispatch, every technique and budget timed on the
 /// GPU's compute path.
@@ -407,81 +198,7 @@ fn time_on_gpu(
     Ok(())
 }
 
-/// Error bound of the equal-error table: a 99th percentile below
-/// half a texel, with at most 1% of rays getting hit/miss wrong.
-pub const EQUAL_ERROR_TEXELS: f64 = 0.5;
-
-/// For every map, elevation and technique (first row of each group), the
-/// cheapest row (fewest fetches) within [`EQUAL_ERROR_TEXELS`], if any.
-fn equal_error(rows: &[Row]) -> Vec<(&Row, Option<&Row>)> {
-    let mut out: Vec<(&Row, Option<&Row>)> = Vec::new();
-    for r in rows {
-        let ok = r.p99_error < EQUAL_ERROR_TEXELS && r.wrong <= 0.01;
-        let same =
-            |o: &Row| o.map == r.map && o.elevation == r.elevation && o.technique == r.technique;
-        match out.iter_mut().find(|(g, _)| same(g)) {
-            Some((_, best)) => {
-                if ok && best.is_none_or(|b| r.fetches < b.fetches) {
-                    *best = Some(r);
-                }
-            }
-            None => out.push((r, ok.then_some(r))),
-        }
-    }
-    out
-}
-
-/// Bytes per height texel every map holds from the start (the maps are
-/// all read before any work, so a bad file fails first): its heights.
-const LOADED_BYTES_PER_TEXEL: u128 = 4;
-
-/// Bytes per height texel of the map being compared, beyond its bake
-/// ([`displace_core::memory::bake_peak_bytes`] counts that): the heights
-/// the techniques sample (4) and, when the techniques need them, each cone
-/// map (4), the max pyramid (about 4/3 of 4, counted 6) and the scratch of
-/// a cone build (the footprints' height ranges and slopes, or the relaxed
-/// build's block maxima: 12).
-fn prepare_bytes_per_texel(techniques: &[Technique]) -> u128 {
-    use displace_core::techniques::Needs;
-    let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
-    let cones = needs(Needs::ConservativeCones) as u128 + needs(Needs::RelaxedCones) as u128;
-    4 + 4 * cones + if needs(Needs::Pyramid) { 6 } else { 0 } + if cones > 0 { 12 } else { 0 }
-}
-
-/// Estimated peak bytes of the whole comparison: every map's heights, read
-/// first; the map being compared with its precomputations and bake; the
-/// grid's map, kept from an earlier one when there are several; the rays
-/// of one elevation with their exact and measured hits; and with `--gpu`
-/// the repeated rays of a dispatch (the batch and its upload).
-fn compare_peak_bytes(
-    sizes: &[[usize; 2]],
-    depth: usize,
-    techniques: &[Technique],
-    rays: usize,
-    gpu_rays: Option<usize>,
-) -> u128 {
-    let texels = |s: &[usize; 2]| s[0] as u128 * s[1] as u128;
-    let loaded: u128 = sizes
-        .iter()
-        .map(|s| texels(s) * LOADED_BYTES_PER_TEXEL)
-        .sum();
-    let per_texel = prepare_bytes_per_texel(techniques);
-    let working = sizes
-        .iter()
-        .map(|s| {
-            texels(s) * per_texel
-                + displace_core::memory::bake_peak_bytes(*s, [s[0], s[1], depth], false)
-        })
-        .max()
-        .unwrap_or(0);
-    let grid = if sizes.len() > 1 { working } else { 0 };
-    let ray = std::mem::size_of::<MapRay>() as u128;
-    let hit = std::mem::size_of::<Option<Vec2>>() as u128;
-    let rays = rays as u128 * (ray + 2 * hit) + gpu_rays.map_or(0, |n| 2 * n as u128 * ray);
-    loaded + working + grid + rays
-}
-
-/// Refuses a comparison whose estimated peak ([`compare_peak_bytes`])
+/// Refuses a comparison whose estimated peak ([`peak::peak_bytes`])
 /// exceeds the memory limit ([`displace_core::memory`]), from the height
 /// maps' headers alone, before any map is decoded or generated.
 fn check_memory(
@@ -514,7 +231,7 @@ fn check_memory(
             args.depth,
             plan.rays
         ),
-        compare_peak_bytes(&sizes, args.depth, &plan.techniques, plan.rays, gpu_rays),
+        peak::peak_bytes(&sizes, args.depth, &plan.techniques, plan.rays, gpu_rays),
     )?;
     Ok(())
 }
@@ -564,7 +281,7 @@ impl Drop for OutputDir {
 }
 
 pub fn run(args: CompareArgs) -> Result<()> {
-    let plan = plan(&args)?;
+    let (plan, size) = plan(&args)?;
     let mut sources: Vec<String> = if args.only_given {
         Vec::new()
     } else {
@@ -578,13 +295,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
         bail!("--only-given with no --height: nothing to compare");
     }
     let height_args = HeightArgs {
-        height_size: Some(format!("{}x{}", plan.size[0], plan.size[1])),
+        height_size: Some(format!("{}x{}", size[0], size[1])),
         channel: None,
         address: Address::Clamp,
     };
     let opts = HeightOptions {
         channel: height_args.channel,
-        size: plan.size,
+        size,
         address: height_args.address,
     };
     check_memory(&args, &plan, &sources, &opts)?;
@@ -592,7 +309,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     // Read every map first: a bad file fails before minutes of work.
     let heights = sources
         .iter()
-        .map(|s| load_height(s, &height_args, plan.size).map(|h| (map_name(s), h)))
+        .map(|s| load_height(s, &height_args, size).map(|h| (map_name(s), h)))
         .collect::<Result<Vec<_>>>()?;
 
     let gpu = if args.gpu {
@@ -618,43 +335,18 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let mut precompute = Vec::new();
     let mut grid_maps = None;
     for (k, (name, height)) in heights.into_iter().enumerate() {
-        let size = [height.width(), height.height()];
         let (maps, report) = prepare(height, args.extent, args.depth, &plan.techniques)?;
         for p in report {
             precompute.push((name.clone(), p));
         }
         for &elevation in &plan.elevations {
-            let seed = args.seed ^ ((k as u64) << 32) ^ (elevation.to_bits() as u64);
-            let rays = rays(maps.aspect, elevation, plan.rays, seed);
-            let exact = exact_hits(&maps, &rays);
-            for &tech in &plan.techniques {
-                let budgets: &[u32] = if tech.uses_budget() {
-                    &plan.budgets
-                } else {
-                    &[1]
-                };
-                for &budget in budgets {
-                    let (got, fetches, ns) = measure(&maps, tech, budget, &rays)?;
-                    let (wrong, mean_error, p99_error) = score(size, &exact, &got);
-                    rows.push(Row {
-                        map: name.clone(),
-                        elevation,
-                        technique: tech,
-                        budget,
-                        rays: rays.len(),
-                        wrong,
-                        mean_error,
-                        p99_error,
-                        fetches,
-                        ns_per_ray: ns,
-                        gpu_ns_per_ray: None,
-                    });
-                }
-            }
+            let seed = ray_seed(args.seed, k, elevation);
+            let rays = elevation_rays(maps.aspect, elevation, plan.rays, seed);
+            let mut measured = measure_elevation(&maps, &name, &plan, elevation, &rays)?;
             if let Some((ctx, n)) = &gpu {
-                let first = rows.len() - runs_per_elevation(&plan);
-                time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut rows[first..])?;
+                time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut measured)?;
             }
+            rows.extend(measured);
         }
         // The grid shows the first map the user gave, else the text map.
         let wanted = if args.heights.is_empty() {
@@ -671,64 +363,14 @@ pub fn run(args: CompareArgs) -> Result<()> {
     // the last leaves none of them.
     let batch = Batch::new();
     let csv = args.out.join("compare.csv");
-    write_atomic(&csv, |w| {
-        writeln!(w, "{CSV_HEADER}")?;
-        for r in &rows {
-            writeln!(
-                w,
-                "{},{},{},{},{},{:.6},{:.6},{:.6},{:.3},{:.1},{}",
-                r.map,
-                r.elevation,
-                r.technique.name(),
-                r.budget,
-                r.rays,
-                r.wrong,
-                r.mean_error,
-                r.p99_error,
-                r.fetches,
-                r.ns_per_ray,
-                r.gpu_ns_per_ray
-                    .map(|g| format!("{g:.3}"))
-                    .unwrap_or_default()
-            )?;
-        }
-        Ok(())
-    })
-    .with_context(|| format!("writing {}", csv.display()))?;
+    write_atomic(&csv, |w| csv::write_rows(w, &rows))
+        .with_context(|| format!("writing {}", csv.display()))?;
     let pre = args.out.join("precompute.csv");
-    write_atomic(&pre, |w| {
-        writeln!(w, "map,precomputation,seconds,bytes")?;
-        for (map, p) in &precompute {
-            writeln!(w, "{map},{},{:.4},{}", p.name, p.seconds, p.bytes)?;
-        }
-        Ok(())
-    })
-    .with_context(|| format!("writing {}", pre.display()))?;
-
+    write_atomic(&pre, |w| csv::write_precompute(w, &precompute))
+        .with_context(|| format!("writing {}", pre.display()))?;
     let equal = args.out.join("equal_error.csv");
-    write_atomic(&equal, |w| {
-        writeln!(
-            w,
-            "map,elevation_deg,technique,budget,fetches_per_ray,ns_per_ray"
-        )?;
-        for (r, cheapest) in equal_error(&rows) {
-            match cheapest {
-                Some(c) => writeln!(
-                    w,
-                    "{},{},{},{},{:.3},{:.1}",
-                    r.map,
-                    r.elevation,
-                    r.technique.name(),
-                    c.budget,
-                    c.fetches,
-                    c.ns_per_ray
-                )?,
-                None => writeln!(w, "{},{},{},,,", r.map, r.elevation, r.technique.name())?,
-            }
-        }
-        Ok(())
-    })
-    .with_context(|| format!("writing {}", equal.display()))?;
+    write_atomic(&equal, |w| csv::write_equal_error(w, &rows))
+        .with_context(|| format!("writing {}", equal.display()))?;
 
     let plots = plot::write_all(&args.out, &rows, &plan.techniques)?;
     let (grid_name, grid_maps) = grid_maps.expect("at least one map");
@@ -780,41 +422,4 @@ pub fn run(args: CompareArgs) -> Result<()> {
             .join(", ")
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// One map, a height-only technique: the heights read first, their
-    /// copy beside the bake's peak, and the rays with their two hit lists.
-    #[test]
-    fn the_peak_counts_heights_bake_and_rays() {
-        let ray = std::mem::size_of::<MapRay>() as u128;
-        let hit = std::mem::size_of::<Option<Vec2>>() as u128;
-        let bake = displace_core::memory::bake_peak_bytes([10, 10], [10, 10, 4], false);
-        assert_eq!(
-            compare_peak_bytes(&[[10, 10]], 4, &[Technique::Pom], 3, None),
-            100 * 4 + 100 * 4 + bake + 3 * (ray + 2 * hit)
-        );
-        // Cones, pyramid and a second map (the grid's, kept) add to it.
-        let one = compare_peak_bytes(&[[10, 10]], 4, &Technique::ALL, 3, None);
-        assert_eq!(
-            one,
-            100 * 4 + 100 * (4 + 8 + 6 + 12) + bake + 3 * (ray + 2 * hit)
-        );
-        let two = compare_peak_bytes(&[[10, 10], [10, 10]], 4, &Technique::ALL, 3, None);
-        assert_eq!(two - one, 100 * 4 + 100 * (4 + 8 + 6 + 12) + bake);
-        // The GPU's repeated rays: the batch and its upload.
-        let gpu = compare_peak_bytes(&[[10, 10]], 4, &Technique::ALL, 3, Some(1000));
-        assert_eq!(gpu - one, 2 * 1000 * ray);
-    }
-
-    /// The size: a 46000x46000 map needs tens of gigabytes (every
-    /// buffer of which passes the one-buffer check).
-    #[test]
-    fn a_46000_texel_map_needs_tens_of_gigabytes() {
-        let b = compare_peak_bytes(&[[46000, 46000]], 16, &Technique::ALL, 2000, None);
-        assert!(b > 300_000_000_000 && b < 500_000_000_000, "{b}");
-    }
 }

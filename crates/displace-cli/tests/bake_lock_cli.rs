@@ -67,7 +67,7 @@ fn four_processes_bake_one_key_once() {
     }
     let left = files(&cache);
     assert!(
-        left.len() == 1 && left[0].ends_with(".dmap"),
+        left.len() == 1 && left[0].ends_with(".ktx2"),
         "stray files in the cache: {left:?}"
     );
 }

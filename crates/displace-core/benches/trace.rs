@@ -13,6 +13,7 @@
 //! before it is timed.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use displace_core::random::rays::{tile_rays, Elevation, Start};
 use displace_core::{
     bake, generators, Address, BakeOptions, DisplacementMap, Extent, MapRay, Method, TraceOptions,
 };
@@ -21,25 +22,17 @@ use std::hint::black_box;
 
 const RAYS: usize = 10_000;
 
-/// Rays from above the shell towards uniformly random points of the base,
-/// at elevations from 10 degrees (grazing, the hard case for any marcher) to
-/// straight down, so every ray meets the surface.
+/// Rays from above the shell (z = 1.05) towards uniformly random points of
+/// the base, at elevations from 10 degrees (grazing, the hard case for any
+/// marcher) to straight down, so every ray meets the surface.
 fn random_rays(aspect: [f32; 2], seed: u64) -> Vec<MapRay> {
-    let mut rng = displace_core::random::SplitMix64::new(seed);
-    (0..RAYS)
-        .map(|_| {
-            let target = Vec3::new(rng.next_f32() * aspect[0], rng.next_f32() * aspect[1], 0.0);
-            let elevation = (10.0f32 + 80.0 * rng.next_f32()).to_radians();
-            let azimuth = std::f32::consts::TAU * rng.next_f32();
-            let dir = Vec3::new(
-                elevation.cos() * azimuth.cos(),
-                elevation.cos() * azimuth.sin(),
-                -elevation.sin(),
-            );
-            // Start just above the shell (z = 1.05).
-            MapRay::new(target - dir * (1.05 / elevation.sin()), dir)
-        })
-        .collect()
+    tile_rays(
+        aspect,
+        RAYS,
+        seed,
+        Start::Aimed(1.05),
+        Elevation::Uniform(10.0, 90.0),
+    )
 }
 
 /// A pinhole camera 45 degrees above the face centre, a 20 degree field of

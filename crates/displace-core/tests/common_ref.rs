@@ -121,17 +121,9 @@ pub fn true_signed_distance(h: &HeightMap, aspect: [f32; 2], p: DVec3, tiles: [i
     }
 }
 
-/// A small xorshift generator: the tests' random height maps are seeded
-/// by proptest, and everything downstream of the seed is deterministic.
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next_f64(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+/// The tests' generator: the random height maps are seeded by proptest,
+/// and everything downstream of the seed is deterministic.
+pub use displace_core::random::Xorshift64 as Rng;
 
 /// Random height maps of three kinds: smooth noise, sharp two-level
 /// (studded-like) and white noise.

@@ -3,15 +3,9 @@
 //! thread count or tiling, and crops stitch bit-exactly (the randomness
 //! convention of `docs/architecture.md`).
 
+// SplitMix64's finaliser (Steele et al. 2014) hashes the words together.
+use displace_core::random::mix64 as mix;
 use glam::Vec2;
-
-/// SplitMix64 finaliser (Steele et al. 2014), used to hash words together.
-#[inline]
-fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
 
 /// Hashes `words` into one seed: the per-sample seed of
 /// [`Rng::for_sample`], and the bake cache's keys.

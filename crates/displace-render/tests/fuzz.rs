@@ -14,21 +14,19 @@ mod common;
 
 use common::*;
 use displace_core::io::{dds, height, ktx2, npy};
+use displace_core::random::SplitMix64;
 use displace_core::{bake, Address, BakeOptions, Extent};
 use displace_render::bake_cache::BakeCache;
 use displace_render::{Scene, SceneOptions};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
-/// xorshift64*: small, seeded, good enough to pick mutations.
-struct Rng(u64);
+/// The project's seeded generator, with the draws that pick mutations.
+struct Rng(SplitMix64);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+        self.0.next_u64()
     }
     fn below(&mut self, n: usize) -> usize {
         (self.next() % n.max(1) as u64) as usize
@@ -143,7 +141,7 @@ fn fuzz(
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join(name);
     let seed = seed + seed_offset() * 1000;
-    let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ seed);
+    let mut rng = Rng(SplitMix64::new(0x9e37_79b9_7f4a_7c15 ^ seed));
     let mut crashes = Vec::new();
     let mut accepted = 0;
     for k in 0..cases() {
@@ -282,7 +280,7 @@ fn mutated_inputs_never_panic() {
     let entry = std::fs::read_dir(cache_dir.path())
         .unwrap()
         .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|x| x == "dmap"))
+        .find(|p| p.extension().is_some_and(|x| x == "ktx2"))
         .expect("the bake wrote its cache entry");
     let entry_name = entry.file_name().unwrap().to_string_lossy().into_owned();
     let corpus = [std::fs::read(&entry).unwrap()];

@@ -8,9 +8,10 @@
 //! each technique returns, tinted by height.
 
 use super::plot::{register_font, FAMILY};
-use super::{exact_hits, texel_error};
 use anyhow::{anyhow, Result};
+use displace_core::compare::{exact_hits, texel_error};
 use displace_core::io::height::write_rgb8_png;
+use displace_core::random::rays::downward;
 use displace_core::techniques::{Maps, Technique};
 use displace_core::MapRay;
 use glam::{Vec2, Vec3};
@@ -27,7 +28,7 @@ const LABEL: usize = 28;
 /// One ray per pixel of an `s x s` view.
 fn view_rays(aspect: [f32; 2], s: usize) -> Vec<MapRay> {
     let (e, a) = (ELEVATION_DEG.to_radians(), AZIMUTH_DEG.to_radians());
-    let dir = Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), -e.sin());
+    let dir = downward(e, a);
     (0..s * s)
         .map(|k| {
             let (i, j) = (k % s, k / s);

@@ -2,8 +2,8 @@
 //! `plotters` into a pixel buffer (its ab_glyph text needs no system font:
 //! the project's bundled DejaVu Sans Bold is registered once).
 
-use super::Row;
 use anyhow::{anyhow, Result};
+use displace_core::compare::Row;
 use displace_core::io::height::write_rgb8_png;
 use displace_core::techniques::Technique;
 use plotters::prelude::*;

@@ -112,12 +112,11 @@ fn lerp(a: f64, b: f64, t: f64) -> f64 {
 
 /// A well-mixed 64-bit hash of a lattice point (SplitMix64's finaliser).
 fn hash(x: i64, y: i64, salt: u64) -> u64 {
-    let mut z = (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ salt;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    crate::random::mix64(
+        (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ salt,
+    )
 }
 
 /// Rescales to exactly `[0, 1]`; a constant map (possible only when every

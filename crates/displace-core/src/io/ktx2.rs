@@ -19,6 +19,10 @@
 //! | `displace.r8_range`          | `min,max` (r8 only): `value = min + code/255 (max - min)` |
 //! | `displace.units`             | `shell depths`                                   |
 //!
+//! A caller may add keys of its own ([`to_bytes_with_keys`]; the bake cache
+//! of displace-render adds a checksum of the whole file), and
+//! [`Decoded::keys`] gives every key back.
+//!
 //! Numbers are written in Rust's shortest round-trip form, so reading them
 //! back gives the very same `f32` and an r8 code decodes to exactly the value
 //! the writer checked against the original (decoded <= original).
@@ -77,7 +81,7 @@ fn dfd(format: Format) -> Vec<u8> {
     out
 }
 
-/// The key/value pairs (sorted by key, as the spec requires) for `map`.
+/// The writer's own key/value pairs for `map`, unsorted.
 fn key_values(
     address: Address,
     underestimate: f32,
@@ -111,7 +115,6 @@ fn key_values(
     if let Some(r) = range {
         kv.push(("displace.r8_range".into(), format!("{},{}", r.min, r.max)));
     }
-    kv.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
     kv
 }
 
@@ -132,8 +135,9 @@ fn kvd_bytes(kv: &[(String, String)]) -> Vec<u8> {
 /// Everything of a KTX2 file before its level data, with room reserved for
 /// that data: identifier, header, level index, descriptor and key/value data
 /// (`underestimate` and `range` as the rounded map states them), padded to
-/// where level 0 starts. Shared by [`to_bytes`] and the streamed writer of
-/// [`super::stream`], so both write the same bytes.
+/// where level 0 starts, with the caller's `extra` keys. Shared by
+/// [`to_bytes`] and the streamed writer of [`super::stream`], so both write
+/// the same bytes.
 pub(crate) fn header(
     size: [usize; 3],
     address: Address,
@@ -141,11 +145,16 @@ pub(crate) fn header(
     extent: Extent,
     format: Format,
     range: Option<R8Range>,
+    extra: &[(&str, &str)],
 ) -> Vec<u8> {
     let [w, h, d] = size;
     let (vk, type_size) = vk_format(format);
     let dfd = dfd(format);
-    let kvd = kvd_bytes(&key_values(address, underestimate, extent, format, range));
+    let mut kv = key_values(address, underestimate, extent, format, range);
+    kv.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+    // Sorted by key, as the KTX 2.0 spec's key/value data requires.
+    kv.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
+    let kvd = kvd_bytes(&kv);
     let dfd_offset = HEADER_LEN + LEVEL_INDEX_LEN;
     let kvd_offset = dfd_offset + dfd.len();
     // Level data aligns to lcm(texel block size, 4) = 4 for these formats.
@@ -185,6 +194,27 @@ pub fn to_bytes(
     extent: Extent,
     format: Format,
 ) -> std::result::Result<Vec<u8>, FormatError> {
+    to_bytes_with_keys(map, extent, format, &[])
+}
+
+/// [`to_bytes`] with the caller's own key/value pairs beside the
+/// `displace.*` ones (the spec lets a writer add any, sorted among the
+/// rest); a key this writer writes itself is refused.
+pub fn to_bytes_with_keys(
+    map: &DistanceMap,
+    extent: Extent,
+    format: Format,
+    extra: &[(&str, &str)],
+) -> std::result::Result<Vec<u8>, FormatError> {
+    let own = key_values(map.address(), 0.0, extent, format, None);
+    if let Some((k, _)) = extra
+        .iter()
+        .find(|(k, _)| *k == "displace.r8_range" || own.iter().any(|(o, _)| o == k))
+    {
+        return Err(FormatError::Invalid(format!(
+            "key `{k}` is the writer's own"
+        )));
+    }
     let [w, h, d] = map.size();
     let (a, b) = (map.aspect(), extent.aspect());
     if (a[0] - b[0]).abs() > 1e-4 * a[0] || (a[1] - b[1]).abs() > 1e-4 * a[1] {
@@ -206,6 +236,7 @@ pub fn to_bytes(
         extent,
         format,
         range,
+        extra,
     );
     out.reserve(w * h * d * format.bytes_per_voxel());
     match (format, range) {
@@ -244,6 +275,8 @@ pub struct Decoded {
     pub format: Format,
     /// The `KTXwriter` key (the tool that wrote the file), if present.
     pub writer: Option<String>,
+    /// Every key/value pair of the file, values without their NUL.
+    pub keys: std::collections::BTreeMap<String, String>,
 }
 
 /// Checks what the `ktx2` crate's parser would panic on rather than
@@ -333,7 +366,7 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
     ];
     DistanceMap::check_size(size)?;
 
-    let mut kv = std::collections::HashMap::new();
+    let mut kv = std::collections::BTreeMap::new();
     for (k, v) in reader.key_value_data() {
         let v = v.strip_suffix(&[0]).unwrap_or(v);
         kv.insert(k.to_string(), String::from_utf8_lossy(v).into_owned());
@@ -424,6 +457,7 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
         extent,
         format,
         writer,
+        keys: kv,
     })
 }
 
@@ -572,6 +606,26 @@ mod tests {
         let mut short = good.clone();
         short[52..56].copy_from_slice(&2u32.to_le_bytes());
         assert!(err(&short).contains("descriptor"), "{}", err(&short));
+    }
+
+    #[test]
+    fn extra_keys_are_sorted_in_and_read_back() {
+        let (map, extent) = baked(Address::Clamp);
+        let bytes =
+            to_bytes_with_keys(&map, extent, Format::R32F, &[("displace.cache_x", "7")]).unwrap();
+        let r = ::ktx2::Reader::new(&bytes[..]).expect("valid KTX2");
+        let keys: Vec<&str> = r.key_value_data().map(|(k, _)| k).collect();
+        let mut sorted = keys.clone();
+        sorted.sort();
+        assert_eq!(keys, sorted);
+        let d = from_bytes(&bytes).unwrap();
+        assert_eq!(d.keys["displace.cache_x"], "7");
+        assert_eq!(d.keys["displace.units"], "shell depths");
+        assert_eq!(d.map.data(), map.data());
+        for own in ["displace.extent", "KTXwriter", "displace.r8_range"] {
+            let e = to_bytes_with_keys(&map, extent, Format::R32F, &[(own, "1")]).unwrap_err();
+            assert!(e.to_string().contains(own), "{e}");
+        }
     }
 
     #[test]

@@ -152,6 +152,7 @@ impl MapStream {
             self.extent,
             self.format,
             r8,
+            &[],
         );
         self.header_written = true;
         self.write(&head)

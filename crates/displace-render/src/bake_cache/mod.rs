@@ -3,14 +3,14 @@
 //! in memory for the scene and on disk across runs, keyed by a hash of
 //! everything the bake depends on.
 //!
-//! Disk format (`<key>.dmap`, little endian): magic `DSPLDM01`, `u32` width,
-//! height, depth, `f32` aspect x, aspect y, `u8` addressing (0 clamp, 1
-//! repeat), `f32` bound on the stored values' underestimate, then `width * height * depth` `f32`
-//! values in the core's `[k][j][i]` order, then a `u64` checksum of the bound
-//! and the values (`checksum`): a corrupt entry (a flipped bit on disk) is
-//! baked again rather than trusted, since a wrong distance would make the
-//! tracer step through the surface. The normal map is rebuilt from the
-//! height map (cheap); only the distance transform is cached.
+//! On disk an entry is `<key>.ktx2`, the KTX2 container `displace bake`
+//! writes, in r32f and with a checksum of the whole file (module `entry`): a
+//! corrupt entry (a flipped bit on disk) or a foreign one is warned about
+//! and baked again rather than trusted, since a wrong distance would make
+//! the tracer step through the surface. The normal map is rebuilt from the
+//! height map (cheap); only the distance transform is cached. Entries of
+//! the earlier container (`<key>.dmap`) are never read: their keys are
+//! simply baked again.
 //!
 //! Many processes may share one cache directory (the tasks of a render
 //! farm on a shared file system): a lock file next to an entry
@@ -18,20 +18,20 @@
 //! and read it, and a directory that cannot be written falls back to
 //! baking in memory with a warning ([`BakeCache::warnings`]).
 
+mod entry;
+
 use crate::bake_lock::{lock_path, try_lock, Attempt};
 use crate::error::Result;
-use crate::sampler::{hash, hash_iter};
-use displace_core::io::atomic::{remove_stale_temps, write_atomic};
-use displace_core::{
-    bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, HeightMap, NormalMap,
-};
+use crate::sampler::hash;
+use displace_core::io::atomic::remove_stale_temps;
+use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightMap, NormalMap};
+use entry::Entry;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-const MAGIC: &[u8; 8] = b"DSPLDM01";
 /// Bumped whenever the bake's output for the same inputs could change.
 /// (3: entries end with a checksum.)
 const BAKE_VERSION: u64 = 3;
@@ -133,7 +133,7 @@ impl BakeCache {
         let path = self
             .dir
             .as_ref()
-            .map(|d| d.join(format!("{key:016x}.dmap")));
+            .map(|d| d.join(format!("{key:016x}.{}", entry::EXTENSION)));
         let map = match &path {
             Some(p) => self.shared_bake(p, height, size, extent)?,
             None => self.bake(height, size, extent)?,
@@ -169,16 +169,26 @@ impl BakeCache {
         size: [usize; 3],
         extent: Extent,
     ) -> Result<DisplacementMap> {
-        let read = || {
-            let m = read_map(path, height, size, extent)?;
-            self.loaded.fetch_add(1, Ordering::Relaxed);
-            Some(m)
+        // The map, or why not: `None` for no entry, else what is wrong
+        // with the one there.
+        let read = || match entry::read(path, size, extent.aspect(), height.address()) {
+            Entry::Found(distance) => {
+                self.loaded.fetch_add(1, Ordering::Relaxed);
+                Ok(DisplacementMap {
+                    height: height.clone(),
+                    normals: NormalMap::from_height(height, extent),
+                    distance,
+                    extent,
+                })
+            }
+            Entry::Absent => Err(None),
+            Entry::Unusable(why) => Err(Some(why)),
         };
         let dir = path.parent().unwrap_or(Path::new("."));
         let lock = lock_path(path);
         let mut wait = Duration::from_millis(20);
         loop {
-            if let Some(m) = read() {
+            if let Ok(m) = read() {
                 return Ok(m);
             }
             let attempt = match std::fs::create_dir_all(dir) {
@@ -188,14 +198,19 @@ impl BakeCache {
             match attempt {
                 Attempt::Acquired(_guard) => {
                     // Written by a holder that released just before we locked.
-                    if let Some(m) = read() {
-                        return Ok(m);
+                    match read() {
+                        Ok(m) => return Ok(m),
+                        Err(Some(why)) => self.warn(format!(
+                            "bake cache entry {}: {why}: baked again",
+                            path.display()
+                        )),
+                        Err(None) => {}
                     }
                     // Killed bakes leave temporaries no run would rename.
                     remove_stale_temps(dir);
                     let m = self.bake(height, size, extent)?;
                     // A cache that cannot be written only costs time next run.
-                    if let Err(e) = write_map(path, &m.distance) {
+                    if let Err(e) = entry::write(path, &m.distance, extent) {
                         self.warn(format!(
                             "bake cache entry {}: not written: {e}",
                             path.display()
@@ -236,93 +251,44 @@ impl BakeCache {
     }
 }
 
-fn write_map(path: &Path, map: &DistanceMap) -> displace_core::Result<()> {
-    write_atomic(path, |w| {
-        w.write_all(MAGIC)?;
-        for n in map.size() {
-            w.write_all(&(n as u32).to_le_bytes())?;
-        }
-        for a in map.aspect() {
-            w.write_all(&a.to_le_bytes())?;
-        }
-        w.write_all(&[(map.address() == Address::Repeat) as u8])?;
-        w.write_all(&map.data_underestimate().to_le_bytes())?;
-        let mut buf = Vec::with_capacity(map.data().len() * 4);
-        for v in map.data() {
-            buf.extend_from_slice(&v.to_le_bytes());
-        }
-        w.write_all(&buf)?;
-        w.write_all(&checksum(map.data_underestimate(), map.data()).to_le_bytes())
-    })
-}
-
-/// Checksum of an entry's bound and values.
-fn checksum(under: f32, data: &[f32]) -> u64 {
-    hash_iter(
-        std::iter::once(under)
-            .chain(data.iter().copied())
-            .map(|v| v.to_bits() as u64),
-    )
-}
-
-/// The cached map, or `None` if absent, unreadable or not the one asked for
-/// (then it is baked again and overwritten).
-fn read_map(
-    path: &Path,
-    height: &HeightMap,
-    size: [usize; 3],
-    extent: Extent,
-) -> Option<DisplacementMap> {
-    // A cache entry replaced by a FIFO or a device must not hang the run.
-    displace_core::io::check_input(path, "cache entry", displace_core::io::MAX_ARRAY_FILE_BYTES)
-        .ok()?;
-    let bytes = std::fs::read(path).ok()?;
-    let header = 8 + 12 + 8 + 1 + 4;
-    if bytes.len() < header || &bytes[..8] != MAGIC {
-        return None;
-    }
-    let u32_at =
-        |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes")) as usize;
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
-    let stored = [u32_at(8), u32_at(12), u32_at(16)];
-    let aspect = [f32_at(20), f32_at(24)];
-    let address = match bytes[28] {
-        0 => Address::Clamp,
-        1 => Address::Repeat,
-        _ => return None,
-    };
-    let under = f32_at(29);
-    let n = size.iter().product::<usize>();
-    if stored != size
-        || address != height.address()
-        || aspect != extent.aspect()
-        || bytes.len() != header + 4 * n + 8
-    {
-        return None;
-    }
-    let data: Vec<f32> = bytes[header..header + 4 * n]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-        .collect();
-    let stored_sum = u64::from_le_bytes(bytes[header + 4 * n..].try_into().expect("8 bytes"));
-    if stored_sum != checksum(under, &data) {
-        return None;
-    }
-    let distance = DistanceMap::from_raw(size, aspect, address, data, under).ok()?;
-    Some(DisplacementMap {
-        height: height.clone(),
-        normals: NormalMap::from_height(height, extent),
-        distance,
-        extent,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn height() -> HeightMap {
         displace_core::generators::generate("gen:gaussian", 16, 16, Address::Clamp).unwrap()
+    }
+
+    /// A bake of [`height`] at `size` through a cache on an empty
+    /// directory, and the one entry it wrote.
+    struct Baked {
+        dir: tempfile::TempDir,
+        h: HeightMap,
+        extent: Extent,
+        map: Arc<DisplacementMap>,
+        entry: PathBuf,
+    }
+
+    fn baked_entry(size: [usize; 3]) -> Baked {
+        let dir = tempfile::tempdir().unwrap();
+        let h = height();
+        let extent = Extent::new(1.0, 1.0, 1.0).unwrap();
+        let map = BakeCache::new(Some(dir.path().to_path_buf()))
+            .get(&h, size, extent)
+            .unwrap();
+        let entry = std::fs::read_dir(dir.path())
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        Baked {
+            dir,
+            h,
+            extent,
+            map,
+            entry,
+        }
     }
 
     #[test]
@@ -400,7 +366,7 @@ mod tests {
     fn a_bake_removes_temporaries_of_killed_runs() {
         let dir = tempfile::tempdir().unwrap();
         // Left by a process that no longer runs (no pid is above 2^22).
-        let stale = dir.path().join(".0123456789abcdef.dmap.4194305.3.tmp");
+        let stale = dir.path().join(".0123456789abcdef.ktx2.4194305.3.tmp");
         std::fs::write(&stale, b"half a map").unwrap();
         BakeCache::new(Some(dir.path().to_path_buf()))
             .get(&height(), [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
@@ -414,18 +380,13 @@ mod tests {
     /// the map is baked again and equals the original.
     #[test]
     fn flipped_bits_are_rebaked_never_trusted() {
-        let dir = tempfile::tempdir().unwrap();
-        let h = height();
-        let extent = Extent::new(1.0, 1.0, 1.0).unwrap();
-        let original = BakeCache::new(Some(dir.path().to_path_buf()))
-            .get(&h, [4, 4, 2], extent)
-            .unwrap();
-        let entry = std::fs::read_dir(dir.path())
-            .unwrap()
-            .next()
-            .unwrap()
-            .unwrap()
-            .path();
+        let Baked {
+            dir,
+            h,
+            extent,
+            map: original,
+            entry,
+        } = baked_entry([4, 4, 2]);
         let good = std::fs::read(&entry).unwrap();
         for bit in (0..good.len() * 8).step_by(7) {
             let mut bad = good.clone();
@@ -446,13 +407,79 @@ mod tests {
         cache
             .get(&h, [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
             .unwrap();
+        // A KTX2 identifier followed by garbage.
         for e in std::fs::read_dir(dir.path()).unwrap() {
-            std::fs::write(e.unwrap().path(), b"DSPLDM01garbage").unwrap();
+            std::fs::write(e.unwrap().path(), b"\xABKTX 20\xBB\r\n\x1A\ngarbage").unwrap();
         }
         let again = BakeCache::new(Some(dir.path().to_path_buf()));
         again
             .get(&h, [8, 8, 4], Extent::new(1.0, 1.0, 1.0).unwrap())
             .unwrap();
         assert_eq!(again.stats().baked, 1);
+        let warnings = again.warnings();
+        assert!(
+            warnings.len() == 1 && warnings[0].contains("baked again"),
+            "{warnings:?}"
+        );
+    }
+
+    /// A KTX2 map another tool wrote (here `displace bake`'s writer, with
+    /// no checksum) at an entry's name, or an entry of other settings, is
+    /// not trusted: it is warned about and baked again, and the rebaked
+    /// entry is read by the next run.
+    #[test]
+    fn foreign_and_mismatched_entries_are_warned_about_and_rebaked() {
+        let Baked {
+            dir,
+            h,
+            extent,
+            map: original,
+            entry: path,
+        } = baked_entry([8, 8, 4]);
+        assert_eq!(path.extension().unwrap(), entry::EXTENSION);
+        let other = bake(&h, &BakeOptions::new([4, 4, 2], extent)).unwrap();
+        for (what, map) in [
+            ("foreign", &original.distance),
+            ("other size", &other.distance),
+        ] {
+            match what {
+                "foreign" => displace_core::io::ktx2::write(
+                    &path,
+                    map,
+                    extent,
+                    displace_core::distance_map::Format::R32F,
+                )
+                .unwrap(),
+                _ => entry::write(&path, map, extent).unwrap(),
+            }
+            let cache = BakeCache::new(Some(dir.path().to_path_buf()));
+            let m = cache.get(&h, [8, 8, 4], extent).unwrap();
+            assert_eq!(cache.stats().baked, 1, "{what}");
+            assert_eq!(m.distance, original.distance, "{what}");
+            let warnings = cache.warnings();
+            assert!(
+                warnings.len() == 1 && warnings[0].contains("baked again"),
+                "{what}: {warnings:?}"
+            );
+            let next = BakeCache::new(Some(dir.path().to_path_buf()));
+            next.get(&h, [8, 8, 4], extent).unwrap();
+            assert_eq!((next.stats().loaded, next.warnings().len()), (1, 0));
+        }
+    }
+
+    /// An entry of the earlier container at the same key is never read.
+    #[test]
+    fn old_dmap_entries_are_ignored() {
+        let Baked {
+            dir,
+            h,
+            extent,
+            entry,
+            ..
+        } = baked_entry([8, 8, 4]);
+        std::fs::rename(&entry, entry.with_extension("dmap")).unwrap();
+        let again = BakeCache::new(Some(dir.path().to_path_buf()));
+        again.get(&h, [8, 8, 4], extent).unwrap();
+        assert_eq!((again.stats().baked, again.warnings().len()), (1, 0));
     }
 }
