@@ -222,6 +222,16 @@ fn flat_normal(p: [Vec3; 3]) -> Vec3 {
     (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero()
 }
 
+/// A triangle's vertex normals as a rasteriser needs them: the scene's
+/// (unit, turned with the mesh), the flat normal where it gives none or a
+/// zero one.
+fn vertex_normals(t: &displace_render::mesh::MeshTriangle) -> [Vec3; 3] {
+    let flat = flat_normal(t.positions);
+    t.normals.map_or([flat; 3], |n| {
+        n.map(|v| if v == Vec3::ZERO { flat } else { v })
+    })
+}
+
 /// The GPU shell of a scene mesh, its texture addressed as its bake is.
 fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMesh> {
     let tris: Vec<MeshTriangle> = mesh
@@ -229,7 +239,7 @@ fn shell_of(mesh: &SceneMesh, address: displace_core::Address) -> Result<ShellMe
         .iter()
         .map(|t| MeshTriangle {
             positions: t.positions,
-            normals: t.normals.unwrap_or([flat_normal(t.positions); 3]),
+            normals: vertex_normals(t),
             uvs: t.uvs,
         })
         .collect();
@@ -348,7 +358,7 @@ pub fn prepare(
             let material = &scene.materials()[mesh.material as usize];
             let m = plain_material(material, intensity, Vec3::ZERO, &mut skip);
             for t in &mesh.triangles {
-                let n = t.normals.unwrap_or([flat_normal(t.positions); 3]);
+                let n = vertex_normals(t);
                 plain.triangle(
                     std::array::from_fn(|c| (t.positions[c], n[c], t.uvs[c])),
                     &m,
