@@ -195,27 +195,10 @@ fn check_render_args(args: &GpuRenderArgs) -> Result<ImageFile> {
     Ok(kind)
 }
 
-/// Most steps the GPU paths trace a ray with (`--iterations`, a scene's
-/// `iterations`). The cause of the all-miss answer at 17000
-/// sphere-fixed steps: lavapipe (llvmpipe) ends every loop of one shader
-/// invocation once the loops have run 65535 iterations in all (Mesa's
-/// `LP_MAX_TGSI_LOOP_ITERATIONS`), and the trace after the cut read as a
-/// miss. Measured (`cargo run -p displace-gpu --example iteration_limit`):
-/// 16382 steps agree with the CPU, 16383 do not, about four loop iterations
-/// a step. The compute path now flags a cut loop and refuses the batch; the
-/// raster path cannot report one, so both are bounded here: 4096 steps use
-/// a quarter of the budget and leave the rest to the exact walk. Hardware
-/// drivers have no such limit but stop long invocations with a watchdog.
-pub const MAX_GPU_ITERATIONS: u32 = 4096;
-
-/// `1..=MAX_GPU_ITERATIONS`.
+/// Refuses a step count outside
+/// `1..=displace_gpu::convention::MAX_GPU_ITERATIONS` (whose docs say why).
 pub fn check_gpu_iterations(n: u32) -> Result<()> {
-    if !(1..=MAX_GPU_ITERATIONS).contains(&n) {
-        bail!(
-            "{n} steps: the GPU traces 1..={MAX_GPU_ITERATIONS} steps per ray (drivers cut longer loops short: lavapipe ends a shader's loops after 65535 iterations in all)"
-        );
-    }
-    Ok(())
+    Ok(displace_gpu::convention::check_iterations(n)?)
 }
 
 /// Writes the frame (PNG as rendered, sRGB; EXR as its linear values) and
@@ -271,18 +254,18 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     let size = args.size.as_deref().map(image_size).transpose()?;
     let loaded = scene::load(path, size, args.no_cache)?;
     let ctx = open_gpu()?;
-    let out = scene::render(&ctx, &loaded, args.distance, args.shadows)
+    let (draws, image) = scene::render(&ctx, &loaded, args.distance, args.shadows)
         .with_context(|| format!("rendering {}", path.display()))?;
-    if !out.left_out.is_empty() {
-        eprintln!("gpu-render: not drawn: {}", out.left_out.join("; "));
+    if !draws.left_out.is_empty() {
+        eprintln!("gpu-render: not drawn: {}", draws.left_out.join("; "));
     }
-    write_outputs(&args.output, kind, &out.image, args.uv_aov)?;
+    write_outputs(&args.output, kind, &image, args.uv_aov)?;
     println!(
         "rendered {} displaced faces and meshes and {} plain triangles, {}x{} -> {}",
-        out.faces,
-        out.plain_triangles,
-        out.image.width,
-        out.image.height,
+        draws.displaced(),
+        draws.plain_triangles,
+        image.width,
+        image.height,
         args.output.display()
     );
     Ok(())

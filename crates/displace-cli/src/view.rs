@@ -1,6 +1,7 @@
 //! `displace view SCENE`: the scene file's displaced faces in a window,
 //! drawn every frame by the GPU raster path that `gpu-render` uses (the same
-//! loading, validation, bakes and faces: [`crate::gpu::scene`]), with an
+//! loading ([`crate::gpu::scene`]), validation, bakes and faces:
+//! `displace_gpu::scene_draws`), with an
 //! orbit camera and live controls (`displace_gpu::view`).
 //!
 //! `--frames N --screenshot OUT.png` renders N frames, writes the last as
@@ -69,7 +70,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     };
     let shot = run_window(opts, |ctx| -> Result<ViewScene> {
         eprintln!("gpu: {}", ctx.describe());
-        let prepared = scene::prepare(ctx, &loaded, args.distance, args.shadows)
+        let prepared = displace_gpu::from_scene(ctx, &loaded, args.distance, args.shadows)
             .with_context(|| format!("preparing {}", args.scene.display()))?;
         if !prepared.left_out.is_empty() {
             eprintln!("view: not drawn: {}", prepared.left_out.join("; "));

@@ -64,6 +64,30 @@ pub const BAND_FACTOR: f32 = displace_core::convention::TRACE_BAND_FACTOR;
 /// interpolation error so the decoded distance stays a lower bound.
 pub const FILTER_WEIGHT_BITS: u32 = 8;
 
+/// Most steps the GPU paths trace a ray with (`--iterations`, a scene's
+/// `iterations`). The cause of the all-miss answer at 17000
+/// sphere-fixed steps: lavapipe (llvmpipe) ends every loop of one shader
+/// invocation once the loops have run 65535 iterations in all (Mesa's
+/// `LP_MAX_TGSI_LOOP_ITERATIONS`), and the trace after the cut read as a
+/// miss. Measured (`cargo run -p displace-gpu --example iteration_limit`):
+/// 16382 steps agree with the CPU, 16383 do not, about four loop iterations
+/// a step. The compute path flags a cut loop and refuses the batch
+/// ([`FLAG_LOOP_CUT`]); the raster path cannot report one, so both are
+/// bounded here: 4096 steps use a quarter of the budget and leave the rest
+/// to the exact walk. Hardware drivers have no such limit but stop long
+/// invocations with a watchdog.
+pub const MAX_GPU_ITERATIONS: u32 = 4096;
+
+/// Refuses a step count outside `1..=MAX_GPU_ITERATIONS`
+/// ([`crate::Error::Iterations`]).
+pub fn check_iterations(n: u32) -> crate::Result<()> {
+    if (1..=MAX_GPU_ITERATIONS).contains(&n) {
+        Ok(())
+    } else {
+        Err(crate::Error::Iterations(n))
+    }
+}
+
 /// Self-shadowing modes of `shade.wgsl` ([`crate::Shadows`]).
 pub const SHADOWS_NONE: u32 = 0;
 /// Code of [`crate::Shadows::Hard`].

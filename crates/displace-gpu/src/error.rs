@@ -50,6 +50,25 @@ pub enum Error {
     /// An option the GPU path cannot honour (tiles on a clamped map, NaN bounds).
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// A step count the GPU cannot trace
+    /// ([`crate::convention::MAX_GPU_ITERATIONS`] says why).
+    #[error("{0} steps: the GPU traces 1..={max} steps per ray (drivers cut longer loops short: lavapipe ends a shader's loops after 65535 iterations in all)", max = crate::convention::MAX_GPU_ITERATIONS)]
+    Iterations(u32),
+    /// A scene the GPU raster path cannot draw as it stands (no light, a
+    /// face traced with the CPU's exact reference, nothing it draws).
+    #[error("{0}")]
+    Scene(String),
+    /// A step of turning a scene into draws failed; `during` names the
+    /// shape and step, and the cause follows as the error's source (the
+    /// CLI joins the two with `: `).
+    #[error("{during}")]
+    SceneStep {
+        /// The shape and step ("uploading displaced face 3").
+        during: String,
+        /// What failed.
+        #[source]
+        source: Box<Error>,
+    },
     /// An error of the map itself (loading, baking, checking).
     #[error(transparent)]
     Core(#[from] displace_core::Error),

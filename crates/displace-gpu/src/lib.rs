@@ -11,7 +11,9 @@
 //! shading, self-shadowing); the techniques engines ship, beside distance
 //! mapping, run on batches of rays ([`TechniqueTracer`]: parallax, POM,
 //! relief, cone stepping and maximum mipmaps, measured against the exact hit);
-//! GPU-timed benchmarks ([`bench`](mod@bench)); and the interactive viewer ([`view`]).
+//! GPU-timed benchmarks ([`bench`](mod@bench)); a `displace_render` scene as
+//! draws of the raster path ([`scene_draws`]: the CPU's scene description
+//! is the GPU's too); and the interactive viewer ([`view`]).
 
 #![warn(missing_docs)]
 
@@ -25,6 +27,7 @@ pub mod gpu_map;
 pub mod mesh;
 pub mod plain;
 pub mod raster;
+pub mod scene_draws;
 pub mod shaders;
 pub mod technique_maps;
 pub mod techniques;
@@ -39,6 +42,7 @@ pub use gpu_map::{GpuMap, MapParams};
 pub use mesh::{MeshTriangle, ShellMesh};
 pub use plain::{PlainMaterial, PlainMesh};
 pub use raster::{Image, PlaneScene, Renderer, Shadows};
+pub use scene_draws::{from_scene, SceneDraws};
 pub use shaders::DistanceTexture;
 pub use techniques::{technique_costs, TechniqueCost, TechniqueTracer};
 pub use trace::{trace_rays, GpuHit, GpuTraceOptions, RayTracer};

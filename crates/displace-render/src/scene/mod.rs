@@ -194,8 +194,8 @@ impl Scene {
     pub fn max_depth(&self) -> u32 {
         self.max_depth
     }
-    /// The scene's meshes and triangles with their vertex data, for
-    /// rasterisers ([`SceneMesh`]).
+    /// The scene's meshes and triangles as placed in the world, with their
+    /// vertex data ([`SceneMesh`]): what a rasteriser draws of them.
     pub fn meshes(&self) -> &[SceneMesh] {
         &self.meshes
     }

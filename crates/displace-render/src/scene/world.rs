@@ -19,21 +19,25 @@ pub struct TriAttr {
     pub uvs: [Vec2; 3],
 }
 
-/// A `mesh` or `triangle` of the scene file as a rasteriser draws it (the
-/// GPU path, which needs what the per-triangle primitives no longer hold:
-/// the vertex normals a smooth shell follows): world-space triangles with
-/// vertex normals (the flat face normal where the file gives none) and
-/// texture coordinates in tiles, and the range of
-/// [`Scene::primitives`] the CPU made of it.
+/// A `mesh` or `triangle` of the scene file as placed in the world: the
+/// scene's one description of it (pbrt-v4's `TriangleMesh` in its
+/// `BasicScene`), from which the CPU made its primitives (`prims`) and from
+/// which a rasteriser derives its own draws (the GPU path's shells follow
+/// the vertex normals, which the CPU's per-triangle prisms do not keep).
+/// World-space triangles, none of zero area, with their vertex normals as
+/// the file gives them (unit, turned with the mesh; zero where the file's
+/// is zero, `None` where it gives none: the flat normal is meant) and their
+/// texture coordinates in tiles (a mesh's scaled by its displacement's
+/// `tiles`).
 #[derive(Clone, Debug)]
 pub struct SceneMesh {
-    /// World-space triangles.
+    /// World-space triangles, in the file's order.
     pub triangles: Vec<MeshTriangle>,
     /// Index into [`Scene::materials`].
     pub material: u32,
     /// The displacement, for a displaced mesh.
     pub displacement: Option<MeshDisplacement>,
-    /// The primitives the CPU built of it.
+    /// The range of [`Scene::primitives`] the CPU built of it.
     pub prims: std::ops::Range<usize>,
 }
 

@@ -1,0 +1,289 @@
+//! A `displace_render` scene as draws of the raster path: the one scene
+//! description both renderers are built from, as pbrt-v4 builds its CPU and
+//! GPU aggregates from one `BasicScene`. `displace gpu-render SCENE` draws
+//! them once, `displace view` every frame.
+//!
+//! The scene is loaded and validated by `displace_render` itself, so every
+//! error (file:line:column, unknown keys, missing height files) is the CPU
+//! renderer's, and every displaced face gets the bake the CPU renderer
+//! uses. What the GPU draws of it: each displaced parallelogram (tiled or
+//! not) as its own shell box with Donnelly's shaders (GPU Gems 2 ch. 8,
+//! listings 8-1 and 8-2), and each displaced triangle and mesh (OBJ or
+//! built-in) as the shells of its triangles in their MikkTSpace frames
+//! ([`crate::mesh`], which says where that differs from the CPU's prisms),
+//! lit by one point light (the strongest light, an area light as a point at
+//! its centre) with the CPU's point-light falloff and Lambert / normalised
+//! Blinn-Phong terms. Every other shape (quads, boxes, spheres, triangles
+//! and meshes without displacement, visible area-light quads with their
+//! radiance) is drawn as plain triangles ([`crate::plain`]) in the same
+//! depth buffer, lit by the same light and terms without shadows.
+//! Everything else is left out and reported ([`SceneDraws::left_out`]):
+//! textures, reflections, other lights, shadows cast by one face onto
+//! another (each face shadows only itself) and shadows on the plain shapes.
+
+mod shading;
+mod shapes;
+mod stage;
+
+use crate::convention::check_iterations;
+use crate::raster::{render_faces, shared_depth_range};
+use crate::{
+    DistanceTexture, Error, GpuContext, Image, PlainMesh, PlaneScene, Renderer, Result, Shadows,
+};
+use displace_core::{Method, TraceOptions};
+use displace_render::displaced::DisplacedFace;
+use displace_render::light::Light;
+use displace_render::material::Material;
+use displace_render::scene::{MeshDisplacement, Primitive, SceneMesh, Shape};
+use displace_render::Scene;
+use glam::Vec3;
+use shading::{material_shading, plain_material, Shading};
+use stage::Stage;
+use std::collections::HashSet;
+
+/// The drawable faces and meshes of a scene, each with its renderer and its
+/// [`PlaneScene`] (sharing one camera and depth range), and what was left
+/// out.
+pub struct SceneDraws {
+    /// The displaced draws, then one draw of every plain triangle.
+    pub faces: Vec<(Renderer, PlaneScene)>,
+    /// Plain triangles in the last draw (none: no plain draw).
+    pub plain_triangles: usize,
+    /// What of the scene is not drawn, sorted, each once.
+    pub left_out: Vec<String>,
+    /// Linear background colour.
+    pub background: [f64; 3],
+}
+
+impl SceneDraws {
+    /// Displaced faces and meshes drawn (every draw but the plain one).
+    pub fn displaced(&self) -> usize {
+        self.faces.len() - usize::from(self.plain_triangles > 0)
+    }
+
+    /// One frame of every draw, in the scene's background colour.
+    pub fn render(&self, ctx: &GpuContext) -> Result<Image> {
+        let draws: Vec<(&Renderer, &PlaneScene)> = self.faces.iter().map(|(r, p)| (r, p)).collect();
+        render_faces(ctx, &draws, self.background)
+    }
+}
+
+/// Uploads every displaced face and mesh of `scene`, and one draw of its
+/// plain shapes, with `texture` storing the distances and `shadows` the
+/// faces' self-shadowing.
+pub fn from_scene(
+    ctx: &GpuContext,
+    scene: &Scene,
+    texture: DistanceTexture,
+    shadows: Shadows,
+) -> Result<SceneDraws> {
+    let mut left_out = Vec::new();
+    let stage = Stage::of(scene, shadows, &mut left_out)?;
+    let mut draws = Draws {
+        ctx,
+        texture,
+        stage,
+        faces: Vec::new(),
+        plain: PlainMesh::default(),
+        left_out,
+    };
+    // Triangles and meshes are drawn as meshes, not per primitive.
+    let meshed: HashSet<usize> = scene
+        .meshes()
+        .iter()
+        .flat_map(|m| m.prims.clone())
+        .collect();
+    for (k, prim) in scene.primitives().iter().enumerate() {
+        if !meshed.contains(&k) {
+            draws.primitive(scene, k, prim)?;
+        }
+    }
+    for (k, mesh) in scene.meshes().iter().enumerate() {
+        let material = &scene.materials()[mesh.material as usize];
+        draws.mesh(k, mesh, material)?;
+    }
+    let bg = scene.background();
+    draws.finish([bg.x as f64, bg.y as f64, bg.z as f64])
+}
+
+/// The draws of a scene as they are gathered.
+struct Draws<'a> {
+    ctx: &'a GpuContext,
+    texture: DistanceTexture,
+    stage: Stage,
+    faces: Vec<(Renderer, PlaneScene)>,
+    plain: PlainMesh,
+    left_out: Vec<String>,
+}
+
+impl Draws<'_> {
+    /// Primitive `k`: a displaced face drawn by its own renderer, any
+    /// other shape added to the plain triangles.
+    fn primitive(&mut self, scene: &Scene, k: usize, prim: &Primitive) -> Result<()> {
+        let material = &scene.materials()[prim.material as usize];
+        let Shape::Displaced(face) = &prim.shape else {
+            let emission = prim
+                .emitter
+                .map_or(Vec3::ZERO, |e| match &scene.lights()[e as usize] {
+                    Light::Area { radiance, .. } => *radiance,
+                    Light::Point { .. } => Vec3::ZERO,
+                });
+            let m = plain_material(material, self.stage.intensity, emission, &mut self.left_out);
+            shapes::add_plain(&mut self.plain, &prim.shape, &m);
+            return Ok(());
+        };
+        self.face(k, face, material)
+    }
+
+    /// A displaced parallelogram or triangle: its shell box in its frame.
+    fn face(&mut self, k: usize, face: &DisplacedFace, material: &Material) -> Result<()> {
+        let trace = face.trace_options();
+        check_trace(&trace, || format!("primitive {k}"))?;
+        if face.color.is_some() || face.normal_map.is_some() {
+            self.left_out
+                .push("displacement colour textures and normal maps".to_string());
+        }
+        let (origin, m) = face.frame();
+        let map = face.map();
+        let [ax, ay] = map.aspect();
+        let (tangent, bitangent, up_n) = (m.col(0) * ax, m.col(1) * ay, m.col(2));
+        // A `flip_v` quad runs `v` back along its edge: a left-handed frame.
+        let mirrored = tangent.cross(bitangent).dot(up_n) < 0.0;
+        let shading = material_shading(material, self.stage.intensity);
+        shading.note(&mut self.left_out);
+        let plane = PlaneScene {
+            origin,
+            tangent,
+            bitangent,
+            depth: up_n.length(),
+            method: trace.method,
+            iterations: trace.iterations,
+            tiles: trace.tiles,
+            mirrored,
+            ..self.stage.plane(&shading)
+        };
+        let renderer = Renderer::with_albedo(
+            self.ctx,
+            map,
+            self.texture,
+            shading.albedo.to_array(),
+            mirrored,
+        )
+        .map_err(step(format!("uploading displaced face {k}")))?;
+        self.faces.push((renderer, plane));
+        Ok(())
+    }
+
+    /// Scene mesh `k` (a mesh or a lone triangle): plain triangles, or the
+    /// shells of its triangles under its displacement.
+    fn mesh(&mut self, k: usize, mesh: &SceneMesh, material: &Material) -> Result<()> {
+        let Some(disp) = &mesh.displacement else {
+            let m = plain_material(
+                material,
+                self.stage.intensity,
+                Vec3::ZERO,
+                &mut self.left_out,
+            );
+            shapes::add_mesh(&mut self.plain, mesh, &m);
+            return Ok(());
+        };
+        self.displaced_mesh(k, mesh, disp, material)
+    }
+
+    fn displaced_mesh(
+        &mut self,
+        k: usize,
+        mesh: &SceneMesh,
+        disp: &MeshDisplacement,
+        material: &Material,
+    ) -> Result<()> {
+        check_trace(&disp.trace, || format!("mesh {k}"))?;
+        if disp.textured {
+            self.left_out
+                .push("displacement colour textures and normal maps".to_string());
+        }
+        let shading = material_shading(material, self.stage.intensity);
+        shading.note(&mut self.left_out);
+        let shell = shapes::shell_of(mesh, disp.map.address())
+            .map_err(step(format!("preparing the shell of mesh {k}")))?;
+        let plane = PlaneScene {
+            depth: disp.depth,
+            method: disp.trace.method,
+            iterations: disp.trace.iterations,
+            bounds: Some(shapes::bounds(mesh)),
+            ..self.stage.plane(&shading)
+        };
+        let renderer = Renderer::for_mesh(
+            self.ctx,
+            &disp.map,
+            self.texture,
+            shading.albedo.to_array(),
+            &shell,
+        )
+        .map_err(step(format!("uploading displaced mesh {k}")))?;
+        self.faces.push((renderer, plane));
+        Ok(())
+    }
+
+    /// Adds the plain draw (lit with its vertices' own weights, no shell),
+    /// sorts what was left out, and gives every draw one depth range, so
+    /// their exact fragment depths compare.
+    fn finish(mut self, background: [f64; 3]) -> Result<SceneDraws> {
+        if let Some(bounds) = self.plain.bounds() {
+            self.left_out
+                .push("shadows on non-displaced shapes".to_string());
+            let renderer = Renderer::plain(self.ctx, &self.plain)
+                .map_err(step("uploading the non-displaced shapes".into()))?;
+            let plane = PlaneScene {
+                depth: 0.0,
+                bounds: Some(bounds),
+                ..self.stage.plane(&Shading::UNIT)
+            };
+            self.faces.push((renderer, plane));
+        }
+        let mut left_out = self.left_out;
+        left_out.sort();
+        left_out.dedup();
+        if self.faces.is_empty() {
+            return Err(Error::Scene(format!(
+                "the scene has nothing gpu-render can draw (left out: {left_out:?})"
+            )));
+        }
+        let planes: Vec<PlaneScene> = self.faces.iter().map(|(_, p)| *p).collect();
+        let Some(range) = shared_depth_range(&planes) else {
+            return Err(Error::Scene(
+                "every displaced face is behind the camera".into(),
+            ));
+        };
+        for (_, p) in &mut self.faces {
+            p.depth_range = Some(range);
+        }
+        Ok(SceneDraws {
+            faces: self.faces,
+            plain_triangles: self.plain.vertices.len() / 3,
+            left_out,
+            background,
+        })
+    }
+}
+
+/// Refuses what the raster path cannot trace: the exact method (the CPU's
+/// reference) and step counts past [`crate::convention::MAX_GPU_ITERATIONS`];
+/// `what` names the face or mesh.
+fn check_trace(trace: &TraceOptions, what: impl Fn() -> String) -> Result<()> {
+    if trace.method == Method::Exact {
+        return Err(Error::Scene(format!(
+            "{}: method exact is the CPU reference; the GPU traces with sphere or sphere-fixed",
+            what()
+        )));
+    }
+    check_iterations(trace.iterations).map_err(step(format!("{}: displacement.iterations", what())))
+}
+
+/// Wraps an error of the step `during` ([`Error::SceneStep`]).
+fn step(during: String) -> impl FnOnce(Error) -> Error {
+    move |source| Error::SceneStep {
+        during,
+        source: Box::new(source),
+    }
+}
