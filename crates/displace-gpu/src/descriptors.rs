@@ -289,3 +289,69 @@ pub(crate) fn render_pipeline(
             cache: None,
         })
 }
+
+/// The sampler address mode of a map's addressing: a repeat-baked map's
+/// samples wrap across its edges, a clamped one's stop at them.
+pub(crate) fn address_mode(address: displace_core::Address) -> wgpu::AddressMode {
+    match address {
+        displace_core::Address::Clamp => wgpu::AddressMode::ClampToEdge,
+        displace_core::Address::Repeat => wgpu::AddressMode::Repeat,
+    }
+}
+
+/// The buffer side of a texel copy: rows of `row` bytes, `rows` a layer.
+pub(crate) fn texel_layout(row: u32, rows: u32) -> wgpu::TexelCopyBufferLayout {
+    wgpu::TexelCopyBufferLayout {
+        offset: 0,
+        bytes_per_row: Some(row),
+        rows_per_image: Some(rows),
+    }
+}
+
+/// Uploads the tightly packed `data` of `[w, h, layers]` texels of
+/// `texel_bytes` into mip `level` of `texture`.
+pub(crate) fn write_level(
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+    level: u32,
+    data: &[u8],
+    [w, h, layers]: [u32; 3],
+    texel_bytes: u32,
+) {
+    ctx.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: level,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        data,
+        texel_layout(w * texel_bytes, h),
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: layers,
+        },
+    );
+}
+
+/// A linearly filtering sampler addressed as a map of `address` is across
+/// u and v (clamped across w), with `mipmap_filter` between levels.
+pub(crate) fn linear_sampler(
+    ctx: &GpuContext,
+    label: &str,
+    address: displace_core::Address,
+    mipmap_filter: wgpu::MipmapFilterMode,
+) -> wgpu::Sampler {
+    let across = address_mode(address);
+    ctx.device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some(label),
+        address_mode_u: across,
+        address_mode_v: across,
+        address_mode_w: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter,
+        ..Default::default()
+    })
+}

@@ -4,7 +4,8 @@
 
 use crate::convention::{address_code, method_code, BAND_FACTOR, FILTER_WEIGHT_BITS, TAU_VOXELS};
 use crate::descriptors::{
-    bind_group, bind_group_layout, sampler_entry, texture_entry, uniform_entry,
+    bind_group, bind_group_layout, linear_sampler, sampler_entry, texture_entry, uniform_entry,
+    write_level,
 };
 use crate::shaders::DistanceTexture;
 use crate::{Error, GpuContext, Result};
@@ -150,20 +151,13 @@ impl GpuMap {
             ..MapParams::default()
         };
         let sampler = texture.filtered().then(|| {
-            let across = match height.address() {
-                Address::Clamp => wgpu::AddressMode::ClampToEdge,
-                Address::Repeat => wgpu::AddressMode::Repeat,
-            };
-            ctx.device.create_sampler(&wgpu::SamplerDescriptor {
-                label: Some("distance (linear, no mipmaps)"),
-                address_mode_u: across,
-                address_mode_v: across,
-                address_mode_w: wgpu::AddressMode::ClampToEdge,
-                mag_filter: wgpu::FilterMode::Linear,
-                min_filter: wgpu::FilterMode::Linear,
-                mipmap_filter: wgpu::MipmapFilterMode::Nearest,
-                ..Default::default()
-            })
+            let label = "distance (linear, no mipmaps)";
+            linear_sampler(
+                ctx,
+                label,
+                height.address(),
+                wgpu::MipmapFilterMode::Nearest,
+            )
         });
         let layout = map_layout(ctx, texture);
         Ok(Self {
@@ -317,21 +311,8 @@ pub(crate) fn upload(
         view_formats: &[],
     });
     let bpp = format.block_copy_size(None).expect("uncompressed format");
-    ctx.queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &texture,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(size[0] as u32 * bpp),
-            rows_per_image: Some(size[1] as u32),
-        },
-        extent,
-    );
+    let [w, h, d] = size.map(|n| n as u32);
+    write_level(ctx, &texture, 0, bytes, [w, h, d], bpp);
     texture
 }
 

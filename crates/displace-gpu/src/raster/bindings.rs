@@ -1,0 +1,90 @@
+//! The bind groups of one draw: a [`Renderer`]'s resources and a
+//! [`PlaneScene`]'s per-draw uniforms, in group order. Made per draw because
+//! the uniforms change with every camera, light and face.
+
+use super::pipelines::{Geometry, Kind, MapShading, Renderer};
+use super::uniforms::{plain_frame, FrameUniform};
+use super::PlaneScene;
+use crate::descriptors::{bind_group, uniform_buffer};
+use crate::gpu_map::MapParams;
+use crate::{Error, GpuContext, Result};
+use displace_core::TraceOptions;
+use glam::Vec2;
+
+impl Renderer {
+    /// The bind groups of one draw of this renderer with `scene`'s camera
+    /// and light, in group order.
+    pub(super) fn uniforms(
+        &self,
+        ctx: &GpuContext,
+        scene: &PlaneScene,
+    ) -> Result<Vec<wgpu::BindGroup>> {
+        scene.check()?;
+        match &self.kind {
+            Kind::Displaced { shading, geometry } => shading.uniforms(ctx, geometry, scene),
+            Kind::Plain { frame_layout, .. } => Ok(vec![plain_uniforms(ctx, frame_layout, scene)]),
+        }
+    }
+}
+
+impl MapShading {
+    fn uniforms(
+        &self,
+        ctx: &GpuContext,
+        geometry: &Geometry,
+        scene: &PlaneScene,
+    ) -> Result<Vec<wgpu::BindGroup>> {
+        scene.check_depth()?;
+        let (tiles, uv_shift) = match geometry {
+            Geometry::ShellBox { mirrored } => {
+                scene.check_face()?;
+                if scene.mirrored != *mirrored {
+                    return Err(Error::InvalidOption(
+                        "the face's handedness differs from the renderer's (PlaneScene::mirrored)"
+                            .into(),
+                    ));
+                }
+                (scene.tiles, Vec2::ZERO)
+            }
+            Geometry::Mesh {
+                tiles, uv_shift, ..
+            } => (*tiles, *uv_shift),
+        };
+        let opts = TraceOptions {
+            method: scene.method,
+            iterations: scene.iterations,
+            // The fragment's start point is interpolated: let the clip find
+            // the shell's face a hair behind it.
+            t_min: -1e-3,
+            tiles,
+            ..TraceOptions::default()
+        };
+        let params: MapParams = self.map.params(&opts)?;
+        let frame = FrameUniform::new(scene, uv_shift);
+        let params_buf = uniform_buffer(ctx, "raster params", &params);
+        let frame_buf = uniform_buffer(ctx, "frame", &frame);
+        let map_group = self.map.bind_group(ctx, &params_buf);
+        let shade = bind_group(
+            ctx,
+            "shading",
+            &self.shade_group,
+            &[
+                frame_buf.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&self.normal_view),
+                wgpu::BindingResource::TextureView(&self.color_view),
+                wgpu::BindingResource::Sampler(&self.sampler),
+            ],
+        );
+        Ok(vec![map_group, shade])
+    }
+}
+
+/// Group 0 of a plain draw: `scene`'s camera and light.
+fn plain_uniforms(
+    ctx: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
+    scene: &PlaneScene,
+) -> wgpu::BindGroup {
+    let buffer = uniform_buffer(ctx, "plain frame", &plain_frame(scene));
+    bind_group(ctx, "plain frame", layout, &[buffer.as_entire_binding()])
+}
