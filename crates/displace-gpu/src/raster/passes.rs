@@ -13,7 +13,9 @@ use crate::{Error, GpuContext, Result};
 const DEFAULT_CLEAR: [f64; 3] = [0.02, 0.02, 0.03];
 
 impl Renderer {
-    /// Times `frames` renders of `scene` (benchmarks).
+    /// Times `frames` renders of `scene` recorded into one submission (by
+    /// GPU timestamps where the device has them), so the benchmarks
+    /// (section 8.6's comparison) measure the passes and not the readback.
     pub fn time(
         &self,
         ctx: &GpuContext,
@@ -35,7 +37,8 @@ impl Renderer {
         })
     }
 
-    /// Renders `scene` offscreen and reads colour and AOV back.
+    /// Renders `scene` offscreen and reads colour and AOV back: the
+    /// one-face case of [`render_faces`], on the built-in background.
     pub fn render(&self, ctx: &GpuContext, scene: &PlaneScene) -> Result<Image> {
         render_faces(ctx, &[(self, scene)], DEFAULT_CLEAR)
     }

@@ -40,7 +40,7 @@ impl std::str::FromStr for Shadows {
 /// A displaced planar face, a pinhole camera and a point light: the built-in
 /// scene of `displace gpu-render`. The face spans `origin + [0,1] t + [0,1]
 /// b` with its shell `depth` high along `normal`. A mesh renderer
-/// ([`Renderer::for_mesh`]) takes the camera, light, shading and `depth`
+/// ([`super::Renderer::for_mesh`]) takes the camera, light, shading and `depth`
 /// from it and its faces from the mesh: `origin`, `tangent`, `bitangent`,
 /// `tiles` and `mirrored` are not used there.
 #[derive(Clone, Copy, Debug, PartialEq)]

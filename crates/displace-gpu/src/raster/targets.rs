@@ -16,7 +16,9 @@ pub(super) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth3
 
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
 /// (`kind` 0 where nothing was hit; [`crate::convention::HIT_PLAIN`] on a
-/// non-displaced shape, whose `t` is the world distance from the eye).
+/// non-displaced shape, whose `t` is the world distance from the eye). The
+/// AOV is what lets a render be checked against the CPU trace pixel by
+/// pixel, as the colour alone cannot say where a ray hit.
 pub struct Image {
     /// Width in pixels.
     pub width: u32,
@@ -28,7 +30,10 @@ pub struct Image {
     pub uv: Vec<[f32; 4]>,
 }
 
-/// The colour (sRGB), AOV and depth targets of one image size.
+/// The colour (sRGB), AOV and depth targets of one image size: allocated
+/// apart from any [`super::Renderer`], so that every draw of a frame shares
+/// one depth buffer and the viewer keeps one set across frames, presenting
+/// the colour view on the GPU ([`super::encode_faces`]).
 pub struct Targets {
     pub(super) size: [u32; 2],
     color_tex: wgpu::Texture,
