@@ -6,14 +6,16 @@
 //! buffer, rendered offscreen, with a UV AOV (uv, hit kind, t) beside the
 //! colour so renders can be checked against the CPU trace pixel by pixel.
 //!
-//! One job a module: what a draw shows (`scene`), its uniforms as the WGSL
-//! lays them out (`uniforms`), the pipelines and their per-map resources
+//! One job a module: what a draw shows (`scene`) and the camera and light
+//! a frame's draws share (`camera`), its uniforms as the WGSL lays them
+//! out (`uniforms`), the pipelines and their per-map resources
 //! (`pipelines`), a draw's bind groups (`bindings`), the passes
 //! (`passes`), the render targets and their readback (`targets`), the
 //! shading textures (`textures`) and a mesh shell's vertex layout
 //! (`vertex`).
 
 mod bindings;
+mod camera;
 mod passes;
 mod pipelines;
 mod scene;
@@ -22,6 +24,7 @@ mod textures;
 mod uniforms;
 mod vertex;
 
+pub use camera::View;
 pub use passes::{encode_faces, render_faces, shared_depth_range};
 pub use pipelines::Renderer;
 pub use scene::{PlaneScene, Shadows, MAX_IMAGE_EDGE};

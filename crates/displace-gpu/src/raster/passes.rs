@@ -207,32 +207,18 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
-    /// A unit face at z = 0 seen from `eye` looking at `target`.
+    /// A unit face at z = 0, its shell 0.5 deep, seen from `eye` looking
+    /// at `target`.
     fn face(eye: Vec3, target: Vec3, origin: Vec3) -> PlaneScene {
         PlaneScene {
-            size: [8, 8],
             eye,
             target,
             up: Vec3::Y,
-            fov_y_degrees: 45.0,
-            light: Vec3::Z,
-            light_intensity: 1.0,
             origin,
             tangent: Vec3::X,
             bitangent: Vec3::Y,
             depth: 0.5,
-            method: displace_core::Method::Sphere,
-            iterations: 8,
-            shadows: super::super::Shadows::None,
-            penumbra_k: 8.0,
-            ambient: 0.1,
-            specular: 0.0,
-            shininess: 1.0,
-            falloff: false,
-            depth_range: None,
-            tiles: [1.0, 1.0],
-            mirrored: false,
-            bounds: None,
+            ..super::super::scene::tests::scene()
         }
     }
 

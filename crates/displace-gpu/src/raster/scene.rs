@@ -251,12 +251,12 @@ impl PlaneScene {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use displace_core::{bake, Address, BakeOptions, Extent, HeightMap};
 
     /// The built-in scene over a flat 2 x 1 map, 0.25 deep.
-    fn scene() -> PlaneScene {
+    pub(in crate::raster) fn scene() -> PlaneScene {
         let height = HeightMap::new(4, 4, vec![0.0; 16], Address::Clamp).unwrap();
         let extent = Extent::new(2.0, 1.0, 0.25).unwrap();
         let map = bake(&height, &BakeOptions::new([4, 4, 2], extent)).unwrap();
