@@ -5,7 +5,7 @@
 
 mod cli_common;
 
-use cli_common::{failed, files, stderr, words, SPHERE_SCENE};
+use cli_common::{failed, files, replaced, stderr, words, SPHERE_SCENE};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -47,7 +47,8 @@ fn inputs_that_are_not_regular_files_are_refused() {
     std::fs::create_dir(d.join("adir.png")).unwrap();
     mkfifo(&d.join("fifo.npy"));
     let mesh = |p: &str| {
-        SCENE.replace(
+        replaced(
+            SCENE,
             "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
             &format!("type = \"mesh\"\npath = \"{p}\""),
         )
@@ -56,7 +57,8 @@ fn inputs_that_are_not_regular_files_are_refused() {
     std::fs::write(d.join("fifo_mesh.toml"), mesh("fifo.npy")).unwrap();
     std::fs::write(
         d.join("dir_texture.toml"),
-        SCENE.replace(
+        replaced(
+            SCENE,
             "color = [0.5, 0.5, 0.5]",
             "color = [0.5, 0.5, 0.5]\ntexture = \"adir.png\"",
         ),
@@ -110,8 +112,7 @@ fn runaway_counts_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let scene = |from: &str, to: &str| {
-        assert!(SCENE.contains(from), "{from}");
-        std::fs::write(d.join("s.toml"), SCENE.replace(from, to)).unwrap();
+        std::fs::write(d.join("s.toml"), replaced(SCENE, from, to)).unwrap();
     };
     scene("spp = 1", "spp = 4000000000");
     refuses(d, &["render", "-q", "s.toml"], &["image.spp", "65536"], &[]);
@@ -182,7 +183,11 @@ fn write_displaced(dir: &Path, keys: &str) {
         "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
          displacement = {{ height = \"gen:gaussian\", depth = 0.1, {keys} }}"
     );
-    let text = SCENE.replace("type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1", &quad);
+    let text = replaced(
+        SCENE,
+        "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+        &quad,
+    );
     std::fs::write(dir.join("s.toml"), text).unwrap();
 }
 
@@ -281,7 +286,8 @@ fn a_scenes_textures_are_counted_together() {
             .unwrap();
     }
     let scene = |textures: &[&str]| {
-        let mut text = SCENE.replace(
+        let mut text = replaced(
+            SCENE,
             "color = [0.5, 0.5, 0.5]",
             "color = [0.5, 0.5, 0.5]\ntexture = \"t1.png\"",
         );
@@ -403,7 +409,8 @@ fn messages_name_the_problem_once() {
     assert_eq!(msg.matches("No such file").count(), 1, "{msg}");
     std::fs::write(
         d.join("s.toml"),
-        SCENE.replace(
+        replaced(
+            SCENE,
             "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
             "type = \"mesh\"\npath = \"gone.obj\"",
         ),
@@ -437,7 +444,7 @@ fn messages_name_the_problem_once() {
     // A camera too far out is out of range, not "looking nowhere".
     std::fs::write(
         d.join("s.toml"),
-        SCENE.replace("position = [0, 1, -3]", "position = [0, 0, -3e38]"),
+        replaced(SCENE, "position = [0, 1, -3]", "position = [0, 0, -3e38]"),
     )
     .unwrap();
     refuses(
@@ -652,7 +659,7 @@ fn a_full_disk_leaves_nothing_behind() {
     let d = dir.path();
     std::fs::write(
         d.join("s.toml"),
-        SCENE.replace("width = 8\nheight = 8", "width = 48\nheight = 48"),
+        replaced(SCENE, "width = 8\nheight = 8", "width = 48\nheight = 48"),
     )
     .unwrap();
     let page = page_size();

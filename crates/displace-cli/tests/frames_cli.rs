@@ -6,13 +6,14 @@
 
 mod cli_common;
 
-use cli_common::{displace_env as run, files, ok, stderr, SPHERE_SCENE};
+use cli_common::{displace_env as run, files, ok, replaced, stderr, SPHERE_SCENE};
 use std::path::Path;
 
 /// A lit sphere (16 x 16 at 2 spp) with a camera path and a moving point
 /// light.
 fn still() -> String {
-    SPHERE_SCENE.replace(
+    replaced(
+        SPHERE_SCENE,
         "width = 8\nheight = 8\nspp = 1",
         "width = 16\nheight = 16\nspp = 2",
     )
@@ -73,10 +74,13 @@ fn frames_equal_single_frames_and_keys_are_hit_exactly() {
         "nothing moved"
     );
     // Frame 2 is the still scene with key 2's camera and light.
-    let key2 = still()
-        .replace("position = [0, 1, -3]", "position = [1.3, 0.7, -2.6]")
-        .replace("look_at = [0, 0, 0]", "look_at = [0.1, 0.2, 0]")
-        .replace("position = [0, 3, -1]", "position = [1.5, 2.5, -1.5]");
+    let key2 = [
+        ("position = [0, 1, -3]", "position = [1.3, 0.7, -2.6]"),
+        ("look_at = [0, 0, 0]", "look_at = [0.1, 0.2, 0]"),
+        ("position = [0, 3, -1]", "position = [1.5, 2.5, -1.5]"),
+    ]
+    .iter()
+    .fold(still(), |text, (from, to)| replaced(&text, from, to));
     std::fs::write(d.join("key2.toml"), key2).unwrap();
     ok(run(
         &["render", "-q", "key2.toml", "-o", "key2.png"],

@@ -23,13 +23,20 @@ const H: u32 = 240;
 /// A studded quad seen obliquely, with the image corners on the (black)
 /// background.
 fn scene() -> String {
+    scene_of_depth(0.1)
+}
+
+/// [`scene`] with the studded map `depth` deep.
+fn scene_of_depth(depth: f32) -> String {
     frame(
         [64, 48],
         "position = [0.5, -0.55, 0.85]\nlook_at = [0.5, 0.45, 0.0]\nup = [0.0, 0.0, 1.0]\nvfov = 50.0",
         "position = [-0.3, 0.2, 1.5]\nintensity = [3.0, 2.5, 2.0]",
     ) + &displaced_quad(
         "type = \"lambert\"\ncolor = [0.8, 0.6, 0.4]",
-        r#"height = "gen:studded", height_size = [64, 64], depth = 0.1, map_size = [64, 64, 16]"#,
+        &format!(
+            r#"height = "gen:studded", height_size = [64, 64], depth = {depth:?}, map_size = [64, 64, 16]"#
+        ),
     )
 }
 
@@ -398,11 +405,7 @@ fn live_depth_matches_a_bake_at_that_depth() {
     let Some(v) = Viewer::new() else {
         return;
     };
-    std::fs::write(
-        v.dir.path().join("deep.toml"),
-        scene().replace("depth = 0.1,", "depth = 0.2,"),
-    )
-    .unwrap();
+    std::fs::write(v.dir.path().join("deep.toml"), scene_of_depth(0.2)).unwrap();
     let deep = v.gpu_render("deep.toml", "deep.png", "gpu-render deep");
     let live = v.shot("live", 1, "hud off; depth 2");
     let shallow = v.shot("shallow", 1, "hud off");

@@ -42,6 +42,14 @@ pub fn failed(o: &Output, needles: &[&str], absent: &[&str]) -> String {
     msg
 }
 
+/// `text` with every `from` replaced by `to`; panics where `from` is not in
+/// it, so a variant of a scene cannot quietly become the scene itself when
+/// the scene's text drifts.
+pub fn replaced(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "`{from}` is not in the text:\n{text}");
+    text.replace(from, to)
+}
+
 /// The arguments of a command line without quoting: its words.
 pub fn words(command: &str) -> Vec<&str> {
     command.split_whitespace().collect()
