@@ -57,12 +57,12 @@ pub struct RenderArgs {
     /// Do not read or write the on-disk bake cache.
     #[arg(long)]
     pub no_cache: bool,
-    /// The frame of the scene's [animation] to render, or `auto` (from
+    /// The frame of the scene's `[animation]` to render, or `auto` (from
     /// SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX: one frame per task). A
     /// `%04d` in the output name is replaced by the frame number.
     #[arg(long, conflicts_with = "frames")]
     pub frame: Option<String>,
-    /// Render frames A..B (B not included) of the scene's [animation], one
+    /// Render frames A..B (B not included) of the scene's `[animation]`, one
     /// after the other, to OUT_%04d.png (the frame number replaces a
     /// `%04d` in the output name, or is appended to its stem).
     #[arg(long, conflicts_with_all = ["tile", "crop"])]

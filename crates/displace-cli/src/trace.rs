@@ -26,7 +26,7 @@ use std::time::Instant;
 pub struct TraceArgs {
     /// Trace against a whole scene file instead of one face: rays in world
     /// space, (N, 6) or (N, 7) with t_max; hits (N, 8): t, position xyz,
-    /// geometric normal xyz, index in [[shapes]] (-1 miss, -2 light quad)
+    /// geometric normal xyz, index in `[[shapes]]` (-1 miss, -2 light quad)
     #[arg(long, value_name = "SCENE.toml", conflicts_with_all = ["height", "map", "size", "backend", "method"])]
     pub scene: Option<PathBuf>,
     /// With --scene: any-hit (shadow-ray) queries, (N, 1): 1 where the ray is
