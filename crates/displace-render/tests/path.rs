@@ -407,10 +407,19 @@ material = \"ball\"
 ";
 
 fn sky_scene(integrator: &str, sampling: &str, sky: &str) -> String {
-    SKY_SCENE
-        .replace("INTEGRATOR", integrator)
-        .replace("SAMPLING", sampling)
-        .replace("SKY", sky)
+    // Each placeholder must be there, or a variant would quietly render
+    // the template's own text.
+    let fill = |text: String, (from, to): (&str, &str)| {
+        assert!(text.contains(from), "`{from}` is not in the sky scene");
+        text.replace(from, to)
+    };
+    [
+        ("INTEGRATOR", integrator),
+        ("SAMPLING", sampling),
+        ("SKY", sky),
+    ]
+    .into_iter()
+    .fold(SKY_SCENE.to_string(), fill)
         + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
 }
 
@@ -599,7 +608,11 @@ fn bad_path_input_is_refused_clearly() {
         .save(base.join("sky.png"))
         .unwrap();
     write_exr(&base.join("ok.exr"), 4, 2, |_, _| [1.0; 3]);
-    let sky = |line: &str| sky_scene("path", "mis", line).replace("spp = SPP", "spp = 1");
+    let sky = |line: &str| {
+        let text = sky_scene("path", "mis", line);
+        assert!(text.contains("spp = SPP"));
+        text.replace("spp = SPP", "spp = 1")
+    };
     for (line, want) in [
         ("environment = \"missing.exr\"", "missing.exr"),
         ("environment = \"junk.exr\"", "junk.exr"),
