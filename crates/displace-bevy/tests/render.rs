@@ -305,19 +305,11 @@ fn displaced_uv_agrees_with_the_exact_hit() {
 #[test]
 fn displaced_uv_agrees_with_gpu_render() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let map = map("gen:studded");
-    let scene = PlaneScene::for_map(&map);
-    let Some(data) = hit_frame(&map, &scene) else {
+    let Some(g) = against_gpu_render(hit_frame) else {
         return;
     };
-    let Some(ctx) = displace_gpu::test_support::test_context() else {
-        return;
-    };
-    let plane = gpu_plane(&map, &scene);
-    let image = displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear)
-        .unwrap()
-        .render(ctx, &plane)
-        .unwrap();
+    let data = g.frame;
+    let image = g.renderer.render(g.ctx, &g.plane).unwrap();
     let (mut both, mut agree, mut only_bevy, mut only_gpu) = (0usize, 0usize, 0usize, 0usize);
     for y in 0..H {
         for x in 0..W {
@@ -380,16 +372,39 @@ fn assert_uv_agreement(other: &str, agree: usize, both: usize, only_bevy: usize)
     );
 }
 
-/// displace-gpu's built-in plane, which is this test's: the same eye,
-/// target, field of view, face and depth; the same step budget.
-fn gpu_plane(map: &DisplacementMap, scene: &PlaneScene) -> displace_gpu::PlaneScene {
-    let mut plane = displace_gpu::PlaneScene::for_map(map, [W, H]);
+/// What both comparisons with gpu-render start from: the studded map, the
+/// plugin's `frame` of it, and displace-gpu's renderer of the same map
+/// (what `displace gpu-render` draws with) with its built-in plane, which
+/// is this test's: the same eye, target, field of view, face and depth; the
+/// same step budget. `None` where the adapter policy allows no GPU.
+struct AgainstGpu<T> {
+    frame: T,
+    ctx: &'static displace_gpu::GpuContext,
+    plane: displace_gpu::PlaneScene,
+    renderer: displace_gpu::Renderer,
+}
+
+fn against_gpu_render<T>(
+    frame: impl FnOnce(&DisplacementMap, &PlaneScene) -> Option<T>,
+) -> Option<AgainstGpu<T>> {
+    let map = map("gen:studded");
+    let scene = PlaneScene::for_map(&map);
+    let frame = frame(&map, &scene)?;
+    let ctx = displace_gpu::test_support::test_context()?;
+    let mut plane = displace_gpu::PlaneScene::for_map(&map, [W, H]);
     plane.iterations = scene.iterations;
     assert_eq!(
         (plane.eye, plane.target, plane.fov_y_degrees, plane.depth),
         (scene.eye, scene.target, scene.fov_y_degrees, scene.depth)
     );
-    plane
+    let renderer =
+        displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear).unwrap();
+    Some(AgainstGpu {
+        frame,
+        ctx,
+        plane,
+        renderer,
+    })
 }
 
 /// Mean FLIP allowed over the pixels both renderers cover. Measured on
@@ -418,22 +433,16 @@ const P99_FLIP: f32 = 0.05;
 #[test]
 fn displaced_checker_image_agrees_with_gpu_render() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let map = map("gen:studded");
-    let scene = PlaneScene::for_map(&map);
-    let Some(ours) = checker_frame(&map, &scene) else {
+    let Some(g) = against_gpu_render(checker_frame) else {
         return;
     };
-    let Some(ctx) = displace_gpu::test_support::test_context() else {
-        return;
-    };
-    let mut plane = gpu_plane(&map, &scene);
+    let (ours, ctx, renderer) = (g.frame, g.ctx, g.renderer);
+    let mut plane = g.plane;
     plane.ambient = 1.0;
     plane.light_intensity = 0.0;
     plane.specular = 0.0;
     plane.shadows = displace_gpu::Shadows::None;
     // `Renderer::new`'s colour map is `checker_mips(256, 16)`, as ours.
-    let renderer =
-        displace_gpu::Renderer::new(ctx, &map, displace_gpu::DistanceTexture::R8Linear).unwrap();
     let theirs = renderer.render(ctx, &plane).unwrap();
     let flip = masked_flip(&ours, &theirs);
     eprintln!(

@@ -42,6 +42,17 @@ fn camera_rays(n: usize, depth: f32) -> Vec<MapRay> {
     rays
 }
 
+/// The shortest of `runs` runs of `f`, in seconds (infinite for none).
+fn best_of(runs: usize, mut f: impl FnMut()) -> f64 {
+    (0..runs)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 fn main() {
     let n: usize = std::env::args()
         .nth(1)
@@ -60,16 +71,13 @@ fn main() {
         let rays = camera_rays(n, depth);
         let opts = TraceOptions::default();
         let time = |f: &dyn Fn(&MapRay) -> Option<u32>| {
-            let mut best = f64::INFINITY;
             let mut stats = (0usize, 0u64);
-            for _ in 0..3 {
-                let start = Instant::now();
+            let best = best_of(3, || {
                 stats = rays
                     .iter()
                     .filter_map(f)
                     .fold((0, 0), |(h, it), i| (h + 1, it + i as u64));
-                best = best.min(start.elapsed().as_secs_f64());
-            }
+            });
             (rays.len() as f64 / best / 1e6, stats)
         };
         let mode = std::env::args().nth(2).unwrap_or_default();
@@ -87,12 +95,8 @@ fn main() {
         // Eight at a time (`trace_many`), the same hits.
         let all_opts = vec![opts; rays.len()];
         let mut hits = vec![None; rays.len()];
-        let mut best = f64::INFINITY;
-        for _ in 0..if mode == "one" { 0 } else { 3 } {
-            let start = Instant::now();
-            map.trace_many(&rays, &all_opts, &mut hits);
-            best = best.min(start.elapsed().as_secs_f64());
-        }
+        let runs = if mode == "one" { 0 } else { 3 };
+        let best = best_of(runs, || map.trace_many(&rays, &all_opts, &mut hits));
         let many = rays.len() as f64 / best / 1e6;
         println!(
             "{name}: packets of eight {many:.2} Mrays/s ({} hits)",
@@ -117,12 +121,9 @@ fn main() {
             })
             .unzip();
         let mut blocked = vec![false; shadow.len()];
-        let mut best = f64::INFINITY;
-        for _ in 0..if mode == "one" { 0 } else { 3 } {
-            let start = Instant::now();
-            map.occluded_many(&shadow, &shadow_opts, &mut blocked);
-            best = best.min(start.elapsed().as_secs_f64());
-        }
+        let best = best_of(runs, || {
+            map.occluded_many(&shadow, &shadow_opts, &mut blocked)
+        });
         println!(
             "{name}: shadow rays in packets {:.2} Mrays/s ({} of {} blocked)",
             shadow.len() as f64 / best / 1e6,
