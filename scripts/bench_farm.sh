@@ -7,6 +7,11 @@
 # wall times, per-tile render and set-up times, and the speed-ups.
 # Defaults: the built-in seed scene (scenes/cornell_studded_shadows.toml),
 # 1024x1024, 16 spp. DISPLACE names the binary (default target/release).
+# At the issue's 4096x4096 and 64 spp every image is minutes of both cores;
+# these pick the runs (space-separated, defaults as shown):
+#   BENCH_FARM_RUNS="cold warm"        the one-machine renders
+#   BENCH_FARM_SHARED_NS="1 2 4 8"     task counts with the shared bake cache
+#   BENCH_FARM_NOCACHE_NS="1 2 4 8"    task counts where every task bakes
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 scene=$(realpath "${1:-$root/scenes/cornell_studded_shadows.toml}")
@@ -22,7 +27,7 @@ times() { grep -ho 'setup [0-9.]* s\|render [0-9.]* s' "$@" | awk '
   END { printf "setup %.2f s/task, render %.2f s/tile (max %.2f)", s / ns, r / nr, rmax }'; }
 
 echo "scene $(basename "$scene") at $size, $spp spp; $(nproc) CPUs; load $(cut -d' ' -f1-3 /proc/loadavg)"
-for run in cold warm; do
+for run in ${BENCH_FARM_RUNS:-cold warm}; do
   [ $run = cold ] && rm -rf "$work/cache1"
   t0=$(now)
   DISPLACE_CACHE=$work/cache1 "$DISPLACE" render -q "$scene" --size "$size" --spp "$spp" -o "$work/one.png" 2>"$work/one.log"
@@ -31,12 +36,14 @@ for run in cold warm; do
 done
 [ -n "${BENCH_FARM_NO_SLURM:-}" ] && exit 0
 for cache in shared none; do
-  for n in 1 2 4 8; do
+  ns=${BENCH_FARM_SHARED_NS:-1 2 4 8}
+  [ $cache = none ] && ns=${BENCH_FARM_NOCACHE_NS:-1 2 4 8}
+  for n in $ns; do
     rm -rf "$work/out" "$work/logs" "$work/cache"
     extra="--size $size --spp $spp"
     [ $cache = none ] && extra="$extra --no-cache"
     t0=$(now)
-    DISPLACE_ARGS=$extra DISPLACE_CACHE=$work/cache SLURM_LOCAL_LOGS=$work/logs \
+    SLURM_LOCAL_TIMEOUT=${SLURM_LOCAL_TIMEOUT:-900} DISPLACE_ARGS=$extra DISPLACE_CACHE=$work/cache SLURM_LOCAL_LOGS=$work/logs \
       bash "$root/scripts/slurm-local.sh" "$scene" "$n" "$work/out" >"$work/slurm.log"
     t1=$(now)
     cmp -s "$work/out/image.png" "$work/one.png" || { echo "N=$n: merged image differs from the single render" >&2; exit 1; }

@@ -1,7 +1,10 @@
+#define_import_path displace::batch
+#import displace::convention::{FLAG_CELL_CAP, FLAG_LOOP_CUT, RayIn}
+#import displace::surface::{cell_cap_reached, loop_cut}
+
 // What both batch queries (trace_compute.wgsl, technique_compute.wgsl)
 // share, as batch.rs does on the Rust side: the rays of group 1 and the
 // guard bits every result carries.
-// Needs convention.wgsl, one distance_*.wgsl and surface.wgsl before it.
 
 @group(1) @binding(0) var<storage, read> rays: array<RayIn>;
 

@@ -5,8 +5,8 @@
 // `convention_constants_match_rust` and compared with the Rust side: change
 // both together.
 //
-// A shader module (naga_oil `#import displace::convention::{...}` in Bevy;
-// displace-gpu joins the files and drops the directives, shaders.rs). The
+// A shader module (`#import displace::convention::{...}`), composed by
+// naga_oil both in displace-gpu (shaders.rs) and in Bevy's shader cache. The
 // resources the trace reads are declared by a `displace::bindings` module
 // of each user: bindings_load.wgsl / bindings_filtered.wgsl here, the
 // material's bind group in displace-bevy.

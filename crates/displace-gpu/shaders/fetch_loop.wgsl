@@ -1,6 +1,9 @@
+#import displace::bindings::params
+#import displace::distance::distance_at
+
 // The roofline of distance mapping on a GPU (`bench gpu`, BENCHMARKS.md): per
 // pixel, N dependent trilinear fetches of the distance texture and nothing
-// else. Needs convention.wgsl and distance_filtered.wgsl before it.
+// else, through the filtered lookup (distance_filtered.wgsl).
 
 struct Loop {
     width: u32,

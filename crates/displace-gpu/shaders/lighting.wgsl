@@ -1,3 +1,5 @@
+#define_import_path displace::lighting
+
 // The lighting every raster entry point shares, the displaced hits of
 // shade.wgsl and the plain triangles of plain.wgsl alike: Lambert plus
 // normalised Blinn-Phong under the scene's single point light, so the two

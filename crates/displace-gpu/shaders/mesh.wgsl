@@ -1,3 +1,6 @@
+#import displace::bindings::params
+#import displace::shade::{FsOut, frame, march_shell, shade_hit, shell_out}
+
 // The raster path for meshes (GPU Gems 2 ch. 8, section 8.4): each triangle
 // is drawn as the top of its shell and each open boundary edge as a wall
 // (mesh.rs). The vertex stage carries the eye and light vectors into the
@@ -5,8 +8,6 @@
 // fragment stage marches from the fragment's shell point along the
 // interpolated vector (listing 8-2), treating the surface under it as
 // locally flat, and shades the hit (shade.wgsl).
-// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl, lighting.wgsl
-// and shade.wgsl before it.
 
 struct ShellVertex {
     @location(0) position: vec3f,

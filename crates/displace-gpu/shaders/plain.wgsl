@@ -1,3 +1,6 @@
+#import displace::convention::HIT_PLAIN
+#import displace::lighting::blinn_phong
+
 // Non-displaced scene shapes (walls, boxes, spheres, plain meshes, visible
 // area-light quads) drawn as ordinary triangles into the targets the
 // displaced faces use (raster.rs): the same view_proj, so the rasterised
@@ -8,7 +11,6 @@
 // normalised Blinn-Phong, 1 / r^2 falloff, no shadows. Surfaces are
 // two-sided as the CPU renderer's (its integrator turns normals to the
 // viewer); an emitter glows only on its front, as the CPU's area light.
-// Needs convention.wgsl and lighting.wgsl before it.
 
 struct PlainFrame {
     view_proj: mat4x4f,

@@ -1,10 +1,11 @@
+#import displace::bindings::params
+#import displace::shade::{FsOut, frame, march_shell, shade_hit, shell_out}
+
 // The raster path (GPU Gems 2 ch. 8, section 8.5) for one planar face: its
 // shell box is drawn; the vertex stage moves the eye and light vectors into
 // tangent space (listing 8-1), the fragment stage marches the distance map
 // from the fragment's point on the shell (listing 8-2) and shades the hit
 // (shade.wgsl).
-// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl, lighting.wgsl
-// and shade.wgsl before it.
 
 struct VsOut {
     @builtin(position) clip: vec4f,

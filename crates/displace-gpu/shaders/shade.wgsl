@@ -1,9 +1,14 @@
+#define_import_path displace::shade
+#import displace::convention::{HIT_NONE, HIT_SURFACE, SHADOWS_HARD, SHADOWS_NONE}
+#import displace::bindings::params
+#import displace::distance::distance_at
+#import displace::surface::{TraceHit, clip_shell, trace_map}
+#import displace::lighting::blinn_phong
+
 // Shading shared by the raster entry points (GPU Gems 2 ch. 8, section
 // 8.5): the frame uniform, self-shadowing by a second march, and the
 // normal-mapped lighting of a hit with the colour texture sampled with the
 // derivatives of the undisplaced texture coordinates (8.5.3).
-// Needs convention.wgsl, one distance_*.wgsl, surface.wgsl and
-// lighting.wgsl before it.
 
 struct Frame {
     view_proj: mat4x4f,

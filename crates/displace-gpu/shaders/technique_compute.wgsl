@@ -1,7 +1,10 @@
+#import displace::bindings::params
+#import displace::batch::{rays, result_flags}
+#import displace::techniques::trace_technique
+
 // Batch query of one technique (displace_core::techniques): one invocation per map-space ray,
 // technique and budget from a uniform, so one pipeline serves them all.
 // Rust mirrors: `TechniqueParams`, `TechniqueHitOut` (src/techniques.rs).
-// Needs batch.wgsl (the rays, the flags) and techniques.wgsl before it.
 
 struct TechniqueParams {
     technique: u32,

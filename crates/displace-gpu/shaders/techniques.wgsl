@@ -1,10 +1,14 @@
+#define_import_path displace::techniques
+#import displace::convention::{BIG, HIT_NONE}
+#import displace::bindings::params
+#import displace::surface::{WALK_HIT, WALK_INSIDE, clip_shell, height_sample, trace_map, walk}
+
 // The per-pixel displacement techniques engines ship (displace_core::techniques), in map space,
 // operation for operation as displace_core::techniques does them, with the
 // same budgets and the same fetch counting: one bilinear height sample = 1,
 // one trilinear distance sample = 1, one cone or pyramid texel = 1, one
-// bilinear patch solved exactly = 1. Needs convention.wgsl, a distance
-// lookup and surface.wgsl before it (height_sample, walk, clip_shell,
-// trace_map). The papers' texture-space depth is `1 - z` here.
+// bilinear patch solved exactly = 1. The papers' texture-space depth is
+// `1 - z` here.
 
 // Technique codes, in the order of displace_core::techniques::Technique::ALL.
 const TECH_PARALLAX: u32 = 0u;

@@ -1,6 +1,10 @@
+#import displace::convention::FLAG_CONVERGED
+#import displace::bindings::params
+#import displace::surface::trace_map
+#import displace::batch::{rays, result_flags}
+
 // Batch ray query: one invocation per map-space ray, the march of
 // Donnelly's listing 8-2 as a compute shader. Rust mirrors: `RayIn`, `HitOut`.
-// Needs batch.wgsl (the rays, the flags) before it.
 
 struct HitOut {
     position: vec3f,

@@ -1,13 +1,9 @@
-//! WGSL sources, assembled from the files under `shaders/` (WGSL has no
-//! include): the conventions first, then the map's bindings and one
-//! distance-lookup flavour, then the surface walk and trace, then the entry
-//! points.
-//!
-//! `convention.wgsl`, `distance_*.wgsl` and `surface.wgsl` are also shader
-//! modules (`#define_import_path displace::...`, one-line `#import`s), which
-//! displace-bevy registers with Bevy's naga_oil composer, so both crates run
-//! the one trace. Joined here, they share one namespace: [`join`] drops the
-//! directives.
+//! WGSL sources: shader modules under `shaders/` with naga_oil's
+//! `#define_import_path` and `#import` (WGSL itself has no include),
+//! composed per entry point by [`compose`]. The shared modules
+//! (`convention`, `distance_*`, `surface`) are also registered by
+//! displace-bevy with Bevy's own naga_oil composer, so both crates run the
+//! one trace; each crate supplies its `displace::bindings`.
 
 /// `displace::convention`: map-space constants, `MapParams` and the ray
 /// structs, mirrored by [`crate::convention`].
@@ -102,68 +98,109 @@ impl std::str::FromStr for DistanceTexture {
     }
 }
 
-/// Conventions, distance lookup and the map-space trace: the part every
-/// entry point shares.
-pub fn map_trace_source(texture: DistanceTexture) -> String {
+/// The shader modules an entry point may import, in the order naga_oil needs
+/// them (each after the modules it imports), with the `displace::bindings`
+/// and `displace::distance` of one distance-lookup flavour.
+fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 8] {
     let (bindings, distance) = if texture.filtered() {
-        (BINDINGS_FILTERED, DISTANCE_FILTERED)
+        (
+            ("bindings_filtered.wgsl", BINDINGS_FILTERED),
+            ("distance_filtered.wgsl", DISTANCE_FILTERED),
+        )
     } else {
-        (BINDINGS_LOAD, DISTANCE_LOAD)
+        (
+            ("bindings_load.wgsl", BINDINGS_LOAD),
+            ("distance_load.wgsl", DISTANCE_LOAD),
+        )
     };
-    join(&[CONVENTION, bindings, distance, SURFACE])
+    [
+        ("convention.wgsl", CONVENTION),
+        bindings,
+        distance,
+        ("surface.wgsl", SURFACE),
+        ("lighting.wgsl", LIGHTING),
+        ("shade.wgsl", SHADE),
+        ("batch.wgsl", BATCH),
+        ("techniques.wgsl", TECHNIQUES),
+    ]
 }
 
-/// The files one after another without their module directives
-/// (`#define_import_path`, `#import`: naga_oil's, which plain WGSL lacks);
-/// every item they import is then defined earlier in the same source.
-pub fn join(parts: &[&str]) -> String {
-    parts
-        .iter()
-        .flat_map(|p| p.lines())
-        .filter(|l| {
-            let l = l.trim_start();
-            !(l.starts_with("#define_import_path") || l.starts_with("#import"))
+/// One entry-point file composed with the modules it `#import`s (naga_oil,
+/// as Bevy's shader cache composes the same modules), validated, and
+/// written back as one WGSL source for `wgpu`. Items of imported modules
+/// keep their names with naga_oil's module suffix ([`undecorated`] strips
+/// it). The sources are this crate's own files, so a failure here is a
+/// defect of the crate, caught by the test that composes every module.
+pub fn compose(file: &str, source: &str, texture: DistanceTexture) -> String {
+    use naga_oil::compose::{
+        ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderLanguage, ShaderType,
+    };
+    let mut composer = Composer::default();
+    for (path, src) in library(texture) {
+        if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
+            source: src,
+            file_path: path,
+            language: ShaderLanguage::Wgsl,
+            ..Default::default()
+        }) {
+            panic!("shader module {path}: {}", e.emit_to_string(&composer));
+        }
+    }
+    let module = composer
+        .make_naga_module(NagaModuleDescriptor {
+            source,
+            file_path: file,
+            shader_type: ShaderType::Wgsl,
+            ..Default::default()
         })
-        .collect::<Vec<_>>()
-        .join("\n")
+        .unwrap_or_else(|e| panic!("shader {file}: {}", e.emit_to_string(&composer)));
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("shader {file}: {e}"));
+    naga::back::wgsl::write_string(&module, &info, naga::back::wgsl::WriterFlags::empty())
+        .unwrap_or_else(|e| panic!("shader {file}: writing WGSL: {e}"))
+}
+
+/// A WGSL item's name as its module declares it: naga_oil appends
+/// `X_naga_oil_mod_X<module>X` to the items it imports into a composition.
+pub fn undecorated(name: &str) -> &str {
+    name.split("X_naga_oil_mod_X").next().unwrap_or(name)
 }
 
 /// The batch ray query kernel.
 pub fn compute_trace_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), BATCH, TRACE_COMPUTE].join("\n")
+    compose("trace_compute.wgsl", TRACE_COMPUTE, texture)
 }
 
 /// The batch query of every technique (`shaders/techniques.wgsl`).
 pub fn technique_compute_source(texture: DistanceTexture) -> String {
-    [
-        map_trace_source(texture).as_str(),
-        BATCH,
-        TECHNIQUES,
-        TECHNIQUE_COMPUTE,
-    ]
-    .join("\n")
+    compose("technique_compute.wgsl", TECHNIQUE_COMPUTE, texture)
 }
 
 /// Donnelly's vertex and fragment stages (fixed-step, early-out and
 /// shadowing variants are uniforms of one module).
 pub fn raster_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), LIGHTING, SHADE, RASTER].join("\n")
+    compose("raster.wgsl", RASTER, texture)
 }
 
 /// The mesh variant of the raster path: the same fragment work, started
 /// from each mesh triangle's shell in its MikkTSpace frame.
 pub fn mesh_source(texture: DistanceTexture) -> String {
-    [map_trace_source(texture).as_str(), LIGHTING, SHADE, MESH].join("\n")
+    compose("mesh.wgsl", MESH, texture)
 }
 
-/// Non-displaced triangles beside the displaced draws (no map).
+/// Non-displaced triangles beside the displaced draws (no map: the
+/// flavour only names the modules it does not import).
 pub fn plain_source() -> String {
-    join(&[CONVENTION, LIGHTING, PLAIN])
+    compose("plain.wgsl", PLAIN, DistanceTexture::default())
 }
 
 /// The bare loop of dependent filtered fetches (benchmarks only).
 pub fn fetch_loop_source() -> String {
-    join(&[CONVENTION, BINDINGS_FILTERED, DISTANCE_FILTERED, FETCH_LOOP])
+    compose("fetch_loop.wgsl", FETCH_LOOP, DistanceTexture::R16Linear)
 }
 
 /// Every complete shader module this crate builds, by name, for validation.
@@ -190,6 +227,9 @@ pub fn all_modules() -> Vec<(String, String)> {
 /// Checks a `repr(C)` Rust mirror against the WGSL struct it feeds: the
 /// struct's size and every member's offset as naga lays the WGSL out
 /// (`rust` lists the WGSL member names with the Rust offsets, in order).
+/// `src` may be a composed source ([`compose`]), whose writer (naga's
+/// namer) appends `_` to every name ending in a digit: the expected names
+/// go through the same rule.
 /// Each mirror's module has a test that calls it, so a field added, moved
 /// or retyped on one side only fails the build's tests, not a frame.
 #[cfg(test)]
@@ -199,7 +239,7 @@ pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&s
     let (_, ty) = module
         .types
         .iter()
-        .find(|(_, t)| t.name.as_deref() == Some(wgsl_name))
+        .find(|(_, t)| t.name.as_deref().map(undecorated) == Some(wgsl_name))
         .unwrap_or_else(|| panic!("no struct {wgsl_name} in the WGSL"));
     let naga::TypeInner::Struct { members, span } = &ty.inner else {
         panic!("{wgsl_name} is not a struct")
@@ -208,10 +248,20 @@ pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&s
         *span as usize, size,
         "{wgsl_name}: WGSL size against the Rust mirror's"
     );
-    let wgsl: Vec<(&str, usize)> = members
+    let wgsl: Vec<(String, usize)> = members
         .iter()
-        .map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize))
+        .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
         .collect();
+    let written = |name: &str| {
+        let digit_last = name.ends_with(|c: char| c.is_ascii_digit());
+        let composed = src.contains("X_naga_oil_mod_X");
+        if digit_last && composed {
+            format!("{name}_")
+        } else {
+            name.to_string()
+        }
+    };
+    let rust: Vec<(String, usize)> = rust.iter().map(|&(n, o)| (written(n), o)).collect();
     assert_eq!(wgsl, rust, "{wgsl_name}: member names and offsets");
 }
 
@@ -223,19 +273,15 @@ pub(crate) use crate::field_offsets as offsets;
 mod tests {
     use super::*;
 
-    /// [`join`] drops directives line by line: an `#import` spread over
-    /// several lines would leave its tail in the joined source. And every
-    /// shared module names its import path, which Bevy's composer needs.
+    /// Every module names its import path on its first line (Bevy's
+    /// composer and [`compose`] find it there), and a composed source is
+    /// plain WGSL: no directive survives, and imported items are suffixed.
     #[test]
-    fn module_directives_are_one_line_each() {
-        for (name, src) in [
-            ("convention", CONVENTION),
-            ("bindings_load", BINDINGS_LOAD),
-            ("bindings_filtered", BINDINGS_FILTERED),
-            ("distance_load", DISTANCE_LOAD),
-            ("distance_filtered", DISTANCE_FILTERED),
-            ("surface", SURFACE),
-        ] {
+    fn modules_name_their_path_and_compose_to_plain_wgsl() {
+        for (name, src) in library(DistanceTexture::R32Load)
+            .into_iter()
+            .chain(library(DistanceTexture::R8Linear))
+        {
             assert!(
                 src.lines()
                     .next()
@@ -243,22 +289,18 @@ mod tests {
                     .starts_with("#define_import_path displace::"),
                 "{name}: first line is its import path"
             );
-            for line in src
-                .lines()
-                .filter(|l| l.trim_start().starts_with("#import"))
-            {
-                assert_eq!(
-                    line.matches('{').count(),
-                    line.matches('}').count(),
-                    "{name}: `{line}` continues on the next line"
-                );
-            }
-            assert!(
-                !join(&[src])
-                    .lines()
-                    .any(|l| l.trim_start().starts_with('#')),
-                "{name}: a directive survived the join"
-            );
         }
+        let raster = raster_source(DistanceTexture::R32Load);
+        assert!(!raster.lines().any(|l| l.trim_start().starts_with('#')));
+        assert!(
+            raster.contains("fn fs_main"),
+            "the entry point keeps its name"
+        );
+        assert!(
+            raster.contains("fn trace_mapX_naga_oil_mod_X"),
+            "an imported function is decorated"
+        );
+        assert_eq!(undecorated("trace_mapX_naga_oil_mod_XMRZXGX"), "trace_map");
+        assert_eq!(undecorated("trace_map"), "trace_map");
     }
 }

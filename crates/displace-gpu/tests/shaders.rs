@@ -5,7 +5,7 @@
 use displace_core::convention::{texel_centre, texel_lerp};
 use displace_core::{Address, Method};
 use displace_gpu::convention as rs;
-use displace_gpu::shaders::{all_modules, CONVENTION};
+use displace_gpu::shaders::{all_modules, undecorated, CONVENTION};
 use displace_gpu::{MapParams, Shadows};
 use std::collections::BTreeMap;
 
@@ -112,7 +112,7 @@ fn map_params_layout_matches_wgsl() {
     let (_, ty) = module
         .types
         .iter()
-        .find(|(_, t)| t.name.as_deref() == Some("MapParams"))
+        .find(|(_, t)| t.name.as_deref().map(undecorated) == Some("MapParams"))
         .expect("MapParams in WGSL");
     let naga::TypeInner::Struct { members, span } = &ty.inner else {
         panic!("MapParams is a struct")
