@@ -12,6 +12,8 @@
 #   BENCH_FARM_RUNS="cold warm"        the one-machine renders
 #   BENCH_FARM_SHARED_NS="1 2 4 8"     task counts with the shared bake cache
 #   BENCH_FARM_NOCACHE_NS="1 2 4 8"    task counts where every task bakes
+# and SLURM_LOCAL_TIMEOUT (scripts/slurm-local.sh's wait, default 900 s)
+# must outlast a run: 2400 at that size.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 scene=$(realpath "${1:-$root/scenes/cornell_studded_shadows.toml}")
@@ -43,7 +45,7 @@ for cache in shared none; do
     extra="--size $size --spp $spp"
     [ $cache = none ] && extra="$extra --no-cache"
     t0=$(now)
-    SLURM_LOCAL_TIMEOUT=${SLURM_LOCAL_TIMEOUT:-900} DISPLACE_ARGS=$extra DISPLACE_CACHE=$work/cache SLURM_LOCAL_LOGS=$work/logs \
+    DISPLACE_ARGS=$extra DISPLACE_CACHE=$work/cache SLURM_LOCAL_LOGS=$work/logs \
       bash "$root/scripts/slurm-local.sh" "$scene" "$n" "$work/out" >"$work/slurm.log"
     t1=$(now)
     cmp -s "$work/out/image.png" "$work/one.png" || { echo "N=$n: merged image differs from the single render" >&2; exit 1; }

@@ -125,6 +125,35 @@ fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 8] {
     ]
 }
 
+/// The composer of one distance-lookup flavour with every module of
+/// [`library`] added, built once per process: each module is parsed once,
+/// not once per entry point.
+fn with_composer<R>(
+    texture: DistanceTexture,
+    f: impl FnOnce(&mut naga_oil::compose::Composer) -> R,
+) -> R {
+    use naga_oil::compose::{ComposableModuleDescriptor, Composer, ShaderLanguage};
+    use std::sync::{Mutex, OnceLock, PoisonError};
+    static LOAD: OnceLock<Mutex<Composer>> = OnceLock::new();
+    static FILTERED: OnceLock<Mutex<Composer>> = OnceLock::new();
+    let cell = if texture.filtered() { &FILTERED } else { &LOAD };
+    let composer = cell.get_or_init(|| {
+        let mut composer = Composer::default();
+        for (path, src) in library(texture) {
+            if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
+                source: src,
+                file_path: path,
+                language: ShaderLanguage::Wgsl,
+                ..Default::default()
+            }) {
+                panic!("shader module {path}: {}", e.emit_to_string(&composer));
+            }
+        }
+        Mutex::new(composer)
+    });
+    f(&mut composer.lock().unwrap_or_else(PoisonError::into_inner))
+}
+
 /// One entry-point file composed with the modules it `#import`s (naga_oil,
 /// as Bevy's shader cache composes the same modules), validated, and
 /// written back as one WGSL source for `wgpu`. Items of imported modules
@@ -132,28 +161,17 @@ fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 8] {
 /// it). The sources are this crate's own files, so a failure here is a
 /// defect of the crate, caught by the test that composes every module.
 pub fn compose(file: &str, source: &str, texture: DistanceTexture) -> String {
-    use naga_oil::compose::{
-        ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderLanguage, ShaderType,
-    };
-    let mut composer = Composer::default();
-    for (path, src) in library(texture) {
-        if let Err(e) = composer.add_composable_module(ComposableModuleDescriptor {
-            source: src,
-            file_path: path,
-            language: ShaderLanguage::Wgsl,
-            ..Default::default()
-        }) {
-            panic!("shader module {path}: {}", e.emit_to_string(&composer));
-        }
-    }
-    let module = composer
-        .make_naga_module(NagaModuleDescriptor {
-            source,
-            file_path: file,
-            shader_type: ShaderType::Wgsl,
-            ..Default::default()
-        })
-        .unwrap_or_else(|e| panic!("shader {file}: {}", e.emit_to_string(&composer)));
+    use naga_oil::compose::{NagaModuleDescriptor, ShaderType};
+    let module = with_composer(texture, |composer| {
+        composer
+            .make_naga_module(NagaModuleDescriptor {
+                source,
+                file_path: file,
+                shader_type: ShaderType::Wgsl,
+                ..Default::default()
+            })
+            .unwrap_or_else(|e| panic!("shader {file}: {}", e.emit_to_string(composer)))
+    });
     let info = naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::default(),
@@ -252,10 +270,9 @@ pub(crate) fn assert_layout(src: &str, wgsl_name: &str, size: usize, rust: &[(&s
         .iter()
         .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
         .collect();
+    let composed = src.contains("X_naga_oil_mod_X");
     let written = |name: &str| {
-        let digit_last = name.ends_with(|c: char| c.is_ascii_digit());
-        let composed = src.contains("X_naga_oil_mod_X");
-        if digit_last && composed {
+        if composed && name.ends_with(|c: char| c.is_ascii_digit()) {
             format!("{name}_")
         } else {
             name.to_string()
