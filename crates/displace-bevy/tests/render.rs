@@ -392,9 +392,14 @@ fn against_gpu_render<T>(
     let frame = frame(&map, &scene)?;
     let ctx = displace_gpu::test_support::test_context()?;
     let mut plane = displace_gpu::PlaneScene::for_map(&map, [W, H]);
-    plane.iterations = scene.iterations;
+    plane.draw.iterations = scene.iterations;
     assert_eq!(
-        (plane.eye, plane.target, plane.fov_y_degrees, plane.depth),
+        (
+            plane.view.eye,
+            plane.view.target,
+            plane.view.fov_y_degrees,
+            plane.draw.depth
+        ),
         (scene.eye, scene.target, scene.fov_y_degrees, scene.depth)
     );
     let renderer =
@@ -438,10 +443,10 @@ fn displaced_checker_image_agrees_with_gpu_render() {
     };
     let (ours, ctx, renderer) = (g.frame, g.ctx, g.renderer);
     let mut plane = g.plane;
-    plane.ambient = 1.0;
-    plane.light_intensity = 0.0;
-    plane.specular = 0.0;
-    plane.shadows = displace_gpu::Shadows::None;
+    plane.draw.ambient = 1.0;
+    plane.view.light_intensity = 0.0;
+    plane.draw.specular = 0.0;
+    plane.draw.shadows = displace_gpu::Shadows::None;
     // `Renderer::new`'s colour map is `checker_mips(256, 16)`, as ours.
     let theirs = renderer.render(ctx, &plane).unwrap();
     let flip = masked_flip(&ours, &theirs);
@@ -467,9 +472,12 @@ fn displaced_checker_image_agrees_with_gpu_render() {
     // The controls: the same comparison against gpu-render's quad drawn 5%
     // shallower, and with (almost) no depth (the checker where the
     // undisplaced face has it), fails both thresholds.
-    for (what, f) in [("5% shallower", 0.95), ("undisplaced", 1e-4 / plane.depth)] {
+    for (what, f) in [
+        ("5% shallower", 0.95),
+        ("undisplaced", 1e-4 / plane.draw.depth),
+    ] {
         let mut wrong = plane;
-        wrong.depth = plane.depth * f;
+        wrong.draw.depth = plane.draw.depth * f;
         let c = masked_flip(&ours, &renderer.render(ctx, &wrong).unwrap());
         eprintln!(
             "FLIP against gpu-render's quad {what}: mean {:.4}, 99th percentile {:.4}",

@@ -284,14 +284,14 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
     }
     let map = bake_face(&args.face, &args.face.map_size)?;
     let mut scene = PlaneScene::for_map(&map, size);
-    scene.method = args.method;
-    scene.iterations = args.iterations;
-    scene.shadows = args.shadows;
+    scene.draw.method = args.method;
+    scene.draw.iterations = args.iterations;
+    scene.draw.shadows = args.shadows;
     if let Some(eye) = args.eye {
-        scene.eye = eye;
+        scene.view.eye = eye;
     }
     if let Some(light) = args.light {
-        scene.light = light;
+        scene.view.light = light;
     }
     let ctx = open_gpu()?;
     let renderer = Renderer::new(&ctx, &map, args.distance).context("building the GPU renderer")?;

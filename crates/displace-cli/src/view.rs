@@ -76,7 +76,8 @@ pub fn run(args: ViewArgs) -> Result<()> {
             eprintln!("view: not drawn: {}", prepared.left_out.join("; "));
         }
         Ok(ViewScene {
-            faces: prepared.faces,
+            view: prepared.view,
+            draws: prepared.draws,
             background: prepared.background,
         })
     })?;

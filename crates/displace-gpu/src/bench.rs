@@ -8,7 +8,7 @@ use crate::descriptors::{
     uniform_entry,
 };
 use crate::gpu_map::GpuMap;
-use crate::raster::{PlaneScene, Renderer, Shadows};
+use crate::raster::{Draw, PlaneScene, Renderer, Shadows};
 use crate::shaders::{fetch_loop_source, DistanceTexture};
 use crate::timing::Timing;
 use crate::{GpuContext, RayTracer, Result};
@@ -45,17 +45,18 @@ pub fn filled_view(map: &DisplacementMap, size: [u32; 2]) -> PlaneScene {
     let mut scene = PlaneScene::for_map(map, size);
     let e = map.extent;
     let centre = glam::Vec3::new(e.sx * 0.5, e.sy * 0.5, 0.0);
-    scene.target = centre;
-    scene.eye = centre + glam::Vec3::new(0.05 * e.sx, -0.1 * e.sy, 0.55 * e.sx.min(e.sy));
-    scene.up = glam::Vec3::Y;
+    scene.view.target = centre;
+    scene.view.eye = centre + glam::Vec3::new(0.05 * e.sx, -0.1 * e.sy, 0.55 * e.sx.min(e.sy));
+    scene.view.up = glam::Vec3::Y;
     scene
 }
 
-/// Every pixel's primary ray of `scene`, map space.
+/// Every pixel's primary ray of `scene`, map space (none for a mesh draw,
+/// which has no one texture-space frame).
 pub fn frame_rays(map: &DisplacementMap, scene: &PlaneScene) -> Vec<MapRay> {
-    let [w, h] = scene.size;
+    let [w, h] = scene.view.size;
     (0..h)
-        .flat_map(|y| (0..w).map(move |x| scene.pixel_ray(map, x, y)))
+        .flat_map(|y| (0..w).filter_map(move |x| scene.pixel_ray(map, x, y)))
         .collect()
 }
 
@@ -90,9 +91,12 @@ pub fn bench_config(
     ];
     for (name, method, shadows) in variants {
         let scene = PlaneScene {
-            method,
-            iterations,
-            shadows,
+            draw: Draw {
+                method,
+                iterations,
+                shadows,
+                ..base.draw
+            },
             ..base
         };
         row("raster", name, renderer.time(ctx, &scene, frames)?);

@@ -41,7 +41,7 @@ pub use error::Error;
 pub use gpu_map::{GpuMap, MapParams};
 pub use mesh::{MeshTriangle, ShellMesh};
 pub use plain::{PlainMaterial, PlainMesh};
-pub use raster::{Image, PlaneScene, Renderer, Shadows};
+pub use raster::{Draw, DrawShape, Face, Image, PlaneScene, Renderer, Shadows, View};
 pub use scene_draws::{from_scene, SceneDraws};
 pub use shaders::DistanceTexture;
 pub use techniques::{technique_costs, TechniqueCost, TechniqueTracer};

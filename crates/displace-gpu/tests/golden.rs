@@ -73,7 +73,7 @@ fn plane_rgb(ctx: &GpuContext, depth: f32, eye_shift: glam::Vec3) -> Vec<u8> {
     let extent = Extent::new(1.0, 1.0, depth).unwrap();
     let map = bake(&height, &BakeOptions::new([64, 64, 16], extent)).unwrap();
     let mut scene = PlaneScene::for_map(&map, [SIZE, SIZE]);
-    scene.eye += eye_shift;
+    scene.view.eye += eye_shift;
     let renderer = Renderer::new(ctx, &map, DistanceTexture::R8Linear).unwrap();
     rgb(&renderer.render(ctx, &scene).unwrap())
 }

@@ -88,7 +88,8 @@ fn a_flat_mesh_draws_like_the_shell_box() {
             .unwrap()
             .render(ctx, &scene)
             .unwrap();
-        let corner = |u: f32, v: f32| scene.origin + u * scene.tangent + v * scene.bitangent;
+        let face = *scene.draw.face().expect("the built-in face");
+        let corner = |u: f32, v: f32| face.origin + u * face.tangent + v * face.bitangent;
         let uv = [Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y];
         let tris: Vec<MeshTriangle> = [[0, 1, 2], [0, 2, 3]]
             .into_iter()

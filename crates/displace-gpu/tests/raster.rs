@@ -9,7 +9,7 @@ use common::clamped_map;
 use displace_core::DisplacementMap;
 use displace_core::{Method, TraceOptions};
 use displace_gpu::test_support::test_context;
-use displace_gpu::{DistanceTexture, GpuContext, PlaneScene, Renderer, Shadows};
+use displace_gpu::{DistanceTexture, Draw, GpuContext, PlaneScene, Renderer, Shadows, View};
 
 /// The GPU, the clamped map of `seed`, its renderer reading `texture` and
 /// the built-in view of it at `size`; `None` without a GPU where the test
@@ -34,7 +34,7 @@ fn uv_agreement(texture: DistanceTexture, seed: u64) {
     let (mut agree, mut covered) = (0, 0);
     for y in 0..64 {
         for x in 0..64 {
-            let ray = scene.pixel_ray(&map, x, y);
+            let ray = scene.pixel_ray(&map, x, y).expect("a face");
             let cpu = map.trace(&ray, &TraceOptions::default());
             let aov = image.uv[(y * 64 + x) as usize];
             let ok = match cpu {
@@ -87,15 +87,24 @@ fn variants_differ_as_they_should() {
             .sum::<u64>()
     };
     let none = render(PlaneScene {
-        shadows: Shadows::None,
+        draw: Draw {
+            shadows: Shadows::None,
+            ..base.draw
+        },
         ..base
     });
     let hard = render(PlaneScene {
-        shadows: Shadows::Hard,
+        draw: Draw {
+            shadows: Shadows::Hard,
+            ..base.draw
+        },
         ..base
     });
     let soft = render(PlaneScene {
-        shadows: Shadows::Soft,
+        draw: Draw {
+            shadows: Shadows::Soft,
+            ..base.draw
+        },
         ..base
     });
     // Shadows only take light away, and soft ones take at least as much.
@@ -115,8 +124,11 @@ fn variants_differ_as_they_should() {
     // the paper (here about 4% of the pixels). With one step it stops short.
     let fixed = |iterations| {
         render(PlaneScene {
-            method: Method::SphereFixed,
-            iterations,
+            draw: Draw {
+                method: Method::SphereFixed,
+                iterations,
+                ..base.draw
+            },
             ..base
         })
     };
@@ -143,28 +155,27 @@ fn bad_scenes_are_refused() {
     let Some((ctx, _, renderer, base)) = setup(14, DistanceTexture::R32Load, [8, 8]) else {
         return;
     };
+    let (v, d) = (base.view, base.draw);
+    let with_view = |view: View| PlaneScene { view, draw: d };
     for bad in [
-        PlaneScene {
-            size: [0, 8],
-            ..base
-        },
-        PlaneScene {
+        with_view(View { size: [0, 8], ..v }),
+        with_view(View {
             size: [100_000, 8],
+            ..v
+        }),
+        PlaneScene {
+            draw: Draw { depth: 0.0, ..d },
             ..base
         },
-        PlaneScene { depth: 0.0, ..base },
-        PlaneScene {
-            eye: base.target,
-            ..base
-        },
-        PlaneScene {
+        with_view(View { eye: v.target, ..v }),
+        with_view(View {
             fov_y_degrees: 180.0,
-            ..base
-        },
-        PlaneScene {
+            ..v
+        }),
+        with_view(View {
             light: glam::Vec3::NAN,
-            ..base
-        },
+            ..v
+        }),
     ] {
         assert!(renderer.render(ctx, &bad).is_err(), "{bad:?}");
     }

@@ -1,10 +1,10 @@
 //! The bind groups of one draw: a [`Renderer`]'s resources and a
-//! [`PlaneScene`]'s per-draw uniforms, in group order. Made per draw because
-//! the uniforms change with every camera, light and face.
+//! [`Draw`]'s uniforms under the frame's [`View`], in group order. Made per
+//! draw because the uniforms change with every camera, light and face.
 
 use super::pipelines::{Geometry, Kind, MapShading, Renderer};
 use super::uniforms::{plain_frame, FrameUniform};
-use super::PlaneScene;
+use super::{Draw, View};
 use crate::descriptors::{bind_group, uniform_buffer};
 use crate::gpu_map::MapParams;
 use crate::{Error, GpuContext, Result};
@@ -12,17 +12,20 @@ use displace_core::TraceOptions;
 use glam::Vec2;
 
 impl Renderer {
-    /// The bind groups of one draw of this renderer with `scene`'s camera
-    /// and light, in group order.
+    /// The bind groups of `draw` by this renderer with `view`'s camera and
+    /// light, in group order.
     pub(super) fn uniforms(
         &self,
         ctx: &GpuContext,
-        scene: &PlaneScene,
+        view: &View,
+        draw: &Draw,
     ) -> Result<Vec<wgpu::BindGroup>> {
-        scene.check()?;
+        view.check()?;
         match &self.kind {
-            Kind::Displaced { shading, geometry } => shading.uniforms(ctx, geometry, scene),
-            Kind::Plain { frame_layout, .. } => Ok(vec![plain_uniforms(ctx, frame_layout, scene)]),
+            Kind::Displaced { shading, geometry } => shading.uniforms(ctx, geometry, view, draw),
+            Kind::Plain { frame_layout, .. } => {
+                Ok(vec![plain_uniforms(ctx, frame_layout, view, draw)])
+            }
         }
     }
 }
@@ -32,27 +35,33 @@ impl MapShading {
         &self,
         ctx: &GpuContext,
         geometry: &Geometry,
-        scene: &PlaneScene,
+        view: &View,
+        draw: &Draw,
     ) -> Result<Vec<wgpu::BindGroup>> {
-        scene.check_depth()?;
+        draw.check_depth()?;
         let (tiles, uv_shift) = match geometry {
             Geometry::ShellBox { mirrored } => {
-                scene.check_face()?;
-                if scene.mirrored != *mirrored {
+                let Some(face) = draw.face() else {
                     return Err(Error::InvalidOption(
-                        "the face's handedness differs from the renderer's (PlaneScene::mirrored)"
+                        "a face renderer draws a face, not a mesh's bounds (DrawShape::Face)"
                             .into(),
                     ));
+                };
+                face.check()?;
+                if face.mirrored != *mirrored {
+                    return Err(Error::InvalidOption(
+                        "the face's handedness differs from the renderer's (Face::mirrored)".into(),
+                    ));
                 }
-                (scene.tiles, Vec2::ZERO)
+                (face.tiles, Vec2::ZERO)
             }
             Geometry::Mesh {
                 tiles, uv_shift, ..
             } => (*tiles, *uv_shift),
         };
         let opts = TraceOptions {
-            method: scene.method,
-            iterations: scene.iterations,
+            method: draw.method,
+            iterations: draw.iterations,
             // The fragment's start point is interpolated: let the clip find
             // the shell's face a hair behind it.
             t_min: -1e-3,
@@ -60,7 +69,7 @@ impl MapShading {
             ..TraceOptions::default()
         };
         let params: MapParams = self.map.params(&opts)?;
-        let frame = FrameUniform::new(scene, uv_shift);
+        let frame = FrameUniform::new(view, draw, uv_shift);
         let params_buf = uniform_buffer(ctx, "raster params", &params);
         let frame_buf = uniform_buffer(ctx, "frame", &frame);
         let map_group = self.map.bind_group(ctx, &params_buf);
@@ -79,12 +88,13 @@ impl MapShading {
     }
 }
 
-/// Group 0 of a plain draw: `scene`'s camera and light.
+/// Group 0 of a plain draw: `view`'s camera and light.
 fn plain_uniforms(
     ctx: &GpuContext,
     layout: &wgpu::BindGroupLayout,
-    scene: &PlaneScene,
+    view: &View,
+    draw: &Draw,
 ) -> wgpu::BindGroup {
-    let buffer = uniform_buffer(ctx, "plain frame", &plain_frame(scene));
+    let buffer = uniform_buffer(ctx, "plain frame", &plain_frame(view, draw));
     bind_group(ctx, "plain frame", layout, &[buffer.as_entire_binding()])
 }

@@ -6,8 +6,9 @@
 //! buffer, rendered offscreen, with a UV AOV (uv, hit kind, t) beside the
 //! colour so renders can be checked against the CPU trace pixel by pixel.
 //!
-//! One job a module: what a draw shows (`scene`) and the camera and light
-//! a frame's draws share (`camera`), its uniforms as the WGSL lays them
+//! One job a module: what a draw shows (`scene`: a face or a mesh's
+//! bounds, its trace and shading) and the camera and light a frame's draws
+//! share (`camera`), its uniforms as the WGSL lays them
 //! out (`uniforms`), the pipelines and their per-map resources
 //! (`pipelines`), a draw's bind groups (`bindings`), the passes
 //! (`passes`), the render targets and their readback (`targets`), the
@@ -27,7 +28,7 @@ mod vertex;
 pub use camera::View;
 pub use passes::{encode_faces, render_faces, shared_depth_range};
 pub use pipelines::Renderer;
-pub use scene::{PlaneScene, Shadows, MAX_IMAGE_EDGE};
+pub use scene::{Draw, DrawShape, Face, PlaneScene, Shadows, MAX_IMAGE_EDGE};
 pub(crate) use targets::copy_to_readback;
 pub use targets::{Image, Targets, COLOR_FORMAT};
 pub use textures::checker_mips;

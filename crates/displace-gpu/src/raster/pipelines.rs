@@ -22,7 +22,7 @@ use glam::Vec2;
 
 /// What a renderer draws.
 pub(super) enum Geometry {
-    /// The planar face's shell box, placed by the [`super::PlaneScene`].
+    /// The planar face's shell box, placed by its draw's [`super::Face`].
     ShellBox { mirrored: bool },
     /// A mesh's shell, in world space ([`ShellMesh`]).
     Mesh {
@@ -114,7 +114,7 @@ impl Renderer {
     /// A renderer whose surface colour is the constant linear `albedo`
     /// (a scene material's colour; each channel clamped to `[0, 1]`, stored
     /// as 8-bit sRGB like the checkerboard), for faces of the handedness
-    /// `mirrored` ([`super::PlaneScene::mirrored`]: the shell box's winding
+    /// `mirrored` ([`super::Face::mirrored`]: the shell box's winding
     /// flips with it, so back-face culling must too).
     pub fn with_albedo(
         ctx: &GpuContext,
@@ -129,11 +129,11 @@ impl Renderer {
 
     /// A renderer of a scene's plain triangles (`shaders/plain.wgsl`),
     /// drawn two-sided into the same targets and depth buffer as the
-    /// displaced faces. Its [`super::PlaneScene`] gives the camera and light
-    /// only: `light_intensity` scales the vertices' `diffuse` and
-    /// `specular`, and `depth`, the face vectors and the trace settings are
-    /// not used (set [`super::PlaneScene::bounds`] to the mesh's so
-    /// [`super::shared_depth_range`] holds it).
+    /// displaced faces. The frame's [`super::View`] gives the camera and
+    /// light (its `light_intensity` scales the vertices' `diffuse` and
+    /// `specular`); of its [`super::Draw`] only the `ambient` term and the
+    /// shape are read, the shape a [`super::DrawShape::Mesh`] of the mesh's
+    /// bounds so [`super::shared_depth_range`] holds it.
     pub fn plain(ctx: &GpuContext, mesh: &PlainMesh) -> Result<Self> {
         mesh.check()?;
         let (pipeline, frame_layout) = ctx.checked("building the plain pipeline", || {

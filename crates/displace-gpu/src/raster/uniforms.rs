@@ -1,9 +1,10 @@
 //! The per-draw uniforms of the raster path, laid out as the WGSL reads
-//! them: one [`PlaneScene`] becomes the `Frame` of `shaders/raster.wgsl`
-//! (listing 8-1's and 8-2's inputs: the matrices, the eye and light, the
-//! face's tangent frame) or the [`PlainFrame`] of `shaders/plain.wgsl`.
+//! them: a [`View`] and one [`Draw`] become the `Frame` of
+//! `shaders/raster.wgsl` and `shaders/mesh.wgsl` (listing 8-1's and 8-2's
+//! inputs: the matrices, the eye and light, the face's tangent frame) or
+//! the [`PlainFrame`] of `shaders/plain.wgsl`.
 
-use super::PlaneScene;
+use super::{Draw, View};
 use crate::plain::PlainFrame;
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
@@ -40,40 +41,46 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
 }
 
 impl FrameUniform {
-    /// `scene`'s frame for a displaced draw whose texture coordinates are
-    /// shifted by `uv_shift` (a mesh's; zero for a face).
-    pub(super) fn new(scene: &PlaneScene, uv_shift: Vec2) -> Self {
+    /// The frame of `draw` under `view` for a displaced draw whose texture
+    /// coordinates are shifted by `uv_shift` (a mesh's; zero for a face).
+    /// A mesh draw has no face frame: `mesh.wgsl` does not read it, and it
+    /// is left zero.
+    pub(super) fn new(view: &View, draw: &Draw, uv_shift: Vec2) -> Self {
+        let (origin, t, b, n) = match draw.face() {
+            Some(f) => (f.origin, f.tangent, f.bitangent, f.normal()),
+            None => (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO),
+        };
         Self {
-            view_proj: scene.view_proj().to_cols_array_2d(),
-            eye: v4(scene.eye, 1.0),
-            light: v4(scene.light, 1.0),
-            face_origin: v4(scene.origin, 1.0),
-            face_t: v4(scene.tangent, 0.0),
-            face_b: v4(scene.bitangent, 0.0),
-            face_n: v4(scene.normal(), 0.0),
-            inv_bump_depth: 1.0 / scene.depth,
-            shadows: crate::convention::shadows_code(scene.shadows),
-            penumbra_k: scene.penumbra_k,
-            ambient: scene.ambient,
-            specular: scene.specular,
-            shininess: scene.shininess,
-            light_intensity: scene.light_intensity,
-            falloff: scene.falloff as u32,
+            view_proj: view.view_proj(draw.reach()).to_cols_array_2d(),
+            eye: v4(view.eye, 1.0),
+            light: v4(view.light, 1.0),
+            face_origin: v4(origin, 1.0),
+            face_t: v4(t, 0.0),
+            face_b: v4(b, 0.0),
+            face_n: v4(n, 0.0),
+            inv_bump_depth: 1.0 / draw.depth,
+            shadows: crate::convention::shadows_code(draw.shadows),
+            penumbra_k: draw.penumbra_k,
+            ambient: draw.ambient,
+            specular: draw.specular,
+            shininess: draw.shininess,
+            light_intensity: view.light_intensity * draw.albedo_scale,
+            falloff: view.falloff as u32,
             uv_shift: uv_shift.to_array(),
             _pad: [0.0; 2],
         }
     }
 }
 
-/// `scene`'s camera and light for a plain draw.
-pub(super) fn plain_frame(scene: &PlaneScene) -> PlainFrame {
+/// The camera and light of `view` for the plain draw `draw`.
+pub(super) fn plain_frame(view: &View, draw: &Draw) -> PlainFrame {
     PlainFrame {
-        view_proj: scene.view_proj().to_cols_array_2d(),
-        eye: v4(scene.eye, 1.0),
-        light: v4(scene.light, 1.0),
-        ambient: scene.ambient,
-        light_intensity: scene.light_intensity,
-        falloff: scene.falloff as u32,
+        view_proj: view.view_proj(draw.reach()).to_cols_array_2d(),
+        eye: v4(view.eye, 1.0),
+        light: v4(view.light, 1.0),
+        ambient: draw.ambient,
+        light_intensity: view.light_intensity * draw.albedo_scale,
+        falloff: view.falloff as u32,
         _pad: 0.0,
     }
 }

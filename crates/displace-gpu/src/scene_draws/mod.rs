@@ -28,7 +28,8 @@ mod stage;
 use crate::convention::check_iterations;
 use crate::raster::{render_faces, shared_depth_range};
 use crate::{
-    DistanceTexture, Error, GpuContext, Image, PlainMesh, PlaneScene, Renderer, Result, Shadows,
+    DistanceTexture, Draw, DrawShape, Error, Face, GpuContext, Image, PlainMesh, Renderer, Result,
+    Shadows, View,
 };
 use displace_core::{Method, TraceOptions};
 use displace_render::displaced::DisplacedFace;
@@ -42,11 +43,13 @@ use stage::Stage;
 use std::collections::HashSet;
 
 /// The drawable faces and meshes of a scene, each with its renderer and its
-/// [`PlaneScene`] (sharing one camera and depth range), and what was left
-/// out.
+/// [`Draw`], the one [`View`] they are drawn under (its depth range holding
+/// them all), and what was left out.
 pub struct SceneDraws {
+    /// The scene's camera and strongest light.
+    pub view: View,
     /// The displaced draws, then one draw of every plain triangle.
-    pub faces: Vec<(Renderer, PlaneScene)>,
+    pub draws: Vec<(Renderer, Draw)>,
     /// Plain triangles in the last draw (none: no plain draw).
     pub plain_triangles: usize,
     /// What of the scene is not drawn, sorted, each once.
@@ -58,13 +61,13 @@ pub struct SceneDraws {
 impl SceneDraws {
     /// Displaced faces and meshes drawn (every draw but the plain one).
     pub fn displaced(&self) -> usize {
-        self.faces.len() - usize::from(self.plain_triangles > 0)
+        self.draws.len() - usize::from(self.plain_triangles > 0)
     }
 
     /// One frame of every draw, in the scene's background colour.
     pub fn render(&self, ctx: &GpuContext) -> Result<Image> {
-        let draws: Vec<(&Renderer, &PlaneScene)> = self.faces.iter().map(|(r, p)| (r, p)).collect();
-        render_faces(ctx, &draws, self.background)
+        let draws: Vec<(&Renderer, &Draw)> = self.draws.iter().map(|(r, d)| (r, d)).collect();
+        render_faces(ctx, &self.view, &draws, self.background)
     }
 }
 
@@ -83,7 +86,7 @@ pub fn from_scene(
         ctx,
         texture,
         stage,
-        faces: Vec::new(),
+        draws: Vec::new(),
         plain: PlainMesh::default(),
         left_out,
     };
@@ -111,7 +114,7 @@ struct Draws<'a> {
     ctx: &'a GpuContext,
     texture: DistanceTexture,
     stage: Stage,
-    faces: Vec<(Renderer, PlaneScene)>,
+    draws: Vec<(Renderer, Draw)>,
     plain: PlainMesh,
     left_out: Vec<String>,
 }
@@ -151,16 +154,18 @@ impl Draws<'_> {
         let mirrored = tangent.cross(bitangent).dot(up_n) < 0.0;
         let shading = material_shading(material, self.stage.intensity);
         shading.note(&mut self.left_out);
-        let plane = PlaneScene {
+        let shape = DrawShape::Face(Face {
             origin,
             tangent,
             bitangent,
+            tiles: trace.tiles,
+            mirrored,
+        });
+        let draw = Draw {
             depth: up_n.length(),
             method: trace.method,
             iterations: trace.iterations,
-            tiles: trace.tiles,
-            mirrored,
-            ..self.stage.plane(&shading)
+            ..self.stage.draw(shape, &shading)
         };
         let renderer = Renderer::with_albedo(
             self.ctx,
@@ -170,7 +175,7 @@ impl Draws<'_> {
             mirrored,
         )
         .map_err(step(format!("uploading displaced face {k}")))?;
-        self.faces.push((renderer, plane));
+        self.draws.push((renderer, draw));
         Ok(())
     }
 
@@ -206,12 +211,14 @@ impl Draws<'_> {
         shading.note(&mut self.left_out);
         let shell = shapes::shell_of(mesh, disp.map.address())
             .map_err(step(format!("preparing the shell of mesh {k}")))?;
-        let plane = PlaneScene {
+        let shape = DrawShape::Mesh {
+            bounds: shapes::bounds(mesh),
+        };
+        let draw = Draw {
             depth: disp.depth,
             method: disp.trace.method,
             iterations: disp.trace.iterations,
-            bounds: Some(shapes::bounds(mesh)),
-            ..self.stage.plane(&shading)
+            ..self.stage.draw(shape, &shading)
         };
         let renderer = Renderer::for_mesh(
             self.ctx,
@@ -221,7 +228,7 @@ impl Draws<'_> {
             &shell,
         )
         .map_err(step(format!("uploading displaced mesh {k}")))?;
-        self.faces.push((renderer, plane));
+        self.draws.push((renderer, draw));
         Ok(())
     }
 
@@ -234,32 +241,30 @@ impl Draws<'_> {
                 .push("shadows on non-displaced shapes".to_string());
             let renderer = Renderer::plain(self.ctx, &self.plain)
                 .map_err(step("uploading the non-displaced shapes".into()))?;
-            let plane = PlaneScene {
+            let draw = Draw {
                 depth: 0.0,
-                bounds: Some(bounds),
-                ..self.stage.plane(&Shading::UNIT)
+                ..self.stage.draw(DrawShape::Mesh { bounds }, &Shading::UNIT)
             };
-            self.faces.push((renderer, plane));
+            self.draws.push((renderer, draw));
         }
         let mut left_out = self.left_out;
         left_out.sort();
         left_out.dedup();
-        if self.faces.is_empty() {
+        if self.draws.is_empty() {
             return Err(Error::Scene(format!(
                 "the scene has nothing gpu-render can draw (left out: {left_out:?})"
             )));
         }
-        let planes: Vec<PlaneScene> = self.faces.iter().map(|(_, p)| *p).collect();
-        let Some(range) = shared_depth_range(&planes) else {
+        let mut view = self.stage.view();
+        let Some(range) = shared_depth_range(&view, self.draws.iter().map(|(_, d)| d)) else {
             return Err(Error::Scene(
                 "every displaced face is behind the camera".into(),
             ));
         };
-        for (_, p) in &mut self.faces {
-            p.depth_range = Some(range);
-        }
+        view.depth_range = Some(range);
         Ok(SceneDraws {
-            faces: self.faces,
+            view,
+            draws: self.draws,
             plain_triangles: self.plain.vertices.len() / 3,
             left_out,
             background,

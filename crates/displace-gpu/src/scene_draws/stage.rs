@@ -2,7 +2,7 @@
 //! pinhole camera as the raster path's view, and the scene's strongest light
 //! as its point light.
 
-use crate::{Error, PlaneScene, Result, Shadows};
+use crate::{Draw, DrawShape, Error, Result, Shadows, View};
 use displace_core::Method;
 use displace_render::light::Light;
 use displace_render::Scene;
@@ -57,34 +57,40 @@ impl Stage {
         })
     }
 
-    /// A [`PlaneScene`] with this stage and `shading`; its face is a unit
-    /// square at the origin until the caller places it (a mesh renderer
-    /// takes its faces from the mesh).
-    pub(super) fn plane(&self, shading: &Shading) -> PlaneScene {
-        PlaneScene {
+    /// The frame's view: this stage's camera and light, which every draw
+    /// shares, lit with the inverse-square falloff the CPU renderer's point
+    /// lights have; its depth range is set once every draw is known.
+    pub(super) fn view(&self) -> View {
+        View {
             size: self.size,
             eye: self.eye,
             target: self.eye + self.forward,
             up: self.up,
             fov_y_degrees: self.fov_y_degrees,
+            depth_range: None,
             light: self.light,
-            light_intensity: shading.strength,
-            origin: Vec3::ZERO,
-            tangent: Vec3::X,
-            bitangent: Vec3::Y,
+            // Each material's shading is split against `intensity` into
+            // its draw's albedo and `albedo_scale`: the light itself is of
+            // unit strength.
+            light_intensity: 1.0,
+            falloff: true,
+        }
+    }
+
+    /// A draw of `shape` with this stage's shadows and `shading`'s terms;
+    /// the caller sets its depth and trace.
+    pub(super) fn draw(&self, shape: DrawShape, shading: &Shading) -> Draw {
+        Draw {
+            shape,
             depth: 1.0,
             method: Method::Sphere,
             iterations: 64,
             shadows: self.shadows,
             penumbra_k: 8.0,
             ambient: 0.0,
+            albedo_scale: shading.strength,
             specular: shading.specular,
             shininess: shading.shininess,
-            falloff: true,
-            depth_range: None,
-            tiles: [1.0, 1.0],
-            mirrored: false,
-            bounds: None,
         }
     }
 }

@@ -15,18 +15,20 @@ pub mod overlay;
 pub mod window;
 
 use crate::raster::shared_depth_range;
-use crate::{Error, PlaneScene, Renderer, Result, Shadows};
+use crate::{Draw, Error, Renderer, Result, Shadows, View};
 use controls::{Action, MAX_ITERATIONS};
 use displace_core::Method;
 use glam::Vec3;
 use orbit::{turn, Orbit};
 
-/// What the viewer draws: each face with its renderer and its plane as the
-/// scene file gives it (all sharing one camera and light), and the linear
+/// What the viewer draws: the scene's camera and light, each face with its
+/// renderer and its draw as the scene file gives it, and the linear
 /// background colour.
 pub struct ViewScene {
-    /// Each displaced face: its compiled renderer and its plane.
-    pub faces: Vec<(Renderer, PlaneScene)>,
+    /// The scene's camera and light, where the orbit starts.
+    pub view: View,
+    /// Each face: its compiled renderer and its draw.
+    pub draws: Vec<(Renderer, Draw)>,
     /// Linear RGB clear colour.
     pub background: [f64; 3],
 }
@@ -59,27 +61,24 @@ pub struct ViewState {
 }
 
 impl ViewState {
-    /// The view the scene's first face describes: its camera, its light and
-    /// its trace settings; the orbit target is the point on the view axis
-    /// nearest the centre of all shell boxes.
-    pub fn new(faces: &[PlaneScene]) -> Result<Self> {
+    /// The view the scene describes: its camera and light, and the trace
+    /// settings of its first face; the orbit target is the point on the
+    /// view axis nearest the centre of all shell boxes.
+    pub fn new(view: &View, faces: &[Draw]) -> Result<Self> {
         let Some(first) = faces.first() else {
             return Err(Error::InvalidOption("the view has no faces".into()));
         };
-        let centre = faces
-            .iter()
-            .flat_map(PlaneScene::shell_corners)
-            .sum::<Vec3>()
-            / (8 * faces.len()) as f32;
-        let forward = (first.target - first.eye).normalize();
-        let along = (centre - first.eye).dot(forward);
+        let centre =
+            faces.iter().flat_map(Draw::shell_corners).sum::<Vec3>() / (8 * faces.len()) as f32;
+        let forward = view.forward();
+        let along = (centre - view.eye).dot(forward);
         let reach = if along > 0.0 {
             along
         } else {
-            (centre - first.eye).length().max(1e-6)
+            (centre - view.eye).length().max(1e-6)
         };
-        let target = first.eye + forward * reach;
-        let orbit = Orbit::new(first.eye, target, first.up);
+        let target = view.eye + forward * reach;
+        let orbit = Orbit::new(view.eye, target, view.up);
         let settings = Settings {
             depth_scale: 1.0,
             iterations: first.iterations,
@@ -87,7 +86,7 @@ impl ViewState {
             shadows: first.shadows,
             hud: true,
         };
-        let light_offset = first.light - target;
+        let light_offset = view.light - target;
         Ok(Self {
             orbit,
             light_offset,
@@ -152,19 +151,14 @@ impl ViewState {
         false
     }
 
-    /// The faces as this view draws them at `size` pixels: the orbit's
-    /// camera, the turned light, the live depth and trace settings, and one
-    /// depth range for all.
-    pub fn planes(&self, faces: &[PlaneScene], size: [u32; 2]) -> Vec<PlaneScene> {
+    /// The scene's `view` and `faces` as this view draws them at `size`
+    /// pixels: the orbit's camera, the turned light and one depth range for
+    /// all, and each face at the live depth and trace settings.
+    pub fn frame(&self, view: &View, faces: &[Draw], size: [u32; 2]) -> (View, Vec<Draw>) {
         let s = &self.settings;
-        let mut planes: Vec<PlaneScene> = faces
+        let draws: Vec<Draw> = faces
             .iter()
-            .map(|f| PlaneScene {
-                size,
-                eye: self.orbit.eye(),
-                target: self.orbit.target,
-                up: self.orbit.up(),
-                light: self.light(),
+            .map(|f| Draw {
                 depth: f.depth * s.depth_scale,
                 method: s.method,
                 iterations: s.iterations,
@@ -172,13 +166,18 @@ impl ViewState {
                 ..*f
             })
             .collect();
+        let mut view = View {
+            size,
+            eye: self.orbit.eye(),
+            target: self.orbit.target,
+            up: self.orbit.up(),
+            light: self.light(),
+            ..*view
+        };
         // With every face behind the camera nothing is drawn, and any valid
         // range will do.
-        let range = shared_depth_range(&planes).unwrap_or([1e-3, 1.0]);
-        for p in &mut planes {
-            p.depth_range = Some(range);
-        }
-        planes
+        view.depth_range = Some(shared_depth_range(&view, &draws).unwrap_or([1e-3, 1.0]));
+        (view, draws)
     }
 
     /// The settings in a few short lines, with the frame time.
@@ -221,6 +220,7 @@ fn clamp_depth(wanted: f32, current: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::PlaneScene;
     use displace_core::{bake, Address, BakeOptions, Extent, HeightMap};
 
     fn plane() -> PlaneScene {
@@ -235,23 +235,23 @@ mod tests {
 
     #[test]
     fn the_untouched_view_is_the_scene() {
-        let f = plane();
-        let v = ViewState::new(&[f]).unwrap();
-        let p = v.planes(&[f], f.size);
-        assert_eq!(p[0].eye, f.eye);
-        assert_eq!(p[0].light, f.light);
+        let PlaneScene { view: fv, draw: f } = plane();
+        let v = ViewState::new(&fv, &[f]).unwrap();
+        let (pv, p) = v.frame(&fv, &[f], fv.size);
+        assert_eq!(pv.eye, fv.eye);
+        assert_eq!(pv.light, fv.light);
         assert_eq!(p[0].depth, f.depth);
         // The view direction is the scene's (the target may sit elsewhere
         // on the axis).
         let d = |a: Vec3, b: Vec3| (a - b).normalize();
-        assert!((d(p[0].target, p[0].eye) - d(f.target, f.eye)).length() < 1e-6);
-        assert_eq!(p[0].depth_range, shared_depth_range(&[f]));
+        assert!((d(pv.target, pv.eye) - d(fv.target, fv.eye)).length() < 1e-6);
+        assert_eq!(pv.depth_range, shared_depth_range(&fv, &[f]));
     }
 
     #[test]
     fn controls_change_the_planes_and_reset_restores_them() {
-        let f = plane();
-        let mut v = ViewState::new(&[f]).unwrap();
+        let PlaneScene { view: fv, draw: f } = plane();
+        let mut v = ViewState::new(&fv, &[f]).unwrap();
         let start = v.clone();
         v.apply(Action::Depth(0.5));
         v.apply(Action::IterationsStep(false));
@@ -265,16 +265,17 @@ mod tests {
             yaw: 10.0,
             raise: 0.0,
         });
-        let p = v.planes(&[f], f.size)[0];
+        let (pv, p) = v.frame(&fv, &[f], fv.size);
+        let p = p[0];
         assert_eq!(p.depth, f.depth * 0.5);
         assert_eq!(p.iterations, f.iterations / 2);
         assert_eq!(p.method, Method::SphereFixed);
         assert_eq!(p.shadows, Shadows::Soft);
         // The light keeps its distance to the target.
         let t = v.orbit.target;
-        assert!(((p.light - t).length() - (f.light - t).length()).abs() < 1e-4);
-        assert!((p.light - f.light).length() > 1e-2);
-        assert!((p.eye - f.eye).length() > 1e-2);
+        assert!(((pv.light - t).length() - (fv.light - t).length()).abs() < 1e-4);
+        assert!((pv.light - fv.light).length() > 1e-2);
+        assert!((pv.eye - fv.eye).length() > 1e-2);
         v.apply(Action::Depth(-1.0));
         assert_eq!(v.settings.depth_scale, 0.5);
         v.apply(Action::Reset);

@@ -14,7 +14,7 @@ use super::overlay::{Output, Presenter};
 use super::{ViewScene, ViewState};
 use crate::descriptors::texture_2d_descriptor;
 use crate::raster::{copy_to_readback, encode_faces, Targets, COLOR_FORMAT};
-use crate::{Error, GpuContext, PlaneScene, Renderer};
+use crate::{Draw, Error, GpuContext, Renderer};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use winit::application::ApplicationHandler;
@@ -100,7 +100,7 @@ struct Running {
     config: wgpu::SurfaceConfiguration,
     ctx: GpuContext,
     scene: ViewScene,
-    base: Vec<PlaneScene>,
+    base: Vec<Draw>,
     state: ViewState,
     presenter: Presenter,
     targets: Option<Targets>,
@@ -249,8 +249,8 @@ impl<E: From<Error>, F: FnOnce(&GpuContext) -> Result<ViewScene, E>> App<E, F> {
             surface.configure(&ctx.device, &config)
         })?;
         let scene = make(&ctx)?;
-        let base: Vec<PlaneScene> = scene.faces.iter().map(|(_, p)| *p).collect();
-        let state = ViewState::new(&base)?;
+        let base: Vec<Draw> = scene.draws.iter().map(|(_, d)| *d).collect();
+        let state = ViewState::new(&scene.view, &base)?;
         let presenter = Presenter::new(&ctx)?;
         Ok(Running {
             title: self.opts.title.clone(),
@@ -347,10 +347,10 @@ impl Running {
             self.targets = Some(Targets::new(&self.ctx, [w, h]));
         }
         let targets = self.targets.as_ref().expect("made above");
-        let planes = self.state.planes(&self.base, [w, h]);
-        let draws: Vec<(&Renderer, &PlaneScene)> = self
+        let (view, planes) = self.state.frame(&self.scene.view, &self.base, [w, h]);
+        let draws: Vec<(&Renderer, &Draw)> = self
             .scene
-            .faces
+            .draws
             .iter()
             .map(|(r, _)| r)
             .zip(&planes)
@@ -360,6 +360,7 @@ impl Running {
             &self.ctx,
             &mut encoder,
             targets,
+            &view,
             &draws,
             self.scene.background,
         )?;
