@@ -16,6 +16,14 @@
 //! with `(u, v)` the texture coordinate written as `vt`. A quad with
 //! `origin = [0,0,0]`, `edge_u = [SX,0,0]`, `edge_v = [0,SY,0]` and
 //! `depth = SZ` in a scene file is the same surface.
+//!
+//! **A scene's displaced meshes** (`--scene`): each displaced mesh of the
+//! scene (built-in or OBJ, placed in the world as the scene places it) as
+//! its displaced surface `P + depth h(uv) N` tessellated finely
+//! ([`displace_render::displaced_surface`]), one OBJ object (or all in one
+//! PLY) per mesh: the surface pbrt-v4 or Cycles draw when they subdivide
+//! the mesh and move its vertices along the interpolated normals, and the
+//! ground truth of curved displaced meshes.
 
 use crate::bake::{check_output_dir, load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
@@ -41,24 +49,35 @@ const DEFAULT_HEIGHT_SIZE: [usize; 2] = [256, 256];
 )]
 pub struct ExportMeshArgs {
     /// Height map: gen:NAME[?...], a PNG or an EXR file
-    #[arg(value_name = "HEIGHT")]
-    pub height: String,
+    #[arg(value_name = "HEIGHT", required_unless_present = "scene")]
+    pub height: Option<String>,
     #[command(flatten)]
     pub height_args: HeightArgs,
     /// Physical width, height and displacement depth of the face
-    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true)]
-    pub extent: Extent,
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true,
+          required_unless_present = "scene")]
+    pub extent: Option<Extent>,
     /// Vertices per height texel along each axis (1: the height map's own
     /// resolution; 4: sixteen times the triangles, sampled bilinearly)
     #[arg(long, default_value_t = 1)]
     pub scale: u32,
+    /// Instead of one height field: every displaced mesh of this scene
+    /// file, its displaced surface tessellated (vertices moved along the
+    /// interpolated normals)
+    #[arg(long, value_name = "SCENE.toml", conflicts_with_all = ["height", "extent"])]
+    pub scene: Option<PathBuf>,
+    /// With --scene: the longest sub-edge, in height texels (a quarter
+    /// texel samples the bilinear surface finely enough to be its ground
+    /// truth) [default: 0.25]
+    #[arg(long, value_name = "TEXELS")]
+    pub edge_texels: Option<f32>,
     /// Output mesh: .obj (text) or .ply (binary little-endian)
     #[arg(short, long, value_name = "MESH")]
     pub output: PathBuf,
 }
 
 #[derive(Clone, Copy, PartialEq, Debug)]
-enum MeshFile {
+pub(crate) enum MeshFile {
     Obj,
     Ply,
 }
@@ -120,9 +139,10 @@ impl Grid<'_> {
     }
 }
 
-pub fn run(args: ExportMeshArgs) -> Result<()> {
-    let kind = match args
-        .output
+/// The mesh file `output` names, refused before any work when it is
+/// neither, or its directory is missing.
+fn mesh_file(output: &std::path::Path) -> Result<MeshFile> {
+    let kind = match output
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
@@ -130,17 +150,34 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     {
         Some("obj") => MeshFile::Obj,
         Some("ply") => MeshFile::Ply,
-        _ => bail!(
-            "output {}: write a .obj or a .ply mesh",
-            args.output.display()
-        ),
+        _ => bail!("output {}: write a .obj or a .ply mesh", output.display()),
     };
-    check_output_dir(&args.output)?;
+    check_output_dir(output)?;
+    Ok(kind)
+}
+
+pub fn run(args: ExportMeshArgs) -> Result<()> {
+    let kind = mesh_file(&args.output)?;
+    if let Some(scene) = &args.scene {
+        if args.scale != 1 {
+            bail!("--scale sets the height-field grid; with --scene the sub-edges are set by --edge-texels");
+        }
+        let edge = args
+            .edge_texels
+            .unwrap_or(displace_render::displaced_surface::REFERENCE_EDGE_TEXELS);
+        return crate::export_surface::run(scene, edge, kind, &args.output);
+    }
+    if args.edge_texels.is_some() {
+        bail!("--edge-texels sets the sub-edges of a --scene's meshes; a height field's grid is set by --scale");
+    }
+    let (Some(source), Some(extent)) = (args.height.clone(), args.extent) else {
+        bail!("give a HEIGHT map and its --extent, or a --scene");
+    };
     if args.scale == 0 {
         bail!("--scale must be at least 1");
     }
-    check_memory(&args)?;
-    let height = load_height(&args.height, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
+    check_memory(&source, &args.height_args)?;
+    let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let scale = args.scale as u64;
     let count = (height.width() as u64 * scale + 2) * (height.height() as u64 * scale + 2);
     if count > MAX_VERTICES {
@@ -151,13 +188,13 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
             args.scale
         );
     }
-    let normals = NormalMap::from_height(&height, args.extent);
+    let normals = NormalMap::from_height(&height, extent);
     let grid = Grid {
         us: axis(height.width(), args.scale as usize),
         vs: axis(height.height(), args.scale as usize),
         height: &height,
         normals: &normals,
-        extent: args.extent,
+        extent,
     };
     let write = |w: &mut dyn Write| match kind {
         MeshFile::Obj => write_obj(w, &grid),
@@ -167,7 +204,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         .with_context(|| format!("writing {}", args.output.display()))?;
     println!(
         "{} ({}x{} texels) at scale {}: {} vertices, {} triangles -> {}",
-        args.height,
+        source,
         height.width(),
         height.height(),
         args.scale,
@@ -186,8 +223,7 @@ const BYTES_PER_TEXEL: u128 = 4 + 12;
 /// Refuses a height map whose heights and normals would not fit in memory
 /// ([`displace_core::memory`]), from the file's header alone, before
 /// anything is decoded.
-fn check_memory(args: &ExportMeshArgs) -> Result<()> {
-    let a = &args.height_args;
+fn check_memory(source: &str, a: &HeightArgs) -> Result<()> {
     let size = match &a.height_size {
         Some(s) => displace_core::convention::parse_size::<2>(s)
             .with_context(|| format!("--height-size {s}"))?,
@@ -198,8 +234,8 @@ fn check_memory(args: &ExportMeshArgs) -> Result<()> {
         size,
         address: a.address,
     };
-    let [w, h] = displace_core::io::height::dimensions(&args.height, &opts)
-        .with_context(|| format!("loading height map `{}`", args.height))?;
+    let [w, h] = displace_core::io::height::dimensions(source, &opts)
+        .with_context(|| format!("loading height map `{source}`"))?;
     displace_core::memory::check(
         &format!("export-mesh of a {w}x{h} height map"),
         w as u128 * h as u128 * BYTES_PER_TEXEL,

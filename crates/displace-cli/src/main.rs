@@ -9,6 +9,7 @@ mod bench_render;
 mod bench_trace;
 mod compare;
 mod export_mesh;
+mod export_surface;
 mod farm_env;
 mod frames;
 mod gpu;

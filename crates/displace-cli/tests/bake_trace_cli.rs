@@ -658,3 +658,90 @@ fn export_mesh_takes_the_shared_height_options() {
     );
     refuses(d, &mesh(&["-o", "x.stl"]), &[".obj or a .ply"]);
 }
+
+/// `export-mesh --scene` writes a scene's displaced mesh as its displaced
+/// surface: the built-in sphere under a constant height `h` at depth `d`
+/// becomes points at radius `1 + d h` (up to the sag of the sphere's
+/// chords, pushed out along the interpolated normals), an OBJ object per
+/// mesh whose faces index its own vertices, and the same counts in a PLY;
+/// a scene without displaced meshes and options of the height-field mode
+/// are refused.
+#[test]
+fn export_mesh_writes_a_scenes_displaced_surfaces() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = "[image]\nwidth = 8\nheight = 8\n\n[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n\n\
+         [materials.m]\ntype = \"lambert\"\ncolor = [0.5, 0.5, 0.5]\n\n\
+         [[lights]]\ntype = \"point\"\nposition = [0, 0, -5]\nintensity = [1, 1, 1]\n\n\
+         [[shapes]]\ntype = \"mesh\"\npath = \"builtin:sphere\"\nmaterial = \"m\"\n\
+         [shapes.displacement]\nheight = \"gen:flat?level=0.5\"\nheight_size = [96, 48]\n\
+         depth = 0.2\nmap_size = [16, 16, 4]\naddress = \"repeat\"\n";
+    std::fs::write(d.join("s.toml"), scene).unwrap();
+    let o = displace(
+        &words("export-mesh --scene s.toml --edge-texels 1 -o s.obj"),
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let obj = std::fs::read_to_string(d.join("s.obj")).unwrap();
+    let count = |tag: &str| obj.lines().filter(|l| l.starts_with(tag)).count();
+    let (v, f) = (count("v "), count("f "));
+    assert_eq!(count("o "), 1);
+    assert_eq!(count("vt "), v);
+    // 48 x 24 quads, two triangles each but one at each pole, cut 3 times
+    // along each edge (the quads' diagonals span 2.8 texels): 9
+    // sub-triangles and 10 points each.
+    let triangles = 2 * 48 * 24 - 2 * 48;
+    assert_eq!((v, f), (triangles * 10, triangles * 9));
+    let sag = 1.0 - (std::f32::consts::PI / 24.0).cos();
+    for l in obj.lines().filter(|l| l.starts_with("v ")) {
+        let p: Vec<f32> = l[2..].split(' ').map(|x| x.parse().unwrap()).collect();
+        let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        assert!(r <= 1.1 + 1e-5 && r >= 1.1 - sag - 1e-5, "{l}: radius {r}");
+    }
+    for l in obj.lines().filter(|l| l.starts_with("f ")) {
+        for c in l[2..].split(' ') {
+            let i: usize = c.split('/').next().unwrap().parse().unwrap();
+            assert!((1..=v).contains(&i), "{l}");
+        }
+    }
+    let o = displace(
+        &words("export-mesh --scene s.toml --edge-texels 1 -o s.ply"),
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ply = std::fs::read(d.join("s.ply")).unwrap();
+    let header = String::from_utf8_lossy(&ply[..400]);
+    assert!(
+        header.contains(&format!("element vertex {v}\n")),
+        "{header}"
+    );
+    assert!(header.contains(&format!("element face {f}\n")), "{header}");
+
+    let plain = scene.split("[shapes.displacement]").next().unwrap();
+    std::fs::write(d.join("plain.toml"), plain).unwrap();
+    refuses(
+        d,
+        &words("export-mesh --scene plain.toml -o x.obj"),
+        &["no displaced mesh"],
+    );
+    refuses(
+        d,
+        &words("export-mesh --scene s.toml --scale 2 -o x.obj"),
+        &["--edge-texels"],
+    );
+    refuses(
+        d,
+        &words("export-mesh --scene s.toml --edge-texels 0 -o x.obj"),
+        &["positive"],
+    );
+    refuses(
+        d,
+        &words("export-mesh gen:flat --extent 1,1,0.1 --edge-texels 1 -o x.obj"),
+        &["--scene"],
+    );
+    refuses(
+        d,
+        &words("export-mesh --scene s.toml -o x.stl"),
+        &[".obj or a .ply"],
+    );
+}

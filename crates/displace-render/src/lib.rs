@@ -11,7 +11,9 @@
 //! displaced surfaces come for free.
 //!
 //! Modules, one job each (after pbrt-v4's layout): [`scene`] (TOML, checks,
-//! construction), [`camera`], [`shapes`], [`displaced`], [`bvh`],
+//! construction), [`camera`], [`shapes`], [`displaced`],
+//! [`displaced_surface`] (a displaced mesh tessellated: the curved
+//! surface's ground truth), [`bvh`],
 //! [`material`], [`light`], [`sampler`], [`integrator`] (Whitted), [`path`]
 //! (path tracing with MIS) with [`bsdf`], [`emitters`], [`environment`] and
 //! [`distribution`], [`render`](mod@render) (tiles,
@@ -34,6 +36,7 @@ pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
 pub mod displaced;
+pub mod displaced_surface;
 pub mod distribution;
 pub mod emitters;
 pub mod environment;
