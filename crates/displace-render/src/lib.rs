@@ -58,6 +58,7 @@ pub mod shapes;
 pub mod texture;
 pub mod tile_file;
 pub mod tiling;
+pub mod vertex_normals;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};

@@ -12,8 +12,9 @@ pub const MAX_TRIANGLES: usize = 1 << 26;
 pub struct MeshTriangle {
     /// Corner positions.
     pub positions: [Vec3; 3],
-    /// Vertex normals, when the file has them (the flat normal is used
-    /// otherwise).
+    /// Vertex normals, when the file has them; a scene gives a file
+    /// without them smooth ones ([`crate::vertex_normals`]), and a
+    /// degenerate triangle has none (its flat normal is used).
     pub normals: Option<[Vec3; 3]>,
     /// `(0, 0)` everywhere when the file has none.
     pub uvs: [Vec2; 3],

@@ -449,3 +449,53 @@ fn obj_meshes_load_and_displace() {
         .to_string();
     assert!(e.contains("gone.obj"), "{e}");
 }
+
+/// An OBJ without normals gets smooth ones: the built-in sphere written
+/// without its `vn` loads with normals about its radial ones (the mean of
+/// its corners within a degree of radial, where flat faces would be 2-3
+/// degrees off), under `crease_angle = 0` with its faces' own normals, and
+/// an angle outside 0 to 180 is refused by key.
+#[test]
+fn obj_without_normals_gets_smooth_ones_under_its_crease_angle() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = displace_render::builtin_mesh::generate("sphere").unwrap();
+    let mut obj = String::new();
+    for t in &sphere.triangles {
+        for p in t.positions {
+            obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+    }
+    for k in 0..sphere.triangles.len() {
+        obj += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+    }
+    std::fs::write(dir.path().join("ball.obj"), obj).unwrap();
+    let load = |crease: &str| {
+        let text = oblique_view(8)
+            .shape(&format!("type = \"mesh\"\npath = \"ball.obj\"\n{crease}"))
+            .text()
+            .to_string();
+        std::fs::write(dir.path().join("s.toml"), &text).unwrap();
+        Scene::load(&dir.path().join("s.toml"), &opts())
+    };
+    let off_radial = |scene: &Scene| {
+        let tris = &scene.meshes()[0].triangles;
+        let angles: Vec<f32> = tris
+            .iter()
+            .flat_map(|t| t.normals.expect("normals").into_iter().zip(t.positions))
+            .map(|(n, p)| n.dot(p.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
+            .collect();
+        angles.iter().sum::<f32>() / angles.len() as f32
+    };
+    let smooth = off_radial(&load("").unwrap());
+    assert!(smooth < 1.0, "{smooth}");
+    let flat = off_radial(&load("crease_angle = 0").unwrap());
+    assert!(flat > 2.0, "{flat}");
+    for bad in [
+        "crease_angle = 200",
+        "crease_angle = -1",
+        "crease_angle = nan",
+    ] {
+        let e = load(bad).err().expect(bad).to_string();
+        assert!(e.contains("crease_angle"), "{bad}: {e}");
+    }
+}

@@ -351,11 +351,20 @@ pub enum ShapeSpec {
         material: String,
         /// Its displacement, if any (the mesh needs texture coordinates).
         displacement: Option<DisplacementSpec>,
+        /// For an OBJ without normals: neighbouring faces meeting at up to
+        /// this angle (degrees) share smooth vertex normals; steeper edges
+        /// stay creases ([`crate::vertex_normals`]).
+        #[serde(default = "default_crease_angle")]
+        crease_angle: f32,
     },
 }
 
 fn unit_scale() -> f32 {
     1.0
+}
+
+fn default_crease_angle() -> f32 {
+    crate::vertex_normals::DEFAULT_CREASE_DEGREES
 }
 
 /// `displacement = { ... }` of a quad, triangle or mesh.

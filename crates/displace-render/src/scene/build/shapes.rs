@@ -94,6 +94,7 @@ pub(super) fn shape(
             scale,
             rotate_y,
             displacement,
+            crease_angle,
             ..
         } => {
             let placement = triangles::Placement {
@@ -101,7 +102,7 @@ pub(super) fn shape(
                 scale: *scale,
                 rotate_y: *rotate_y,
             };
-            let placed = triangles::mesh(cx, path, placement, displacement, &what)?;
+            let placed = triangles::mesh(cx, path, placement, *crease_angle, displacement, &what)?;
             return triangles::add(cx, placed, &what, material, index, geo);
         }
     };

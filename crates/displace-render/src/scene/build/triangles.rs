@@ -94,13 +94,15 @@ pub(super) fn lone(
 }
 
 /// A mesh file or built-in placed in the scene: its triangles in world
-/// space (zero-area ones dropped), unit normals turned with it, texture
+/// space (zero-area ones dropped), unit normals turned with it (smooth
+/// ones under `crease_degrees` for a file without them), texture
 /// coordinates scaled by the displacement's `tiles`, and the one bake every
 /// triangle shares, made for the mesh's mean tile proportions.
 pub(super) fn mesh(
     cx: &mut Ctx,
     path: &str,
     placement: Placement,
+    crease_degrees: f32,
     displacement: &Option<DisplacementSpec>,
     what: &str,
 ) -> Result<Placed> {
@@ -115,6 +117,11 @@ pub(super) fn mesh(
             "{what}: scale must be positive and rotate_y finite"
         )));
     }
+    if !(crease_degrees.is_finite() && (0.0..=180.0).contains(&crease_degrees)) {
+        return Err(cx.err(format!(
+            "{what}.crease_angle must be 0 to 180 degrees, got {crease_degrees}"
+        )));
+    }
     let (file, mut mesh) = match path.strip_prefix(builtin_mesh::PREFIX) {
         Some(name) => (PathBuf::from(path), builtin_mesh::generate(name)?),
         None => {
@@ -124,6 +131,7 @@ pub(super) fn mesh(
             (file, mesh)
         }
     };
+    crate::vertex_normals::smooth_normals(&mut mesh.triangles, crease_degrees);
     let rot = Mat3::from_rotation_y(rotate_y.to_radians());
     let xf = |p: Vec3| rot * (p * scale) + t;
     let mut builder = None;
