@@ -53,6 +53,9 @@ pub enum Method {
 }
 
 impl Method {
+    /// Every method, in the order messages list them.
+    pub const ALL: [Method; 3] = [Method::Sphere, Method::SphereFixed, Method::Exact];
+
     /// The name [`str::parse`] accepts (`sphere`, `sphere-fixed`, `exact`).
     pub fn name(self) -> &'static str {
         match self {
@@ -66,14 +69,8 @@ impl Method {
 impl std::str::FromStr for Method {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "sphere" => Ok(Method::Sphere),
-            "sphere-fixed" => Ok(Method::SphereFixed),
-            "exact" => Ok(Method::Exact),
-            other => Err(Error::InvalidTrace(format!(
-                "unknown method `{other}` (expected sphere, sphere-fixed or exact)"
-            ))),
-        }
+        let choices = Method::ALL.map(|m| (m.name(), m));
+        crate::names::parse_choice("method", s, &choices).map_err(Error::InvalidTrace)
     }
 }
 
