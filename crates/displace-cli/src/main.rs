@@ -49,7 +49,7 @@ enum Command {
     Merge(merge::MergeArgs),
     /// Measure: `bench bake`, `bench trace`, `bench render`, `bench gpu`.
     Bench(bench::BenchArgs),
-    /// Write a height field as a triangle grid (OBJ/PLY) for other renderers.
+    /// Write a height field as a triangle grid, or a scene's displaced meshes as their tessellated displaced surfaces (OBJ/PLY), for other renderers.
     ExportMesh(export_mesh::ExportMeshArgs),
     /// Render a scene's displaced quads, triangles and meshes on the GPU,
     /// offscreen, to PNG (Donnelly's shaders); without SCENE, a built-in
