@@ -10,9 +10,11 @@ height texel (`displace export-mesh --scene`), traced as plain triangles by
 the same BVH. Both are traced with `displace trace --scene` on the same
 camera rays (one per pixel centre of the scene's image), and the script
 prints the measures of the curved-surface tests: the share of pixels whose
-hit or miss agree (wanted: at least 99.5%) and the share of the pixels hit
-by both whose hit positions lie within 2% of the mesh's displacement depth
-(wanted: at least 99%), per mesh and in all.
+hit or miss agree (wanted: at least 99.5%), the share of the pixels hit by
+both whose hit positions lie within 2% of the mesh's displacement depth
+(wanted: at least 99%), per mesh and in all, and the seams: neighbouring
+pixels whose normals break by more than 30 degrees (on a smooth height
+field, the prisms' walls).
 
     pip install numpy
     cargo build --release -p displace-cli
@@ -83,6 +85,24 @@ material = "m"
 """
 
 
+def normal_breaks(hits, width, height, degrees=30.0):
+    """Seams in a normal image: pairs of neighbouring pixels on the same
+    shape, both hit, whose geometric normals differ by more than `degrees`
+    (across rows and down columns). Over a smooth height field the ground
+    truth has them only where one part of a mesh passes in front of
+    another; flat prisms have them along every wall between two prisms."""
+    n = hits[:, 4:7].reshape(height, width, 3)
+    shape = hits[:, 7].reshape(height, width)
+    hit = np.isfinite(hits[:, 0]).reshape(height, width)
+    count = 0
+    for a, b in (((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+                 ((slice(1, None), slice(None)), (slice(None, -1), slice(None)))):
+        cos = np.clip(np.sum(n[a] * n[b], axis=-1), -1.0, 1.0)
+        pair = hit[a] & hit[b] & (shape[a] == shape[b])
+        count += int(np.sum(pair & (np.degrees(np.arccos(cos)) > degrees)))
+    return count
+
+
 def run(cmd):
     print("+", " ".join(cmd), file=sys.stderr)
     subprocess.run(cmd, check=True)
@@ -135,6 +155,9 @@ def main():
     print(f"hit positions within 2% of the depth: {within:.2f}% of the {both.sum()} pixels both hit "
           f"(wanted >= 99%); error / depth median {np.nanmedian(err[both]):.4f}, "
           f"99th percentile {np.nanpercentile(err[both], 99):.4f}")
+    print(f"neighbouring pixels whose normals break by more than 30 degrees (seams on a smooth "
+          f"height field): ours {normal_breaks(h_ours, width, height)}, the ground truth "
+          f"{normal_breaks(h_ref, width, height)}")
     for s, m in mesh_of_shape.items():
         sel = both & (shape == s)
         if sel.any():
