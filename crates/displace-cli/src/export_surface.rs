@@ -63,7 +63,8 @@ pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Res
 }
 
 /// One OBJ object per mesh; `vt` the texture coordinate each vertex was
-/// lifted at.
+/// lifted at, written beside its `v` (OBJ counts the two apart, so the
+/// surface is generated once, not once per kind of line).
 fn write_obj(w: &mut dyn Write, surfaces: &[DisplacedSurface]) -> std::io::Result<()> {
     writeln!(w, "# displace export-mesh --scene: displaced surfaces")?;
     let mut base = 1u64;
@@ -71,10 +72,7 @@ fn write_obj(w: &mut dyn Write, surfaces: &[DisplacedSurface]) -> std::io::Resul
         writeln!(w, "o displaced_mesh_{k}")?;
         for p in s.each_vertex() {
             let [x, y, z] = p.position.to_array();
-            writeln!(w, "v {x} {y} {z}")?;
-        }
-        for p in s.each_vertex() {
-            writeln!(w, "vt {} {}", p.uv.x, p.uv.y)?;
+            writeln!(w, "v {x} {y} {z}\nvt {} {}", p.uv.x, p.uv.y)?;
         }
         for t in s.each_triangle() {
             let [a, b, c] = t.map(|i| i + base);

@@ -140,7 +140,8 @@ impl<'a> DisplacedSurface<'a> {
     pub fn each_vertex(&self) -> impl Iterator<Item = SurfacePoint> + '_ {
         let n = self.n;
         self.triangles.iter().flat_map(move |t| {
-            (0..=n).flat_map(move |j| (0..=n - j).map(move |i| self.point(t, i, j)))
+            let corners = Corners::of(t);
+            (0..=n).flat_map(move |j| (0..=n - j).map(move |i| self.point(&corners, i, j)))
         })
     }
 
@@ -157,42 +158,57 @@ impl<'a> DisplacedSurface<'a> {
         })
     }
 
-    /// Lattice point `(i, j)` of `t`: barycentric weights `i / n` on
-    /// corner 1 and `j / n` on corner 2.
-    fn point(&self, t: &MeshTriangle, i: u32, j: u32) -> SurfacePoint {
+    /// Lattice point `(i, j)` of a triangle: barycentric weights `i / n`
+    /// on corner 1 and `j / n` on corner 2.
+    fn point(&self, t: &Corners, i: u32, j: u32) -> SurfacePoint {
         let n = self.n;
-        let flat = (t.positions[1] - t.positions[0])
-            .cross(t.positions[2] - t.positions[0])
-            .normalize_or_zero();
-        let corner = |c: usize| Corner {
-            p: t.positions[c],
-            n: t.normals.map_or(flat, |ns| ns[c]),
-            uv: t.uvs[c],
-        };
+        let [c0, c1, c2] = t.corners;
         let base = if i + j == 0 {
-            corner(0)
+            c0
         } else if j == 0 {
-            along_edge(corner(0), corner(1), i, n)
+            along_edge(c0, c1, i, n)
         } else if i == 0 {
-            along_edge(corner(0), corner(2), j, n)
+            along_edge(c0, c2, j, n)
         } else if i + j == n {
-            along_edge(corner(1), corner(2), j, n)
+            along_edge(c1, c2, j, n)
         } else {
             let (w1, w2) = (i as f32 / n as f32, j as f32 / n as f32);
             let w0 = 1.0 - w1 - w2;
-            let (c0, c1, c2) = (corner(0), corner(1), corner(2));
             Corner {
                 p: c0.p * w0 + c1.p * w1 + c2.p * w2,
                 n: c0.n * w0 + c1.n * w1 + c2.n * w2,
                 uv: c0.uv * w0 + c1.uv * w1 + c2.uv * w2,
             }
         };
-        let normal = base.n.try_normalize().unwrap_or(flat);
+        let normal = base.n.try_normalize().unwrap_or(t.flat);
         let h = self.height.sample(base.uv.x, base.uv.y);
         SurfacePoint {
             position: base.p + normal * (self.depth * h),
             uv: base.uv,
         }
+    }
+}
+
+/// A mesh triangle's corners as they are interpolated, and its face
+/// normal (the corners' normal where the mesh gives none, and the fallback
+/// where interpolated normals cancel), worked out once per triangle.
+#[derive(Clone, Copy)]
+struct Corners {
+    corners: [Corner; 3],
+    flat: Vec3,
+}
+
+impl Corners {
+    fn of(t: &MeshTriangle) -> Self {
+        let flat = (t.positions[1] - t.positions[0])
+            .cross(t.positions[2] - t.positions[0])
+            .normalize_or_zero();
+        let corners = std::array::from_fn(|c| Corner {
+            p: t.positions[c],
+            n: t.normals.map_or(flat, |ns| ns[c]),
+            uv: t.uvs[c],
+        });
+        Self { corners, flat }
     }
 }
 

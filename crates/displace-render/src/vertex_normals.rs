@@ -32,6 +32,11 @@ fn key(p: Vec3) -> [u32; 3] {
 /// (and lend their faces to their neighbours' means); degenerate ones stay
 /// without.
 pub fn smooth_normals(triangles: &mut [MeshTriangle], crease_degrees: f32) {
+    // A mesh that gives its normals (every built-in, most OBJs) needs no
+    // welding: nothing is built for it.
+    if triangles.iter().all(|t| t.normals.is_some()) {
+        return;
+    }
     let faces: Vec<Vec3> = triangles
         .iter()
         .map(|t| (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]))

@@ -13,14 +13,14 @@ use glam::Vec2;
 
 impl Renderer {
     /// The bind groups of `draw` by this renderer with `view`'s camera and
-    /// light, in group order.
+    /// light, in group order; the view and the depth are checked once per
+    /// frame before (`passes::check_frame`).
     pub(super) fn uniforms(
         &self,
         ctx: &GpuContext,
         view: &View,
         draw: &Draw,
     ) -> Result<Vec<wgpu::BindGroup>> {
-        view.check()?;
         match &self.kind {
             Kind::Displaced { shading, geometry } => shading.uniforms(ctx, geometry, view, draw),
             Kind::Plain { frame_layout, .. } => {
@@ -38,7 +38,6 @@ impl MapShading {
         view: &View,
         draw: &Draw,
     ) -> Result<Vec<wgpu::BindGroup>> {
-        draw.check_depth()?;
         let (tiles, uv_shift) = match geometry {
             Geometry::ShellBox { mirrored } => {
                 let Some(face) = draw.face() else {

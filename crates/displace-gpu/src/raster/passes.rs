@@ -22,6 +22,7 @@ impl Renderer {
         scene: &PlaneScene,
         frames: u32,
     ) -> Result<crate::timing::Timing> {
+        check_frame(&scene.view, &[(self, &scene.draw)])?;
         let groups = self.uniforms(ctx, &scene.view, &scene.draw)?;
         let targets = Targets::new(ctx, scene.view.size);
         crate::timing::time_frames(ctx, frames, |encoder, query| {
@@ -133,16 +134,9 @@ pub fn render_faces(
     draws: &[(&Renderer, &Draw)],
     clear: [f64; 3],
 ) -> Result<Image> {
-    // Sizes and vectors are checked before anything is allocated.
-    view.check()?;
-    if draws.is_empty() {
-        return Err(Error::InvalidOption("no faces to render".into()));
-    }
-    for (r, d) in draws {
-        if matches!(r.kind, Kind::Displaced { .. }) {
-            d.check_depth()?;
-        }
-    }
+    // Sizes and vectors are checked before the targets are allocated
+    // (and once more, for the frame, by `encode_faces`).
+    check_frame(view, draws)?;
     let targets = Targets::new(ctx, view.size);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     encode_faces(ctx, &mut encoder, &targets, view, draws, clear)?;
@@ -161,9 +155,7 @@ pub fn encode_faces(
     draws: &[(&Renderer, &Draw)],
     clear: [f64; 3],
 ) -> Result<()> {
-    if draws.is_empty() {
-        return Err(Error::InvalidOption("no faces to render".into()));
-    }
+    check_frame(view, draws)?;
     if view.size != targets.size {
         return Err(Error::InvalidOption(format!(
             "faces of {:?} pixels drawn into targets of {:?}",
@@ -177,6 +169,22 @@ pub fn encode_faces(
     ctx.checked("rendering", || {
         record(encoder, targets, &recorded, clear, 1, None)
     })
+}
+
+/// The checks of a frame, once for all its draws: the view's, at least one
+/// draw, and a positive depth for every displaced one (each draw's face is
+/// checked with its renderer's handedness as its uniforms are made).
+fn check_frame(view: &View, draws: &[(&Renderer, &Draw)]) -> Result<()> {
+    view.check()?;
+    if draws.is_empty() {
+        return Err(Error::InvalidOption("no faces to render".into()));
+    }
+    for (r, d) in draws {
+        if matches!(r.kind, Kind::Displaced { .. }) {
+            d.check_depth()?;
+        }
+    }
+    Ok(())
 }
 
 /// Near and far planes that hold the shell boxes of every draw in front of
