@@ -12,6 +12,7 @@ use displace_core::io::atomic::Batch;
 use displace_core::io::height::{self, Channel, HeightOptions};
 use displace_core::io::stream::MapStream;
 use displace_core::io::{self as dio, MapFile};
+use displace_core::memory::StreamedBake;
 use displace_core::techniques::{ConeKind, ConeMap};
 use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap, NormalMap};
 use std::path::{Path, PathBuf};
@@ -196,7 +197,12 @@ pub fn check_distinct_outputs(outputs: &[(&str, &Path)]) -> Result<()> {
 #[derive(Clone, Copy, Debug)]
 pub enum BakeHolds {
     Whole,
-    Streamed { slab: usize, held: u128 },
+    Streamed {
+        slab: usize,
+        encoded: u128,
+        held: u128,
+        normals: bool,
+    },
 }
 
 /// Refuses a bake whose estimated peak memory exceeds what the machine has
@@ -222,9 +228,20 @@ pub fn check_bake_memory(
     HeightMap::check_size(w, h).with_context(|| format!("height map `{source}`"))?;
     let bytes = match holds {
         BakeHolds::Whole => displace_core::memory::bake_peak_bytes([w, h], size, cones),
-        BakeHolds::Streamed { slab, held } => {
-            displace_core::memory::streamed_bake_peak_bytes([w, h], size, slab, held, cones)
-        }
+        BakeHolds::Streamed {
+            slab,
+            encoded,
+            held,
+            normals,
+        } => displace_core::memory::streamed_bake_peak_bytes(&StreamedBake {
+            height: [w, h],
+            map: size,
+            slab_slices: slab,
+            encoded_bytes_per_voxel: encoded,
+            held_bytes_per_voxel: held,
+            normals,
+            cones,
+        }),
     };
     displace_core::memory::check(
         &format!(
@@ -292,7 +309,12 @@ pub fn run(args: BakeArgs) -> Result<()> {
         &args.height_args,
         size,
         args.cone.is_some(),
-        BakeHolds::Streamed { slab, held },
+        BakeHolds::Streamed {
+            slab,
+            encoded: format.bytes_per_voxel() as u128,
+            held,
+            normals: args.normals.is_some(),
+        },
     )?;
     if size.iter().any(|&n| n > WEBGPU_MAX_3D) {
         eprintln!(

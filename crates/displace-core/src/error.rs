@@ -97,6 +97,12 @@ pub enum Error {
         /// Why it is refused.
         message: String,
     },
+    /// A property the library's own reasoning relies on was found broken at
+    /// run time, where it is checked instead of trusted (a streamed bake's
+    /// promise about the slabs to come): nothing is written; please report
+    /// it with the input.
+    #[error("an invariant did not hold: {0}")]
+    Invariant(String),
     /// A bake stopped early because its cancel flag was set.
     #[error("operation cancelled")]
     Cancelled,

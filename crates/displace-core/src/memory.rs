@@ -49,35 +49,112 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
 }
 
 /// Bytes per voxel of a slab in flight in a streamed bake
-/// ([`crate::bake_streamed`] into [`crate::io::stream::MapStream`]): the
-/// values (4) and up to three encoded buffers (being filled, queued, being
-/// written) of at most 4 bytes each.
-pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 16;
+/// ([`crate::bake_streamed`] into [`crate::io::stream::MapStream`]): its
+/// values (4).
+pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 4;
 
-/// Estimated peak bytes of a streamed bake: as [`bake_peak_bytes`] but
-/// with `slab_slices` slices in flight instead of the whole volume, plus
-/// `held_bytes_per_voxel` for what the writer must hold to the end (a
-/// KTX2 r16f level: 2; otherwise 0).
-pub fn streamed_bake_peak_bytes(
-    height: [usize; 2],
-    map: [usize; 3],
-    slab_slices: usize,
-    held_bytes_per_voxel: u128,
-    cones: bool,
-) -> u128 {
-    let texels = height[0] as u128 * height[1] as u128;
-    let columns = map[0] as u128 * map[1] as u128;
-    let voxels = columns * map[2] as u128;
-    let slab = columns * slab_slices.clamp(1, map[2].max(1)) as u128;
-    texels * BAKE_BYTES_PER_TEXEL
-        + if cones {
-            texels * CONE_BYTES_PER_TEXEL
+/// Encoded depth slices a streamed bake holds at once: the one being filled
+/// and the one being written.
+pub const STREAM_ENCODED_SLICES: u128 = 2;
+
+/// Bytes per column of the stored footprint ranges alone (low and high).
+pub const RANGE_BYTES_PER_COLUMN: u128 = 8;
+
+/// Bytes per column of the column-centre heights where they cannot be read
+/// from the height map itself.
+pub const CENTRE_BYTES_PER_COLUMN: u128 = 4;
+
+/// Depth from which a streamed bake keeps every column's footprint range
+/// rather than working it out again in each slice: at 64 slices the ranges'
+/// 8 bytes a column are an eighth of an r8 file and less than the slices a
+/// two-thread bake has in flight; shallower maps, whose files are smaller,
+/// would spend more on them than on their slices, so they pay about 5-15%
+/// of the bake's time to hold none.
+pub const STORED_RANGES_MIN_DEPTH: usize = 64;
+
+/// Whether a streamed bake of a `map`-voxel distance map keeps its column
+/// ranges ([`STORED_RANGES_MIN_DEPTH`]); [`crate::bake_streamed`] and the
+/// estimate both ask this.
+pub fn stores_column_ranges(map: [usize; 3]) -> bool {
+    map[2] >= STORED_RANGES_MIN_DEPTH
+}
+
+/// Whether a bake surely reads its column-centre heights from the height
+/// map: the same size, a power of two on each side, so that every centre's
+/// coordinate and weights are exact and its sample is its texel. (The bake
+/// compares sample by sample, and borrows wherever they match.)
+pub fn centres_are_texels(height: [usize; 2], map: [usize; 3]) -> bool {
+    height == [map[0], map[1]] && height.iter().all(|n| n.is_power_of_two())
+}
+
+/// Bytes per texel of the height map a bake works from (4).
+pub const HEIGHT_BYTES_PER_TEXEL: u128 = 4;
+
+/// Bytes per texel of an image being decoded into heights, beside them (4).
+pub const DECODE_BYTES_PER_TEXEL: u128 = 4;
+
+/// Bytes per texel of the normal map (12) and its 8-bit PNG on the way out
+/// (4).
+pub const NORMAL_BYTES_PER_TEXEL: u128 = 16;
+
+/// What a streamed bake holds, for [`streamed_bake_peak_bytes`].
+#[derive(Clone, Copy, Debug)]
+pub struct StreamedBake {
+    /// Height-map texels `[W, H]`.
+    pub height: [usize; 2],
+    /// Distance-map voxels `[W, H, D]`.
+    pub map: [usize; 3],
+    /// Depth slices computed at once.
+    pub slab_slices: usize,
+    /// Bytes per voxel of the encoded output.
+    pub encoded_bytes_per_voxel: u128,
+    /// Bytes per voxel the writer must hold to the end (a KTX2 r16f level:
+    /// 2; otherwise 0).
+    pub held_bytes_per_voxel: u128,
+    /// Whether a normal map is written after the distance map.
+    pub normals: bool,
+    /// Whether a cone map is built after the distance map.
+    pub cones: bool,
+}
+
+/// Estimated peak bytes of a streamed bake, the largest of its phases, one
+/// after the other: decoding the heights; the distance map (the heights,
+/// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, what the
+/// writer holds, the column ranges where they are kept and the centres
+/// where they are not the height map's); then the normal map and the cone
+/// map, each beside the heights.
+pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
+    let texels = b.height[0] as u128 * b.height[1] as u128;
+    let columns = b.map[0] as u128 * b.map[1] as u128;
+    let voxels = columns * b.map[2] as u128;
+    let slab = columns * b.slab_slices.clamp(1, b.map[2].max(1)) as u128;
+    let heights = texels * HEIGHT_BYTES_PER_TEXEL;
+    let load = heights + texels * DECODE_BYTES_PER_TEXEL;
+    let distance = heights
+        + slab * STREAM_BYTES_PER_SLAB_VOXEL
+        + columns * STREAM_ENCODED_SLICES * b.encoded_bytes_per_voxel
+        + voxels * b.held_bytes_per_voxel
+        + if stores_column_ranges(b.map) {
+            columns * RANGE_BYTES_PER_COLUMN
         } else {
             0
         }
-        + slab * STREAM_BYTES_PER_SLAB_VOXEL
-        + voxels * held_bytes_per_voxel
-        + columns * BAKE_BYTES_PER_COLUMN
+        + if centres_are_texels(b.height, b.map) {
+            0
+        } else {
+            columns * CENTRE_BYTES_PER_COLUMN
+        };
+    let normals = if b.normals {
+        heights + texels * NORMAL_BYTES_PER_TEXEL
+    } else {
+        0
+    };
+    let cones = if b.cones {
+        heights + texels * CONE_BYTES_PER_TEXEL
+    } else {
+        0
+    };
+    load.max(distance).max(normals).max(cones)
 }
 
 /// The limit in force and where it comes from: [`LIMIT_ENV`] if set, else

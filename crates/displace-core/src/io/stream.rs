@@ -10,9 +10,10 @@
 //! whole volume, the writer holds what it must: a KTX2 header states the r8
 //! range, which comes from the volume's minimum, so slabs are held (as `f32`)
 //! until the slabs still to come cannot lower it ([`crate::Slab`] carries a
-//! lower bound on them; on the maps tried the first slab settles it); a KTX2
-//! r16f header states the largest rounding, known only at the end, so its
-//! level data (the output's size) is held until then.
+//! lower bound on them, which the bake makes tight from what it has computed,
+//! so that the first slab settles it but for a minimum within a rounding of a
+//! 1/64 step); a KTX2 r16f header states the largest rounding, known only at
+//! the end, so its level data (the output's size) is held until then.
 
 use super::atomic::AtomicFile;
 use super::{dds, ktx2, FormatError, MapFile};
@@ -259,11 +260,7 @@ impl SlabSink for MapStream {
     fn push(&mut self, slab: Slab<'_>) -> Result<()> {
         let values = slab.values;
         self.voxels += values.len();
-        let slab_lo = values
-            .par_chunks(CHUNK)
-            .map(|c| c.iter().copied().fold(f32::INFINITY, f32::min))
-            .reduce(|| f32::INFINITY, f32::min);
-        self.lo = self.lo.min(slab_lo);
+        self.lo = self.lo.min(slab.min);
         match (self.kind, self.format) {
             (MapFile::Ktx2, Format::R16F) => {
                 let start = self.level16.len();
@@ -299,8 +296,11 @@ impl SlabSink for MapStream {
 
 /// The file's writer on a thread of its own, so that the next slab is
 /// computed while this one goes to the kernel (a tenth of a bake's time was
-/// the copy into the page cache). Buffers come back for reuse; at most one
-/// waits while another is written.
+/// the copy into the page cache). Buffers come back for reuse. The hand-over
+/// is a rendezvous: a buffer is given only when the writer is free to take
+/// it, so two exist at most, the one being written and the one being filled
+/// ([`crate::memory::STREAM_ENCODED_SLICES`]); a queued third would cost a
+/// slice of memory and save no time, the writer being faster than the bake.
 struct Background {
     tx: Option<SyncSender<Vec<u8>>>,
     spare: Receiver<Vec<u8>>,
@@ -309,7 +309,7 @@ struct Background {
 
 impl Background {
     fn start(mut file: AtomicFile) -> Self {
-        let (tx, rx) = sync_channel::<Vec<u8>>(1);
+        let (tx, rx) = sync_channel::<Vec<u8>>(0);
         let (back, spare) = sync_channel::<Vec<u8>>(2);
         let thread = std::thread::spawn(move || {
             for bytes in rx {
