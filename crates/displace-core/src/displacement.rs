@@ -305,7 +305,8 @@ pub fn bake_streamed(
         let min = mins.iter().copied().fold(f32::INFINITY, f32::min);
         if min < promised {
             return Err(Error::Invariant(format!(
-                "depth slices {first}..{} reach {min}, below the bound {promised} promised for them                  (the values below the surface rise with depth, within {MONOTONE_SLACK})",
+                "depth slices {first}..{} reach {min}, below the bound {promised} promised for them \
+                 (the values below the surface rise with depth, within {MONOTONE_SLACK})",
                 first + n
             )));
         }
@@ -458,15 +459,12 @@ impl<'h> BakePlan<'h> {
             .enumerate()
             .try_for_each_init(
                 || {
-                    let rows = RangeRows::new(grid, height);
                     (
                         SliceScratch::default(),
-                        rows,
-                        vec![0.0f32; w],
-                        vec![0.0f32; w],
+                        RowSource::new(&self.ranges, grid, height, w),
                     )
                 },
-                |(scratch, rows, row_lo, row_hi), (dk, (slice, slice_min))| {
+                |(scratch, source), (dk, (slice, slice_min))| {
                     if is_cancelled(opts) {
                         return Err(Error::Cancelled);
                     }
@@ -477,14 +475,14 @@ impl<'h> BakePlan<'h> {
                             *g = dz * dz;
                         }
                     };
-                    let fill = |j: usize, row: &mut [f32]| match &self.ranges {
-                        Ranges::Stored { lo, hi } => {
+                    let fill = |j: usize, row: &mut [f32]| match source {
+                        RowSource::Stored { lo, hi } => {
                             let span = j * w..(j + 1) * w;
                             squared(row, &lo[span.clone()], &hi[span]);
                         }
-                        Ranges::PerRow => {
-                            rows.row(j, row_lo, row_hi);
-                            squared(row, row_lo, row_hi);
+                        RowSource::PerRow { rows, lo, hi } => {
+                            rows.row(j, lo, hi);
+                            squared(row, lo, hi);
                         }
                     };
                     let mut low = f32::INFINITY;
@@ -577,13 +575,40 @@ fn axis_cuts(n: usize, texels: usize) -> (Vec<f32>, Vec<(usize, usize)>) {
 /// first pass. The second trades time for memory where the stored ranges
 /// would outweigh the slices in flight (8 bytes a column: 537 MB for an
 /// 8192x8192 map, more than the two 8K slices a streamed bake holds); both
-/// run [`RangeGrid::row`], so the values are the same bits.
+/// run [`RangeRows::row`], so the values are the same bits.
 enum Ranges {
     /// The minimum and maximum of the surface over every column's
     /// footprint, row-major.
     Stored { lo: Vec<f32>, hi: Vec<f32> },
     /// Computed again for each row of each slice.
     PerRow,
+}
+
+/// Where one thread's slices read their rows' ranges: the stored arrays, or
+/// its own [`RangeRows`] and a row of ranges (made only where they are used).
+enum RowSource<'a> {
+    Stored {
+        lo: &'a [f32],
+        hi: &'a [f32],
+    },
+    PerRow {
+        rows: RangeRows<'a>,
+        lo: Vec<f32>,
+        hi: Vec<f32>,
+    },
+}
+
+impl<'a> RowSource<'a> {
+    fn new(ranges: &'a Ranges, grid: &'a RangeGrid, height: &'a HeightMap, w: usize) -> Self {
+        match ranges {
+            Ranges::Stored { lo, hi } => Self::Stored { lo, hi },
+            Ranges::PerRow => Self::PerRow {
+                rows: RangeRows::new(grid, height),
+                lo: vec![0.0; w],
+                hi: vec![0.0; w],
+            },
+        }
+    }
 }
 
 /// The heights at the column centres, which decide the sign: their own
@@ -777,11 +802,11 @@ impl<'g> RangeRows<'g> {
 
 /// For every distance-map column `(i, j)`, row-major, one array per
 /// quantity so that the per-slice loops stream them: the exact minimum and
-/// maximum of the surface over its footprint ([`RangeGrid::row`]). Rows of
-/// columns run in parallel, each evaluating only its own grid rows (a
-/// boundary row twice), so the memory is the output plus a grid row per
-/// thread: the whole grid of an 8192-texel map under a 2048-column one was
-/// 420 MB.
+/// maximum of the surface over its footprint ([`RangeRows::row`]). Rows of
+/// columns run in parallel, each task evaluating only its own grid rows (a
+/// boundary between two tasks twice), so the memory is the output plus a
+/// few grid rows per task: the whole grid of an 8192-texel map under a
+/// 2048-column one was 420 MB.
 fn column_ranges(height: &HeightMap, grid: &RangeGrid, w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
     let mut lo = vec![0.0f32; w * h];
     let mut hi = vec![0.0f32; w * h];
@@ -805,13 +830,19 @@ fn column_centres(height: &HeightMap, w: usize, h: usize) -> Centres<'_> {
     if w == height.width() && h == height.height() {
         let along_u = along(height, &us);
         let data = height.data();
-        let same = vs.par_iter().enumerate().all(|(j, &v)| {
-            let mut row = vec![0.0f32; w];
-            sample_row(height, &along_u, v, &mut row);
-            row.iter()
-                .zip(&data[j * w..(j + 1) * w])
-                .all(|(a, b)| a.to_bits() == b.to_bits())
-        });
+        let same = vs
+            .par_iter()
+            .enumerate()
+            .map_init(
+                || vec![0.0f32; w],
+                |row, (j, &v)| {
+                    sample_row(height, &along_u, v, row);
+                    row.iter()
+                        .zip(&data[j * w..(j + 1) * w])
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                },
+            )
+            .all(|same| same);
         if same {
             return Centres::Texels(data);
         }
