@@ -86,7 +86,7 @@ def rectangle(mi, origin, eu, ev):
     return mi.ScalarTransform4f(m.tolist())
 
 
-def worker_mitsuba(ply, size, spp, repeat, seed):
+def worker_mitsuba(ply, size, spp, repeat, seed, sampler):
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
@@ -101,7 +101,7 @@ def worker_mitsuba(ply, size, spp, repeat, seed):
                 origin=CAMERA["position"], target=CAMERA["look_at"], up=CAMERA["up"]),
             "film": {"type": "hdrfilm", "width": size, "height": size,
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-            "sampler": {"type": "independent", "sample_count": spp},
+            "sampler": {"type": sampler, "sample_count": spp},
         },
         "light": {"type": "rectangle",
                   "to_world": rectangle(mi, LIGHT["origin"], LIGHT["edge_u"], LIGHT["edge_v"]),
@@ -147,14 +147,14 @@ def read_exr(path):
     return np.array(mi.Bitmap(path))[..., :3].astype(np.float32)
 
 
-def ours(exe, size, spp, repeat, work, env):
+def ours(exe, size, spp, repeat, work, env, sampler):
     """Best render time of `repeat` runs (the bake is cached after the
     first) and the image."""
     best, img = math.inf, None
     out = os.path.join(work, f"ours{spp}.exr")
     for _ in range(repeat):
         _, err = run([exe, "render", SCENE, "--integrator", "path", "--spp", str(spp),
-                      "--size", f"{size}x{size}", "-q", "-o", out], env)
+                      "--size", f"{size}x{size}", "--sampler", sampler, "-q", "-o", out], env)
         m = re.search(r"render ([\d.]+) s", err)
         best = min(best, float(m.group(1)))
     img = read_exr(out)
@@ -180,12 +180,18 @@ def main():
                     help="spp of our render that measures the converged difference")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--workdir", default=None)
+    ap.add_argument("--sampler", default="sobol",
+                    help="our path integrator's numbers: sobol (our default) or independent")
+    ap.add_argument("--mitsuba-sampler", default="independent",
+                    help="Mitsuba's sampler for the timed renders (its default: independent; "
+                         "also stratified, multijitter, orthogonal, ldsampler); the reference "
+                         "is always independent")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--ply", help=argparse.SUPPRESS)
     ap.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker == "mitsuba":
-        return worker_mitsuba(a.ply, a.size, int(a.spp), a.repeat, a.seed)
+        return worker_mitsuba(a.ply, a.size, int(a.spp), a.repeat, a.seed, a.mitsuba_sampler)
 
     env = dict(os.environ)
     if "DRJIT_LIBLLVM_PATH" not in env and libllvm():
@@ -201,31 +207,33 @@ def main():
          "--extent", f"{sx},{sy},{sz}", "-o", ply], env)
     me = [sys.executable, os.path.abspath(__file__), "--size", str(a.size)]
 
-    def mitsuba(spp, repeat, seed):
+    def mitsuba(spp, repeat, seed, sampler):
         out, _ = run(me + ["--worker", "mitsuba", "--ply", ply, "--spp", str(spp),
-                           "--repeat", str(repeat), "--seed", str(seed)], env)
+                           "--repeat", str(repeat), "--seed", str(seed),
+                           "--mitsuba-sampler", sampler], env)
         r = json.loads(out.strip().splitlines()[-1])
         return r["render_s"], np.load(r["image"])
 
     print(f"reference: Mitsuba at {a.ref_spp} spp, {a.size}x{a.size} ...", flush=True)
-    ref_s, ref = mitsuba(a.ref_spp, 1, 1000)
+    ref_s, ref = mitsuba(a.ref_spp, 1, 1000, "independent")
     spps = [int(s) for s in a.spp.split(",")]
     rows = []
     for spp in spps:
-        t_m, img_m = mitsuba(spp, a.repeat, 0)
-        t_o, img_o = ours(exe, a.size, spp, a.repeat, work, env)
+        t_m, img_m = mitsuba(spp, a.repeat, 0, a.mitsuba_sampler)
+        t_o, img_o = ours(exe, a.size, spp, a.repeat, work, env, a.sampler)
         rows.append((spp, t_o, rmse(img_o, ref), t_m, rmse(img_m, ref)))
         if spp == spps[0]:
             flipped = rmse(img_o[:, ::-1], ref)
             if flipped < 0.7 * rows[-1][2]:
                 sys.exit(f"our image is mirrored against Mitsuba's (RMSE {rows[-1][2]:.4f}, "
                          f"mirrored {flipped:.4f}): camera conventions differ")
-    _, img_f = ours(exe, a.size, a.floor_spp, 1, work, env)
+    _, img_f = ours(exe, a.size, a.floor_spp, 1, work, env, a.sampler)
     floor = rmse(img_f, ref)
     # Mitsuba's log RMSE against log time, a least-squares line.
     lt = np.log([r[3] for r in rows])
     le = np.log([r[4] for r in rows])
     slope, icpt = np.polyfit(lt, le, 1)
+    print(f"\nsamplers: ours {a.sampler}, Mitsuba {a.mitsuba_sampler}")
     print(f"\n{a.size}x{a.size}, max_depth {MAX_DEPTH} (Mitsuba {MAX_DEPTH + 1}), "
           f"{os.cpu_count()} threads; reference {a.ref_spp} spp Mitsuba ({ref_s:.1f} s); "
           f"means: reference {ref.mean():.4f}, ours at {a.floor_spp} spp {img_f.mean():.4f}\n")

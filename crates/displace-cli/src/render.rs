@@ -32,6 +32,10 @@ pub struct RenderArgs {
     /// sampling).
     #[arg(long)]
     pub integrator: Option<String>,
+    /// The path integrator's numbers (overrides the scene's `sampler`):
+    /// sobol (Owen-scrambled Sobol points, the default) or independent.
+    #[arg(long)]
+    pub sampler: Option<String>,
     /// Image size WxH (overrides the scene).
     #[arg(long)]
     pub size: Option<String>,
@@ -79,6 +83,7 @@ struct Plan {
     aovs: Vec<Aov>,
     method: Option<displace_core::Method>,
     integrator: Option<displace_render::Integrator>,
+    sampler: Option<displace_render::SamplerKind>,
     tile: Option<TileIndex>,
     pool: rayon::ThreadPool,
     cancel: Arc<AtomicBool>,
@@ -111,6 +116,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(str::parse)
         .transpose()
         .context("--integrator")?;
+    let sampler: Option<displace_render::SamplerKind> = args
+        .sampler
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .context("--sampler")?;
     let tile = args
         .tile
         .as_deref()
@@ -149,6 +160,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         aovs,
         method,
         integrator,
+        sampler,
         tile,
         pool,
         cancel,
@@ -174,6 +186,7 @@ fn render_one(
         size: plan.size,
         method: plan.method,
         integrator: plan.integrator,
+        sampler: plan.sampler,
         cache_dir: if args.no_cache {
             None
         } else {

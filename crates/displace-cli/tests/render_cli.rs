@@ -134,6 +134,19 @@ fn bad_input_is_refused_with_nothing_written() {
         &["s.toml", "image.integrator", "bogus"],
     );
     refuses(
+        GOOD,
+        &["--sampler", "halton"],
+        &[
+            "--sampler",
+            "unknown sampler `halton` (known: independent, sobol)",
+        ],
+    );
+    refuses(
+        &GOOD.replace("spp = 1", "spp = 1\nsampler = \"halton\""),
+        &[],
+        &["s.toml", "image.sampler", "halton"],
+    );
+    refuses(
         &GOOD.replace("spp = 1", "spp = 1\nenvironment = \"sky.exr\""),
         &[],
         &["s.toml", "image.environment", "sky.exr"],

@@ -41,7 +41,6 @@
 
 use crate::geometry::{basis, reflect};
 use crate::material::Material;
-use crate::sampler::Rng;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
@@ -133,6 +132,12 @@ impl Bsdf {
         self.p == [0.0; 3]
     }
 
+    /// Whether [`Bsdf::sample`] has a lobe to choose (more than one lobe
+    /// with a positive probability); where not, its `pick` is unused.
+    pub fn chooses_lobe(&self) -> bool {
+        self.p.iter().filter(|&&p| p > 0.0).count() > 1
+    }
+
     /// Whether light sampling can find any of its lobes (it is not a pure
     /// mirror).
     pub fn has_non_delta(&self) -> bool {
@@ -199,11 +204,10 @@ impl Bsdf {
         pdf
     }
 
-    /// Samples an incident direction with three uniform numbers from `rng`;
-    /// `None` when the sample falls under the surface (it carries no light).
-    pub fn sample(&self, rng: &mut Rng) -> Option<BsdfSample> {
-        let pick = rng.next_f32();
-        let u = rng.next_2d();
+    /// Samples an incident direction from three uniform numbers: `pick`
+    /// chooses the lobe, `u` the direction within it; `None` when the
+    /// sample falls under the surface (it carries no light).
+    pub fn sample(&self, pick: f32, u: Vec2) -> Option<BsdfSample> {
         let wi = if pick < self.p[0] {
             around(self.ns, cosine_hemisphere(u))
         } else if pick < self.p[0] + self.p[1] {
@@ -278,6 +282,7 @@ fn around(n: Vec3, local: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampler::Rng;
 
     fn material(kind: &str) -> Material {
         match kind {
@@ -330,7 +335,7 @@ mod tests {
                 // Sums in f64: a million float32 additions drift by 0.4% and more.
                 let mut sampled = 0.0f64;
                 for _ in 0..n {
-                    if let Some(s) = b.sample(&mut rng) {
+                    if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
                         sampled += s.weight.x as f64;
                     }
                 }
@@ -383,7 +388,7 @@ mod tests {
             let n = 400_000;
             let mut sum = 0.0f64;
             for _ in 0..n {
-                if let Some(s) = b.sample(&mut rng) {
+                if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
                     sum += s.weight.x as f64;
                 }
             }
@@ -409,7 +414,7 @@ mod tests {
         assert_eq!(b.pdf(wi), 0.0);
         let mut rng = Rng::new(1, 2);
         for _ in 0..10_000 {
-            if let Some(s) = b.sample(&mut rng) {
+            if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
                 assert!(s.wi.z > 0.0 && ns.dot(s.wi) > 0.0);
             }
         }
@@ -424,7 +429,11 @@ mod tests {
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let b = Bsdf::new(&m, Vec3::ZERO, Vec3::Z, Vec3::Z, wo);
         assert!(!b.has_non_delta());
-        let s = b.sample(&mut Rng::new(1, 1)).unwrap();
+        let s = {
+            let mut rng = Rng::new(1, 1);
+            b.sample(rng.next_f32(), rng.next_2d())
+        }
+        .unwrap();
         assert!(s.delta);
         assert!((s.wi - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
         assert_eq!(s.weight, Vec3::splat(0.9));

@@ -20,7 +20,6 @@ use crate::distribution::Distribution1D;
 use crate::environment::Environment;
 use crate::light::Light;
 use crate::material::Material;
-use crate::sampler::Rng;
 use crate::scene::{Primitive, Shape};
 use crate::shapes::{Quad, Sphere, Triangle};
 use glam::{Vec2, Vec3};
@@ -227,17 +226,23 @@ impl Emitters {
         self.list.len()
     }
 
-    /// Chooses a light and a point on it for a receiver at `from`; `None`
-    /// when there are no lights or the sample carries no light.
-    pub fn sample(&self, env: &Environment, from: Vec3, rng: &mut Rng) -> Option<EmitterSample> {
+    /// Chooses a light (by `pick`) and a point on it (by `u`) for a
+    /// receiver at `from`; `None` when there are no lights or the sample
+    /// carries no light.
+    pub fn sample(
+        &self,
+        env: &Environment,
+        from: Vec3,
+        pick: f32,
+        u: Vec2,
+    ) -> Option<EmitterSample> {
         if self.is_empty() {
             return None;
         }
-        let (k, pmf, _) = self.select.sample_discrete(rng.next_f32());
+        let (k, pmf, _) = self.select.sample_discrete(pick);
         if pmf <= 0.0 {
             return None;
         }
-        let u = rng.next_2d();
         let area_sample = |point: Vec3, n: Vec3, area: f32, radiance: Vec3, two_sided: bool| {
             let (wi, r2, cos) = towards(from, point, n)?;
             // Light leaves the front when the receiver is in front: n . wi < 0.

@@ -25,7 +25,7 @@ use crate::bsdf::Bsdf;
 use crate::error::Error;
 use crate::geometry::Ray;
 use crate::integrator::{emitted, facing, shadow_query};
-use crate::sampler::Rng;
+use crate::sampler::SampleStream;
 use crate::scene::{Interaction, Scene};
 use displace_core::names::parse_known;
 use glam::Vec3;
@@ -139,11 +139,21 @@ fn hit_weight(scene: &Scene, prev: Option<Bounce>, light_pdf: f32) -> f32 {
     }
 }
 
+/// The sample dimensions of the camera: the film position and the lens.
+pub const CAMERA_DIMENSIONS: u32 = 2;
+
+/// The sample dimensions each bounce draws, in this order: the light's
+/// choice and its point, the BSDF's lobe and direction, Russian roulette.
+/// A bounce starts at a fixed dimension, so that with stratified samples
+/// the same decision of every sample of a pixel is drawn from one set
+/// whatever the paths before it did.
+const BOUNCE_DIMENSIONS: u32 = 5;
+
 /// Radiance arriving along the camera ray `ray` (linear RGB), drawing its
 /// random numbers from `rng`. A sample that comes out not finite (which
 /// the estimator never produces from finite scene data) counts as black
 /// rather than poisoning the pixel.
-pub fn radiance(scene: &Scene, ray: &Ray, rng: &mut Rng) -> Vec3 {
+pub fn radiance(scene: &Scene, ray: &Ray, rng: &mut SampleStream) -> Vec3 {
     let l = trace(scene, *ray, rng);
     if l.is_finite() {
         l
@@ -152,7 +162,7 @@ pub fn radiance(scene: &Scene, ray: &Ray, rng: &mut Rng) -> Vec3 {
     }
 }
 
-fn trace(scene: &Scene, mut ray: Ray, rng: &mut Rng) -> Vec3 {
+fn trace(scene: &Scene, mut ray: Ray, rng: &mut SampleStream) -> Vec3 {
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut prev: Option<Bounce> = None;
@@ -178,6 +188,7 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut Rng) -> Vec3 {
         if depth == scene.max_depth {
             break;
         }
+        rng.set_dimension(CAMERA_DIMENSIONS + depth * BOUNCE_DIMENSIONS);
         depth += 1;
 
         let mat = &scene.materials[hit.material as usize];
@@ -190,7 +201,9 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut Rng) -> Vec3 {
         if bsdf.has_non_delta() {
             l += beta * direct(scene, &hit, &bsdf, ng, ns, p, rng);
         }
-        let Some(s) = bsdf.sample(rng) else {
+        rng.set_dimension(CAMERA_DIMENSIONS + (depth - 1) * BOUNCE_DIMENSIONS + 2);
+        let pick = rng.next_choice(bsdf.chooses_lobe());
+        let Some(s) = bsdf.sample(pick, rng.next_2d()) else {
             break;
         };
         beta *= s.weight;
@@ -207,7 +220,7 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut Rng) -> Vec3 {
             let m = beta.max_element();
             if m < 1.0 {
                 let q = (1.0 - m).max(0.0);
-                if rng.next_f32() < q {
+                if rng.next_1d() < q {
                     break;
                 }
                 beta /= 1.0 - q;
@@ -226,9 +239,17 @@ fn direct(
     ng: Vec3,
     ns: Vec3,
     p: Vec3,
-    rng: &mut Rng,
+    rng: &mut SampleStream,
 ) -> Vec3 {
-    let Some(ls) = scene.emitters.sample(&scene.environment, hit.position, rng) else {
+    if scene.emitters.is_empty() {
+        return Vec3::ZERO;
+    }
+    let pick = rng.next_choice(scene.emitters.len() > 1);
+    let u = rng.next_2d();
+    let Some(ls) = scene
+        .emitters
+        .sample(&scene.environment, hit.position, pick, u)
+    else {
         return Vec3::ZERO;
     };
     if scene.sampling == Sampling::Bsdf && ls.hittable {

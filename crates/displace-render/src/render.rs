@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Ray;
 use crate::integrator::{radiance_deferred, Deferred, PixelSample, Term};
 use crate::path::Integrator;
-use crate::sampler::{jittered, Rng};
+use crate::sampler::{jittered, Rng, SampleStream, SamplerKind};
 use crate::scene::batch::Batch;
 use crate::scene::Interaction;
 use crate::scene::Scene;
@@ -303,6 +303,29 @@ pub(crate) fn camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, Rng)
     (scene.camera.ray(film, lens), rng)
 }
 
+/// The camera ray of sample `s` of pixel `(x, y)` under the path
+/// integrator and the stream the rest of its path draws from: with
+/// independent numbers [`camera_sample`]'s, with Sobol points the film and
+/// lens positions are the stream's first two dimensions.
+fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStream) {
+    match scene.sampler {
+        SamplerKind::Independent => {
+            let (ray, rng) = camera_sample(scene, x, y, s);
+            (ray, SampleStream::independent(rng))
+        }
+        SamplerKind::Sobol => {
+            let mut st = SampleStream::new(SamplerKind::Sobol, scene.seed, x, y, s);
+            let j = st.next_2d();
+            let film = Vec2::new(
+                (x as f32 + j.x) / scene.width as f32,
+                (y as f32 + j.y) / scene.height as f32,
+            );
+            let lens = st.next_2d();
+            (scene.camera.ray(film, lens), st)
+        }
+    }
+}
+
 /// What one tile's pixels reuse from pixel to pixel: the batch queries'
 /// buffers and the pixel's rays, hits and held-back shadow rays.
 #[derive(Default)]
@@ -387,12 +410,12 @@ fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
 }
 
 /// The mean of the pixel's samples under the path integrator
-/// ([`crate::path`]), each sample's path traced on its own from the same
-/// camera ray and generator as the Whitted integrator's.
+/// ([`crate::path`]), each sample's path traced on its own from its
+/// [`path_camera_sample`].
 fn path_pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for s in 0..scene.spp {
-        let (ray, mut rng) = camera_sample(scene, x, y, s);
+        let (ray, mut rng) = path_camera_sample(scene, x, y, s);
         sum += crate::path::radiance(scene, &ray, &mut rng);
     }
     sum / scene.spp as f32

@@ -72,6 +72,147 @@ impl Rng {
     }
 }
 
+/// Where the path integrator's uniform numbers come from (`image.sampler`,
+/// `--sampler`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SamplerKind {
+    /// A PCG stream per pixel sample, the camera's film position jittered
+    /// in its stratum: the Whitted integrator's numbers.
+    #[default]
+    Independent,
+    /// Owen-scrambled Sobol points padded a dimension pair at a time
+    /// ([`crate::sobol`]): a pixel's samples stratify every 2D decision of
+    /// a path (film, light, BSDF) at every scale (pbrt-v4 section 8.7).
+    Sobol,
+}
+
+impl SamplerKind {
+    /// Every kind, in the order the scene format lists them.
+    pub const ALL: [Self; 2] = [Self::Independent, Self::Sobol];
+
+    /// The name a scene file and the command line use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Independent => "independent",
+            Self::Sobol => "sobol",
+        }
+    }
+}
+
+impl std::str::FromStr for SamplerKind {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self, crate::Error> {
+        let choices = Self::ALL.map(|k| (k.name(), k));
+        displace_core::names::parse_known("sampler", s, &choices).map_err(crate::Error::Option)
+    }
+}
+
+/// The uniform numbers of one pixel sample, dimension by dimension, from
+/// either kind of [`SamplerKind`]. With Sobol points, a dimension is a
+/// decision of the path (the film position, a bounce's light sample),
+/// which [`SampleStream::set_dimension`] pins so that the same decision of
+/// every sample of a pixel draws from the same stratified set.
+#[derive(Clone, Debug)]
+pub struct SampleStream {
+    rng: Rng,
+    kind: SamplerKind,
+    /// Hash of the seed and the pixel.
+    pixel: u64,
+    index: u32,
+    dim: u32,
+}
+
+impl SampleStream {
+    /// The numbers of sample `index` of pixel `(x, y)` under `seed`.
+    pub fn new(kind: SamplerKind, seed: u64, x: u32, y: u32, index: u32) -> Self {
+        let rng = match kind {
+            SamplerKind::Independent => Rng::for_sample(seed, x, y, index),
+            // Unused: every number comes from the points.
+            SamplerKind::Sobol => Rng { state: 0, inc: 1 },
+        };
+        Self {
+            rng,
+            kind,
+            pixel: hash(&[seed, x as u64, y as u64, 0x50b0_1dad]),
+            index,
+            dim: 0,
+        }
+    }
+
+    /// The stream of an independent sample already under way (the
+    /// Whitted camera's generator, which the path integrator continues).
+    pub fn independent(rng: Rng) -> Self {
+        Self {
+            rng,
+            kind: SamplerKind::Independent,
+            pixel: 0,
+            index: 0,
+            dim: 0,
+        }
+    }
+
+    /// Which kind of numbers this stream draws.
+    pub fn kind(&self) -> SamplerKind {
+        self.kind
+    }
+
+    /// Draws the following numbers from dimension `dim` on (no effect on
+    /// independent numbers).
+    #[inline]
+    pub fn set_dimension(&mut self, dim: u32) {
+        self.dim = dim;
+    }
+
+    #[inline]
+    fn seed(&mut self) -> u64 {
+        let s = mix(self
+            .pixel
+            .wrapping_add((self.dim as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)));
+        self.dim += 1;
+        s
+    }
+
+    /// One uniform number in `[0, 1)`.
+    #[inline]
+    pub fn next_1d(&mut self) -> f32 {
+        match self.kind {
+            SamplerKind::Independent => self.rng.next_f32(),
+            SamplerKind::Sobol => {
+                let seed = self.seed();
+                crate::sobol::to_unit(crate::sobol::sample_1d(self.index, seed))
+            }
+        }
+    }
+
+    /// The number of a choice (a light, a lobe) that may have one
+    /// alternative only (`choosing` false): then a stratified stream spends
+    /// nothing and returns 0, which picks the one alternative, while the
+    /// independent stream draws it anyway so that its sequence, and so its
+    /// images, stay as they were.
+    #[inline]
+    pub fn next_choice(&mut self, choosing: bool) -> f32 {
+        if choosing || self.kind == SamplerKind::Independent {
+            self.next_1d()
+        } else {
+            self.dim += 1;
+            0.0
+        }
+    }
+
+    /// Two uniform numbers in `[0, 1)`, stratified together.
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        match self.kind {
+            SamplerKind::Independent => self.rng.next_2d(),
+            SamplerKind::Sobol => {
+                let seed = self.seed();
+                let (x, y) = crate::sobol::sample_2d(self.index, seed);
+                Vec2::new(crate::sobol::to_unit(x), crate::sobol::to_unit(y))
+            }
+        }
+    }
+}
+
 /// Columns and rows of the stratification grid for `n` samples: as square as
 /// possible, `nx * ny >= n`.
 pub fn strata(n: u32) -> (u32, u32) {
@@ -121,6 +262,32 @@ mod tests {
         let vc: Vec<u32> = (0..8).map(|_| c.next_u32()).collect();
         assert_eq!(va, vb);
         assert_ne!(va, vc);
+    }
+
+    #[test]
+    fn a_pixels_sobol_samples_stratify_each_dimension_pair() {
+        // 16 samples of a pixel: each 2D decision puts one sample in each
+        // cell of a 4x4 grid (a (0, 4, 2)-net has one in each square).
+        for kind_dim in 0..6 {
+            let mut seen = [false; 16];
+            for s in 0..16 {
+                let mut st = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, s);
+                st.set_dimension(kind_dim);
+                let p = st.next_2d();
+                let k = (p.y * 4.0) as usize * 4 + (p.x * 4.0) as usize;
+                assert!(!seen[k], "dimension {kind_dim}");
+                seen[k] = true;
+            }
+        }
+        // Another pixel, another set; the same pixel, the same numbers.
+        let a = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, 0).next_2d();
+        let b = SampleStream::new(SamplerKind::Sobol, 3, 11, 20, 0).next_2d();
+        let c = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, 0).next_2d();
+        assert_ne!(a, b);
+        assert_eq!(a, c);
+        assert_eq!("sobol".parse::<SamplerKind>().unwrap(), SamplerKind::Sobol);
+        let e = "halton".parse::<SamplerKind>().unwrap_err().to_string();
+        assert!(e.contains("independent, sobol"), "{e}");
     }
 
     #[test]

@@ -17,6 +17,9 @@ pub struct Quad {
     /// `n / (n . n)` with `n = edge_u x edge_v`: turns cross products into
     /// parallelogram coordinates (Shirley, "Ray Tracing: The Next Week").
     w: Vec3,
+    /// `|edge_u x edge_v|`, kept: light sampling asks for it at every
+    /// vertex of every path.
+    area: f32,
 }
 
 impl Quad {
@@ -33,12 +36,13 @@ impl Quad {
             edge_v,
             normal: n / nn.sqrt(),
             w: n / nn,
+            area: nn.sqrt(),
         })
     }
 
     /// Area, for sampling an area light by area.
     pub fn area(&self) -> f32 {
-        self.edge_u.cross(self.edge_v).length()
+        self.area
     }
 
     /// Bounding box of the four corners.

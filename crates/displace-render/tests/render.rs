@@ -499,3 +499,54 @@ fn obj_without_normals_gets_smooth_ones_under_its_crease_angle() {
         assert!(e.contains("crease_angle"), "{bad}: {e}");
     }
 }
+
+/// A floor of 100 x 100 repeating tiles puts its map coordinates in the
+/// thousands of cells, where single precision rounds a cell coordinate to
+/// a few ten-thousandths of a cell. Rays aimed at the floor's base (height
+/// 0 between the studs) exactly on cell boundaries used to leave the
+/// shell through its floor between two cells (the walk's boundary, in
+/// single precision, disagreed with the double-precision patch solve) and
+/// reach the light under the floor. Every one of these rays must stop on
+/// the floor, as the exact reference's do.
+#[test]
+fn rays_leaving_the_shell_at_cell_boundaries_of_a_wide_map_hit_it() {
+    // A quad under the floor where the light of the path tracer's test is.
+    let text = format!(
+        "[image]\nwidth = 8\nheight = 8\n{WIDE_STUDDED_FLOOR}\
+         [[shapes]]\ntype = \"quad\"\norigin = [-1, -0.5, -1]\nedge_u = [0, 0, 2]\n\
+         edge_v = [2, 0, 0]\nmaterial = \"m\"\n"
+    );
+    let exact = |method| {
+        Scene::from_toml(
+            &text,
+            Path::new("wide.toml"),
+            Path::new("."),
+            &SceneOptions { method, ..opts() },
+        )
+        .unwrap()
+    };
+    let (scene, reference) = (exact(None), exact(Some(Method::Exact)));
+    let eye = glam::Vec3::new(0.3, 2.0, -1.5);
+    let mut checked = 0;
+    // Texel boundaries of one tile (x = v along world x, 64 texels in 4
+    // units), at many depths along z.
+    for k in 0..64 {
+        let x = (k as f32 + 0.5) / 16.0 - 1.0;
+        for i in 0..40 {
+            let z = -1.0 + i as f32 * 0.0511;
+            let ray = displace_render::geometry::Ray::new(eye, glam::Vec3::new(x, 0.0, z) - eye);
+            let want = reference.intersect(&ray, 0.0, f32::INFINITY).unwrap();
+            let got = scene
+                .intersect(&ray, 0.0, f32::INFINITY)
+                .unwrap_or_else(|| panic!("ray at x {x}, z {z} misses everything"));
+            assert!(
+                got.position.y > -1e-4 && (got.position - want.position).length() < 1e-3,
+                "ray at x {x}, z {z}: {:?} against the exact {:?}",
+                got.position,
+                want.position
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 64 * 40);
+}

@@ -3,7 +3,7 @@
 //! text, the bytes of every file the scene reads (height maps, textures,
 //! meshes; by content, not by path, so that machines mounting the shared
 //! file system at different places agree), and the command-line overrides
-//! (`--spp`, `--size`, `--method`, `--integrator`, `--frame`). The seed is part of the scene text. Where the bake cache lives does not
+//! (`--spp`, `--size`, `--method`, `--integrator`, `--sampler`, `--frame`). The seed is part of the scene text. Where the bake cache lives does not
 //! change the image, so it is left out.
 
 use super::SceneOptions;
@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 /// Bumped when the same inputs could render differently (a change of the
 /// hash's own layout counts too).
-const CONTENT_VERSION: u64 = 1;
+const CONTENT_VERSION: u64 = 2;
 
 /// The hash of `bytes` and their length, as 64-bit words.
 fn bytes_hash(bytes: &[u8]) -> u64 {
@@ -55,6 +55,9 @@ pub(crate) fn content_hash(text: &str, sources: &[PathBuf], opts: &SceneOptions)
         opts.integrator
             .map(|i| bytes_hash(format!("{i:?}").as_bytes())),
     ));
+    words.extend(option(
+        opts.sampler.map(|k| bytes_hash(k.name().as_bytes())),
+    ));
     Ok(hash_iter(words))
 }
 
@@ -93,6 +96,10 @@ mod tests {
             },
             SceneOptions {
                 integrator: Some(crate::Integrator::Path),
+                ..SceneOptions::default()
+            },
+            SceneOptions {
+                sampler: Some(crate::sampler::SamplerKind::Independent),
                 ..SceneOptions::default()
             },
         ] {

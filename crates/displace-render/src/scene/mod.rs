@@ -20,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::light::Light;
 use crate::material::Material;
 use crate::path::{Integrator, Sampling};
+use crate::sampler::SamplerKind;
 use displace_core::Method;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -45,6 +46,8 @@ pub struct SceneOptions {
     pub frame: Option<u32>,
     /// Overrides `image.integrator` (`--integrator`).
     pub integrator: Option<Integrator>,
+    /// Overrides `image.sampler` (`--sampler`).
+    pub sampler: Option<SamplerKind>,
 }
 
 /// A built scene: primitives under one BVH, materials, lights, camera and
@@ -62,6 +65,8 @@ pub struct Scene {
     pub(crate) environment: Environment,
     pub(crate) integrator: Integrator,
     pub(crate) sampling: Sampling,
+    /// Where the path integrator's numbers come from.
+    pub(crate) sampler: SamplerKind,
     /// The path integrator's lights.
     pub(crate) emitters: Emitters,
     pub(crate) prims: Vec<Primitive>,
@@ -189,6 +194,10 @@ impl Scene {
     /// The path integrator's estimators of direct light.
     pub fn sampling(&self) -> Sampling {
         self.sampling
+    }
+    /// Where the path integrator's numbers come from (`image.sampler`).
+    pub fn sampler(&self) -> SamplerKind {
+        self.sampler
     }
     /// Bounce limit (`image.max_depth`).
     pub fn max_depth(&self) -> u32 {

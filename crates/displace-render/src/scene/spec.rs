@@ -128,6 +128,10 @@ pub struct ImageSpec {
     /// or `"bsdf"`.
     #[serde(default = "default_sampling")]
     pub sampling: String,
+    /// The path integrator's numbers: `"sobol"` (the default) or
+    /// `"independent"`.
+    #[serde(default = "default_sampler")]
+    pub sampler: String,
     /// An equirectangular, linear OpenEXR environment map, relative to the
     /// scene file.
     pub environment: Option<String>,
@@ -143,6 +147,9 @@ fn default_integrator() -> String {
 }
 fn default_sampling() -> String {
     "mis".into()
+}
+fn default_sampler() -> String {
+    "sobol".into()
 }
 
 fn default_spp() -> i64 {

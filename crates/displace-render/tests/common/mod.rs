@@ -78,3 +78,15 @@ pub fn crop_pixels(crop: Crop, width: u32) -> impl Iterator<Item = (usize, usize
         })
     })
 }
+
+/// The camera, a Lambert material `m` and a floor of 100 x 100 repeating
+/// tiles of a studded map (map coordinates in the thousands of cells),
+/// seen from 2 units above: the scene of the tests that no ray slips
+/// through a displaced surface. `[image]` and lights are the caller's.
+pub const WIDE_STUDDED_FLOOR: &str =
+    "[camera]\nposition = [0.3, 2, -1.5]\nlook_at = [0, 0, 0]\nvfov = 40\n\
+    [materials.m]\ntype = \"lambert\"\ncolor = [0.9, 0.9, 0.9]\n\
+    [[shapes]]\ntype = \"quad\"\norigin = [-200, 0, -200]\nedge_u = [0, 0, 400]\n\
+    edge_v = [400, 0, 0]\nmaterial = \"m\"\n\
+    [shapes.displacement]\nheight = \"gen:studded?period=4\"\nheight_size = [64, 64]\n\
+    depth = 0.1\nmap_size = [32, 32, 8]\naddress = \"repeat\"\ntiles = [100, 100]\n";

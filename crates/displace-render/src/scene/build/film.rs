@@ -9,6 +9,7 @@ use crate::camera::Camera;
 use crate::environment::{Environment, EnvironmentMap};
 use crate::error::{Error, Result};
 use crate::path::{Integrator, Sampling};
+use crate::sampler::SamplerKind;
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -49,6 +50,7 @@ pub(super) struct Film {
     pub(super) environment: Environment,
     pub(super) integrator: Integrator,
     pub(super) sampling: Sampling,
+    pub(super) sampler: SamplerKind,
 }
 
 /// The film of `img`, `opts` overriding its size, samples and integrator;
@@ -103,6 +105,13 @@ pub(super) fn film(cx: &mut Ctx, img: &ImageSpec, opts: &SceneOptions) -> Result
         .sampling
         .parse()
         .map_err(|e: Error| cx.err(format!("image.sampling: {e}")))?;
+    let sampler = match opts.sampler {
+        Some(k) => k,
+        None => img
+            .sampler
+            .parse()
+            .map_err(|e: Error| cx.err(format!("image.sampler: {e}")))?,
+    };
     let background = match img.background {
         Some(b) => cx.color(b, "image.background")?,
         None => Vec3::ZERO,
@@ -138,6 +147,7 @@ pub(super) fn film(cx: &mut Ctx, img: &ImageSpec, opts: &SceneOptions) -> Result
         environment,
         integrator,
         sampling,
+        sampler,
     })
 }
 

@@ -79,6 +79,7 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         environment: film.environment,
         integrator: film.integrator,
         sampling: film.sampling,
+        sampler: film.sampler,
         emitters,
         prims,
         attrs,
