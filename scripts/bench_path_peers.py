@@ -32,6 +32,12 @@ kernel compile), each the best of `--repeat` runs, on every core. Usage:
     pip install -r scripts/requirements-bench.txt
     cargo build --release -p displace-cli
     python3 scripts/bench_path_peers.py [--size 128] [--spp 16,64,256] [--ref-spp 4096]
+        [--sampler sobol|independent] [--mitsuba-sampler independent|ldsampler|...]
+
+Samplers: ours draws Owen-scrambled Sobol points by default (`--sampler`);
+Mitsuba's timed renders use `--mitsuba-sampler` (its default, `independent`,
+unless told; `ldsampler` is its own (0, 2)-sequence, the like-for-like
+comparison of ours), its reference always `independent`.
 """
 
 import argparse
