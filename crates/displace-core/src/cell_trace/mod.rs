@@ -322,11 +322,12 @@ impl Lane {
     /// The end of a trace whose walks found nothing up to the shell's exit.
     /// Heights are never below the shell's floor (`z = 0`), so a ray that
     /// leaves through the floor has met the surface by then: where the
-    /// walk found no root (the floor reached right at a cell boundary, the
-    /// single-precision stretch and the double-precision patch a few
-    /// millionths of a cell apart, on a patch the ray runs nearly parallel
-    /// to), the hit is the exit itself, within that rounding of the exact
-    /// one. Elsewhere the ray misses.
+    /// walk found no root (the floor reached right at a cell boundary,
+    /// where the single-precision stretches and the double-precision patch
+    /// disagree by the rounding of the cell coordinates, on a patch the ray
+    /// runs nearly parallel to, so that the root falls past both cells'
+    /// stretches), the hit is the exit itself, within that rounding of the
+    /// exact one. Elsewhere the ray misses.
     #[inline(always)]
     fn floor_exit<const ANY: bool>(&self, c: &Constants) -> Outcome {
         let (oz, dz) = (self.ray.origin.z, self.ray.dir.z);
@@ -437,32 +438,27 @@ pub(crate) struct Grid {
     y: Axis,
 }
 
-/// One axis of the cell walk: cell coordinate `base + o + d t` (already
-/// scaled to cells), the step direction, and `1 / |d|`, the parameter per
-/// cell.
+/// One axis of the cell walk: cell coordinate `o + d t` (already scaled to
+/// cells), the step direction, and `1 / |d|`, the parameter per cell.
 ///
-/// The coordinate is kept relative to `base`, the cell of the ray's
-/// origin, worked out in double precision with the solve's own scale `s`
-/// (not its single-precision rounding): a map thousands of cells wide (an
-/// 8K height map, or a repeating map of many tiles) would otherwise round
-/// `o s` to a few ten-thousandths of a cell, and cell boundaries
-/// stepped from it would disagree with the double-precision patch solve
-/// by as much. A ray that leaves the shell through its floor right at a
-/// cell's corner then fell between two cells: the cell the ray truly
-/// was in had ended in single precision before the root, and the next
-/// cell's patch, extended back over the gap, lay under the ray.
+/// `o` and `d` are worked out in double precision at the solve's own scale
+/// and rounded once: with the scale rounded to single precision first, a
+/// map thousands of cells wide (an 8K height map, a floor of many
+/// repeating tiles) put cell boundaries ten-thousandths of a cell away from
+/// where the double-precision patch solve has them. What rounding is left
+/// (a few ulps of the coordinate) moves a hit by as much and loses none:
+/// inside the shell the next cell's solve finds a root the gap hid, and at
+/// the shell's floor [`Lane::floor_exit`] stands in.
 struct Axis {
     o: f32,
     d: f32,
     step: i64,
     dt: f32,
-    base: i64,
 }
 
 impl Axis {
+    #[inline(always)]
     fn new(o: f32, d: f32, s: f64) -> Self {
-        let x0 = o as f64 * s - 0.5;
-        let base = if x0.is_finite() { x0.floor() } else { 0.0 };
         let ds = (d as f64 * s) as f32;
         let (step, dt) = if ds > 0.0 {
             (1, 1.0 / ds)
@@ -472,11 +468,10 @@ impl Axis {
             (0, f32::INFINITY)
         };
         Axis {
-            o: (x0 - base) as f32,
+            o: (o as f64 * s - 0.5) as f32,
             d: ds,
             step,
             dt,
-            base: base as i64,
         }
     }
 
@@ -486,16 +481,16 @@ impl Axis {
     fn start(&self, t0: f32) -> (i64, f32) {
         let x0 = self.o + self.d * t0;
         let c = floor_i64(x0);
-        let t = match self.step {
-            1 => t0 + ((c + 1) as f32 - x0) * self.dt,
-            -1 => t0 + (x0 - c as f32) * self.dt,
-            _ => f32::INFINITY,
-        };
-        (c.saturating_add(self.base), t)
+        match self.step {
+            1 => (c, t0 + ((c + 1) as f32 - x0) * self.dt),
+            -1 => (c, t0 + (x0 - c as f32) * self.dt),
+            _ => (c, f32::INFINITY),
+        }
     }
 }
 
 impl Grid {
+    #[inline(always)]
     fn new([sx, sy]: [f64; 2], ray: &MapRay) -> Self {
         let (o, d) = (ray.origin, ray.dir);
         Grid {
@@ -509,9 +504,9 @@ impl Grid {
 
 /// The exact walk of [`crate::exact::walk`] over `[t0, t1]`, built for
 /// speed where the reference is built for plainness:
-/// - the cells are stepped in single precision, relative to the cell of the
-///   ray's origin ([`Axis`]; a ray crosses a few dozen cells here, so the
-///   boundaries drift by well under a micro-cell however wide the map; the
+/// - the cells are stepped in single precision ([`Axis`]; a ray crosses a
+///   few dozen cells here, so the boundaries drift by well under a
+///   micro-cell; the
 ///   stretches stay contiguous, each shared boundary one value, so no root
 ///   falls between two cells), and only the patch solve runs in double;
 /// - a cell is solved only when the ray's lowest point over its stretch

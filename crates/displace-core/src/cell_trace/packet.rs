@@ -351,7 +351,6 @@ mod avx2 {
         let mut margin = [0.0f32; LANES];
         let mut oz = [0.0f32; LANES];
         let mut axes = [[0.0f32; LANES]; 4];
-        let mut bases = [[0i32; LANES]; 2];
         let mut dz = [0.0f32; LANES];
         for l in lanes_of(live) {
             let lane = lanes[l].as_ref().expect("a live lane");
@@ -387,10 +386,6 @@ mod avx2 {
             axes[1][l] = g.x.d;
             axes[2][l] = g.y.o;
             axes[3][l] = g.y.d;
-            // The cells relative to the axes' bases, as the scalar
-            // walk's coordinates are (within `i32` as the cells are).
-            bases[0][l] = g.x.base.clamp(i32::MIN as i64 / 2, i32::MAX as i64 / 2) as i32;
-            bases[1][l] = g.y.base.clamp(i32::MIN as i64 / 2, i32::MAX as i64 / 2) as i32;
             dz[l] = g.d.z;
         }
         let load = |v: &[f32; LANES]| _mm256_loadu_ps(v.as_ptr());
@@ -410,7 +405,6 @@ mod avx2 {
         let one_i = _mm256_set1_epi32(1);
         let wv = _mm256_set1_epi32(w);
         let data = height.data();
-        let (bi_v, bj_v) = (loadi(&bases[0]), loadi(&bases[1]));
         let (xo_v, xd_v, yo_v, yd_v) = (
             load(&axes[0]),
             load(&axes[1]),
@@ -478,9 +472,8 @@ mod avx2 {
                 // double-precision solve.
                 let mul = _mm256_mul_ps;
                 let (add, sub) = (_mm256_add_ps, _mm256_sub_ps);
-                let local = |c: __m256i, b: __m256i| _mm256_cvtepi32_ps(_mm256_sub_epi32(c, b));
-                let px = sub(add(xo_v, mul(xd_v, ta_v)), local(ci_v, bi_v));
-                let py = sub(add(yo_v, mul(yd_v, ta_v)), local(cj_v, bj_v));
+                let px = sub(add(xo_v, mul(xd_v, ta_v)), _mm256_cvtepi32_ps(ci_v));
+                let py = sub(add(yo_v, mul(yd_v, ta_v)), _mm256_cvtepi32_ps(cj_v));
                 let a = sub(h10, h00);
                 let b = sub(h01, h00);
                 let c = add(sub(sub(h00, h10), h01), h11);
