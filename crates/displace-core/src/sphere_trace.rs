@@ -223,6 +223,9 @@ pub fn trace_counted(
         return match walk(clip.t_in, clip.t_out) {
             Walk::Hit(h) => hit(surface(h.t, h.normal, h.cells, true)),
             Walk::StartsInside { cells } => hit(wall(clip.t_in, cells)),
+            Walk::Miss { cells } if leaves_through_floor(ray, clip.t_out) => {
+                hit(surface(clip.t_out as f64, Vec3::Z, cells, true))
+            }
             Walk::Miss { cells } => (None, cells),
         };
     }
@@ -305,6 +308,22 @@ pub fn trace_counted(
         }
     }
     (None, iterations)
+}
+
+/// Whether `ray` leaves the shell through its floor (`z = 0`) at `t_out`,
+/// within the single-precision rounding of that exit (1e-6 of the ray's
+/// scale: a few ulps of the origin's height and of the parameter, far
+/// below any visible height). Heights never go below the floor, so such a
+/// ray has met the surface by its exit: where a walk found no root there
+/// (the exit at a cell boundary, on a patch the ray runs nearly parallel
+/// to, where rounding puts the root past both cells' stretches), the exit
+/// is the hit, within that rounding of the exact one. Both the exact
+/// reference and the CPU tracer ([`crate::cell_trace`]) end so.
+#[inline]
+pub(crate) fn leaves_through_floor(ray: &MapRay, t_out: f32) -> bool {
+    let (oz, dz) = (ray.origin.z, ray.dir.z);
+    let z = oz + dz * t_out;
+    dz < 0.0 && z <= 1e-6 * (1.0 + oz.abs() + t_out.abs())
 }
 
 /// The hit on the displaced surface at `t` along `ray`.

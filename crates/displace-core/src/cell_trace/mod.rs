@@ -25,7 +25,7 @@
 
 use crate::convention::{floor_i64, TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
 use crate::exact::{patch_hit, SurfaceHit, Walk};
-use crate::sphere_trace::{clip, surface_hit, wall_hit, MapHit, MapRay};
+use crate::sphere_trace::{clip, leaves_through_floor, surface_hit, wall_hit, MapHit, MapRay};
 use crate::sphere_trace::{Method, TraceOptions};
 use crate::{DistanceMap, HeightMap};
 use glam::Vec3;
@@ -319,20 +319,14 @@ impl Lane {
         None
     }
 
-    /// The end of a trace whose walks found nothing up to the shell's exit.
-    /// Heights are never below the shell's floor (`z = 0`), so a ray that
-    /// leaves through the floor has met the surface by then: where the
-    /// walk found no root (the floor reached right at a cell boundary,
-    /// where the single-precision stretches and the double-precision patch
-    /// disagree by the rounding of the cell coordinates, on a patch the ray
-    /// runs nearly parallel to, so that the root falls past both cells'
-    /// stretches), the hit is the exit itself, within that rounding of the
-    /// exact one. Elsewhere the ray misses.
+    /// The end of a trace whose walks found nothing up to the shell's exit:
+    /// a hit at the exit where the ray [`leaves_through_floor`] (the
+    /// single-precision stretches and the double-precision patch disagree
+    /// by the rounding of the cell coordinates, so such a root can fall
+    /// past both cells' stretches), else a miss.
     #[inline(always)]
     fn floor_exit<const ANY: bool>(&self, c: &Constants) -> Outcome {
-        let (oz, dz) = (self.ray.origin.z, self.ray.dir.z);
-        let z = oz + dz * self.t_out;
-        if !(dz < 0.0 && z <= FLOOR_EXIT * (1.0 + oz.abs() + self.t_out.abs())) {
+        if !leaves_through_floor(&self.ray, self.t_out) {
             return Outcome::Miss;
         }
         if ANY {
@@ -367,12 +361,6 @@ impl Lane {
         }
     }
 }
-
-/// How close to the shell's floor, relative to the ray's scale, a ray's
-/// exit counts as through the floor ([`Lane::floor_exit`]): well above the
-/// single-precision rounding of the exit's height (a few ulps of the
-/// origin's height and of the parameter), far below any visible height.
-const FLOOR_EXIT: f32 = 1e-6;
 
 /// What a lane does next.
 #[derive(Clone, Copy)]
