@@ -553,16 +553,13 @@ fn rays_leaving_the_shell_at_cell_boundaries_of_a_wide_map_hit_it() {
                         "ray at {target} went through the floor to {:?}",
                         got.position
                     );
-                    // The exact reference's own walk has the same exposure at
-                    // these boundaries (it is the reference for hits, not for
-                    // watertightness): compared where it finds one.
-                    match reference.intersect(&ray, 0.0, f32::INFINITY) {
-                        Some(want) if want.position.y > -1e-4 => {
-                            if (got.position - want.position).length() >= 1e-3 {
-                                apart += 1;
-                            }
-                        }
-                        _ => apart += 1,
+                    // The exact reference ends at the floor alike.
+                    let want = reference
+                        .intersect(&ray, 0.0, f32::INFINITY)
+                        .unwrap_or_else(|| panic!("the exact reference misses {target}"));
+                    assert!(want.position.y > -1e-4, "{target}: {:?}", want.position);
+                    if (got.position - want.position).length() >= 1e-3 {
+                        apart += 1;
                     }
                     checked += 1;
                 }
