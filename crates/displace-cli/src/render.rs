@@ -104,24 +104,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .iter()
         .map(|a| a.trim().parse())
         .collect::<Result<_, _>>()?;
-    let method = args
-        .method
-        .as_deref()
-        .map(str::parse)
-        .transpose()
-        .context("--method")?;
-    let integrator: Option<displace_render::Integrator> = args
-        .integrator
-        .as_deref()
-        .map(str::parse)
-        .transpose()
-        .context("--integrator")?;
-    let sampler: Option<displace_render::SamplerKind> = args
-        .sampler
-        .as_deref()
-        .map(str::parse)
-        .transpose()
-        .context("--sampler")?;
+    let method = parse_flag(args.method.as_deref(), "--method")?;
+    let integrator = parse_flag(args.integrator.as_deref(), "--integrator")?;
+    let sampler = parse_flag(args.sampler.as_deref(), "--sampler")?;
     let tile = args
         .tile
         .as_deref()
@@ -327,4 +312,14 @@ fn resolve_tile(arg: &str, output: &std::path::Path) -> Result<TileIndex> {
             TileIndex::new(index, count).with_context(|| format!("--tile {arg}"))?
         }
     })
+}
+
+/// The value of an optional named flag (`--method`, `--integrator`,
+/// `--sampler`), its parse error reported under the flag's name.
+fn parse_flag<T>(value: Option<&str>, flag: &'static str) -> Result<Option<T>>
+where
+    T: std::str::FromStr,
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    value.map(str::parse).transpose().context(flag)
 }

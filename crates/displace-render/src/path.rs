@@ -188,7 +188,8 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut SampleStream) -> Vec3 {
         if depth == scene.max_depth {
             break;
         }
-        rng.set_dimension(CAMERA_DIMENSIONS + depth * BOUNCE_DIMENSIONS);
+        let dimensions = CAMERA_DIMENSIONS + depth * BOUNCE_DIMENSIONS;
+        rng.set_dimension(dimensions);
         depth += 1;
 
         let mat = &scene.materials[hit.material as usize];
@@ -201,7 +202,7 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut SampleStream) -> Vec3 {
         if bsdf.has_non_delta() {
             l += beta * direct(scene, &hit, &bsdf, ng, ns, p, rng);
         }
-        rng.set_dimension(CAMERA_DIMENSIONS + (depth - 1) * BOUNCE_DIMENSIONS + 2);
+        rng.set_dimension(dimensions + 2);
         let pick = rng.next_choice(bsdf.chooses_lobe());
         let Some(s) = bsdf.sample(pick, rng.next_2d()) else {
             break;

@@ -295,12 +295,18 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
 pub(crate) fn camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, Rng) {
     let mut rng = Rng::for_sample(scene.seed, x, y, s);
     let j = jittered(s, scene.spp, &mut rng);
-    let film = Vec2::new(
-        (x as f32 + j.x) / scene.width as f32,
-        (y as f32 + j.y) / scene.height as f32,
-    );
     let lens = rng.next_2d();
-    (scene.camera.ray(film, lens), rng)
+    (camera_ray(scene, x, y, j, lens), rng)
+}
+
+/// The camera ray through offset `jitter` (in `[0, 1)^2`) of pixel `(x, y)`
+/// and point `lens` of the lens.
+fn camera_ray(scene: &Scene, x: u32, y: u32, jitter: Vec2, lens: Vec2) -> Ray {
+    let film = Vec2::new(
+        (x as f32 + jitter.x) / scene.width as f32,
+        (y as f32 + jitter.y) / scene.height as f32,
+    );
+    scene.camera.ray(film, lens)
 }
 
 /// The camera ray of sample `s` of pixel `(x, y)` under the path
@@ -314,14 +320,10 @@ fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStre
             (ray, SampleStream::independent(rng))
         }
         SamplerKind::Sobol => {
-            let mut st = SampleStream::new(SamplerKind::Sobol, scene.seed, x, y, s);
-            let j = st.next_2d();
-            let film = Vec2::new(
-                (x as f32 + j.x) / scene.width as f32,
-                (y as f32 + j.y) / scene.height as f32,
-            );
+            let mut st = SampleStream::sobol(scene.seed, x, y, s);
+            let jitter = st.next_2d();
             let lens = st.next_2d();
-            (scene.camera.ray(film, lens), st)
+            (camera_ray(scene, x, y, jitter, lens), st)
         }
     }
 }

@@ -114,27 +114,29 @@ impl std::str::FromStr for SamplerKind {
 /// every sample of a pixel draws from the same stratified set.
 #[derive(Clone, Debug)]
 pub struct SampleStream {
-    rng: Rng,
-    kind: SamplerKind,
-    /// Hash of the seed and the pixel.
-    pixel: u64,
-    index: u32,
+    source: Source,
+    /// The dimension the next number comes from (Sobol points only).
     dim: u32,
 }
 
+#[derive(Clone, Debug)]
+enum Source {
+    Independent(Rng),
+    Sobol {
+        /// Hash of the seed and the pixel.
+        pixel: u64,
+        index: u32,
+    },
+}
+
 impl SampleStream {
-    /// The numbers of sample `index` of pixel `(x, y)` under `seed`.
-    pub fn new(kind: SamplerKind, seed: u64, x: u32, y: u32, index: u32) -> Self {
-        let rng = match kind {
-            SamplerKind::Independent => Rng::for_sample(seed, x, y, index),
-            // Unused: every number comes from the points.
-            SamplerKind::Sobol => Rng { state: 0, inc: 1 },
-        };
+    /// The Sobol points of sample `index` of pixel `(x, y)` under `seed`.
+    pub fn sobol(seed: u64, x: u32, y: u32, index: u32) -> Self {
         Self {
-            rng,
-            kind,
-            pixel: hash(&[seed, x as u64, y as u64, 0x50b0_1dad]),
-            index,
+            source: Source::Sobol {
+                pixel: hash(&[seed, x as u64, y as u64, 0x50b0_1dad]),
+                index,
+            },
             dim: 0,
         }
     }
@@ -143,17 +145,9 @@ impl SampleStream {
     /// Whitted camera's generator, which the path integrator continues).
     pub fn independent(rng: Rng) -> Self {
         Self {
-            rng,
-            kind: SamplerKind::Independent,
-            pixel: 0,
-            index: 0,
+            source: Source::Independent(rng),
             dim: 0,
         }
-    }
-
-    /// Which kind of numbers this stream draws.
-    pub fn kind(&self) -> SamplerKind {
-        self.kind
     }
 
     /// Draws the following numbers from dimension `dim` on (no effect on
@@ -163,11 +157,11 @@ impl SampleStream {
         self.dim = dim;
     }
 
+    /// The seed of the current dimension of pixel hash `pixel`, and on to
+    /// the next dimension.
     #[inline]
-    fn seed(&mut self) -> u64 {
-        let s = mix(self
-            .pixel
-            .wrapping_add((self.dim as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)));
+    fn seed(&mut self, pixel: u64) -> u64 {
+        let s = mix(pixel.wrapping_add((self.dim as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)));
         self.dim += 1;
         s
     }
@@ -175,11 +169,11 @@ impl SampleStream {
     /// One uniform number in `[0, 1)`.
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
-        match self.kind {
-            SamplerKind::Independent => self.rng.next_f32(),
-            SamplerKind::Sobol => {
-                let seed = self.seed();
-                crate::sobol::to_unit(crate::sobol::sample_1d(self.index, seed))
+        match self.source {
+            Source::Independent(ref mut rng) => rng.next_f32(),
+            Source::Sobol { pixel, index } => {
+                let seed = self.seed(pixel);
+                crate::sobol::to_unit(crate::sobol::sample_1d(index, seed))
             }
         }
     }
@@ -191,22 +185,23 @@ impl SampleStream {
     /// images, stay as they were.
     #[inline]
     pub fn next_choice(&mut self, choosing: bool) -> f32 {
-        if choosing || self.kind == SamplerKind::Independent {
-            self.next_1d()
-        } else {
-            self.dim += 1;
-            0.0
+        match self.source {
+            Source::Sobol { .. } if !choosing => {
+                self.dim += 1;
+                0.0
+            }
+            _ => self.next_1d(),
         }
     }
 
     /// Two uniform numbers in `[0, 1)`, stratified together.
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
-        match self.kind {
-            SamplerKind::Independent => self.rng.next_2d(),
-            SamplerKind::Sobol => {
-                let seed = self.seed();
-                let (x, y) = crate::sobol::sample_2d(self.index, seed);
+        match self.source {
+            Source::Independent(ref mut rng) => rng.next_2d(),
+            Source::Sobol { pixel, index } => {
+                let seed = self.seed(pixel);
+                let (x, y) = crate::sobol::sample_2d(index, seed);
                 Vec2::new(crate::sobol::to_unit(x), crate::sobol::to_unit(y))
             }
         }
@@ -271,7 +266,7 @@ mod tests {
         for kind_dim in 0..6 {
             let mut seen = [false; 16];
             for s in 0..16 {
-                let mut st = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, s);
+                let mut st = SampleStream::sobol(3, 10, 20, s);
                 st.set_dimension(kind_dim);
                 let p = st.next_2d();
                 let k = (p.y * 4.0) as usize * 4 + (p.x * 4.0) as usize;
@@ -280,9 +275,9 @@ mod tests {
             }
         }
         // Another pixel, another set; the same pixel, the same numbers.
-        let a = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, 0).next_2d();
-        let b = SampleStream::new(SamplerKind::Sobol, 3, 11, 20, 0).next_2d();
-        let c = SampleStream::new(SamplerKind::Sobol, 3, 10, 20, 0).next_2d();
+        let a = SampleStream::sobol(3, 10, 20, 0).next_2d();
+        let b = SampleStream::sobol(3, 11, 20, 0).next_2d();
+        let c = SampleStream::sobol(3, 10, 20, 0).next_2d();
         assert_ne!(a, b);
         assert_eq!(a, c);
         assert_eq!("sobol".parse::<SamplerKind>().unwrap(), SamplerKind::Sobol);

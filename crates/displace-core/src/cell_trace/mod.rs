@@ -494,9 +494,9 @@ impl Grid {
 /// speed where the reference is built for plainness:
 /// - the cells are stepped in single precision ([`Axis`]; a ray crosses a
 ///   few dozen cells here, so the boundaries drift by well under a
-///   micro-cell; the
-///   stretches stay contiguous, each shared boundary one value, so no root
-///   falls between two cells), and only the patch solve runs in double;
+///   micro-cell; the stretches stay contiguous, each shared boundary one
+///   value, so no root falls between two cells), and only the patch solve
+///   runs in double;
 /// - a cell is solved only when the ray's lowest point over its stretch
 ///   comes within `margin` of the cell's highest corner (a bilinear patch
 ///   never rises above its corners); the margin, `1e-4 (1 + t1)` shell

@@ -53,6 +53,13 @@ pub(super) struct Film {
     pub(super) sampler: SamplerKind,
 }
 
+/// One of a key's named choices (`image.integrator`, `image.sampling`,
+/// `image.sampler`), an unknown name reported under the key.
+fn choice<T: std::str::FromStr<Err = Error>>(cx: &Ctx, text: &str, key: &str) -> Result<T> {
+    text.parse()
+        .map_err(|e: Error| cx.err(format!("{key}: {e}")))
+}
+
 /// The film of `img`, `opts` overriding its size, samples and integrator;
 /// its image buffers start the scene's memory estimate.
 pub(super) fn film(cx: &mut Ctx, img: &ImageSpec, opts: &SceneOptions) -> Result<Film> {
@@ -96,21 +103,12 @@ pub(super) fn film(cx: &mut Ctx, img: &ImageSpec, opts: &SceneOptions) -> Result
     }
     let integrator = match opts.integrator {
         Some(i) => i,
-        None => img
-            .integrator
-            .parse()
-            .map_err(|e: Error| cx.err(format!("image.integrator: {e}")))?,
+        None => choice(cx, &img.integrator, "image.integrator")?,
     };
-    let sampling: Sampling = img
-        .sampling
-        .parse()
-        .map_err(|e: Error| cx.err(format!("image.sampling: {e}")))?;
+    let sampling: Sampling = choice(cx, &img.sampling, "image.sampling")?;
     let sampler = match opts.sampler {
         Some(k) => k,
-        None => img
-            .sampler
-            .parse()
-            .map_err(|e: Error| cx.err(format!("image.sampler: {e}")))?,
+        None => choice(cx, &img.sampler, "image.sampler")?,
     };
     let background = match img.background {
         Some(b) => cx.color(b, "image.background")?,
