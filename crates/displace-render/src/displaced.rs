@@ -452,19 +452,7 @@ impl DisplacedFace {
         let shading_normal = if wall {
             geometric_normal
         } else {
-            let n_map = match &self.normal_map {
-                Some(tex) => (tex.sample(uv) * 2.0 - Vec3::ONE).normalize_or(Vec3::Z),
-                None => {
-                    let st = match self.map.address() {
-                        Address::Repeat => {
-                            Vec2::new(hit.uv.x.rem_euclid(1.0), hit.uv.y.rem_euclid(1.0))
-                        }
-                        Address::Clamp => hit.uv,
-                    };
-                    // Normalised once, in the world.
-                    self.map.shading_direction(st)
-                }
-            };
+            let n_map = map_shading_direction(&self.map, self.normal_map.as_deref(), hit.uv, uv);
             (self.normal_to_world * n_map).normalize()
         };
         DisplacedHit {
@@ -474,6 +462,31 @@ impl DisplacedFace {
             uv,
             iterations: hit.iterations,
             wall,
+        }
+    }
+}
+
+/// The map-space shading normal of a hit at texture coordinate `local_uv`
+/// (tiles of the face's map window; `uv` with the window's offset added):
+/// the scene's normal map at `uv` (+Y up, the ray-tracer paper's section
+/// 2.2), else the baked normals' blend, not yet renormalised (the caller
+/// carries it to the world and normalises there).
+pub(crate) fn map_shading_direction(
+    map: &DisplacementMap,
+    normal_map: Option<&Texture>,
+    local_uv: Vec2,
+    uv: Vec2,
+) -> Vec3 {
+    match normal_map {
+        Some(tex) => (tex.sample(uv) * 2.0 - Vec3::ONE).normalize_or(Vec3::Z),
+        None => {
+            let st = match map.address() {
+                Address::Repeat => {
+                    Vec2::new(local_uv.x.rem_euclid(1.0), local_uv.y.rem_euclid(1.0))
+                }
+                Address::Clamp => local_uv,
+            };
+            map.shading_direction(st)
         }
     }
 }

@@ -195,7 +195,7 @@ impl Emitters {
                     },
                     4.0 * PI * s.radius * s.radius,
                 ),
-                Shape::Displaced(_) => continue,
+                Shape::Displaced(_) | Shape::Curved(_) => continue,
             };
             power.push(2.0 * PI * area * power_weight(radiance));
             list.push(e);

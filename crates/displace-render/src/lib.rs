@@ -35,6 +35,8 @@ pub mod bsdf;
 pub mod builtin_mesh;
 pub mod bvh;
 pub mod camera;
+pub mod curved_face;
+pub mod curved_shell;
 pub mod displaced;
 pub mod displaced_surface;
 pub mod distribution;

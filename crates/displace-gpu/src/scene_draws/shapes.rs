@@ -15,7 +15,7 @@ pub(super) fn add_plain(plain: &mut PlainMesh, shape: &Shape, m: &PlainMaterial)
     match shape {
         Shape::Quad(q) => plain.quad(q.origin, q.edge_u, q.edge_v, m),
         Shape::Sphere(s) => plain.sphere(s.center, s.radius, m),
-        Shape::Triangle { .. } | Shape::Displaced(_) => {}
+        Shape::Triangle { .. } | Shape::Displaced(_) | Shape::Curved(_) => {}
     }
 }
 

@@ -2,6 +2,7 @@
 //! of them: nearest hit, and whether anything blocks a segment.
 
 use super::Scene;
+use crate::curved_face::{CurvedFace, CurvedHit};
 use crate::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
 use crate::mesh::MeshTriangle;
@@ -70,6 +71,9 @@ pub enum Shape {
     Sphere(Sphere),
     /// A displaced quad or triangle: the prism over it, traced in map space.
     Displaced(Box<DisplacedFace>),
+    /// A displaced triangle of a curved mesh: the shell along its vertex
+    /// normals, traced through its texture space.
+    Curved(Box<CurvedFace>),
 }
 
 /// A triangle without per-vertex attributes (flat normal, no texture
@@ -98,6 +102,7 @@ impl Primitive {
             Shape::Triangle { tri, .. } => tri.bounds(),
             Shape::Sphere(s) => s.bounds(),
             Shape::Displaced(d) => d.bounds(),
+            Shape::Curved(c) => c.bounds(),
         }
     }
 }
@@ -108,6 +113,7 @@ pub(super) enum Local {
     Param(Vec2),
     Sphere,
     Map(MapHit),
+    Curved(CurvedHit),
 }
 
 /// Everything shading needs at a hit, world space.
@@ -152,6 +158,9 @@ impl Scene {
             Shape::Displaced(d) => d
                 .intersect(ray, t_min, t_max)
                 .map(|(t, h)| (t, Local::Map(h))),
+            Shape::Curved(c) => c
+                .intersect(ray, t_min, t_max)
+                .map(|(t, h)| (t, Local::Curved(h))),
         }
     }
 
@@ -192,22 +201,27 @@ impl Scene {
         let mut seen: Vec<*const DisplacementMap> = Vec::new();
         let mut bytes = 0;
         for p in &self.prims {
-            if let Shape::Displaced(d) = &p.shape {
-                let ptr = Arc::as_ptr(d.map());
+            let map = match &p.shape {
+                Shape::Displaced(d) => Some(d.map()),
+                Shape::Curved(c) => Some(c.map()),
+                _ => None,
+            };
+            if let Some(map) = map {
+                let ptr = Arc::as_ptr(map);
                 if !seen.contains(&ptr) {
                     seen.push(ptr);
-                    bytes += d.map().memory_bytes();
+                    bytes += map.memory_bytes();
                 }
             }
         }
         bytes
     }
 
-    /// Whether primitive `i` is a displaced face.
+    /// Whether primitive `i` is a displaced face (flat or curved).
     pub fn is_displaced(&self, i: u32) -> bool {
         matches!(
             self.prims.get(i as usize).map(|p| &p.shape),
-            Some(Shape::Displaced(_))
+            Some(Shape::Displaced(_) | Shape::Curved(_))
         )
     }
 
@@ -218,6 +232,7 @@ impl Scene {
                 // Any blocker ends the query: the value only has to be a
                 // distance within the range.
                 Shape::Displaced(d) => d.occludes(ray, t_min, t_max).then_some(t_min),
+                Shape::Curved(c) => c.occludes(ray, t_min, t_max).then_some(t_min),
                 _ => self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t),
             }
         })
@@ -284,18 +299,19 @@ impl Scene {
                 out.shading_normal = n;
                 out.uv = Sphere::uv(n);
             }
-            (Shape::Displaced(d), Local::Map(h)) => {
-                let r = if shading {
-                    d.resolve(&h)
-                } else {
-                    d.resolve_geometry(&h)
+            (Shape::Displaced(_), Local::Map(_)) | (Shape::Curved(_), Local::Curved(_)) => {
+                let (r, color) = match (&prim.shape, local) {
+                    (Shape::Displaced(d), Local::Map(h)) if shading => (d.resolve(&h), &d.color),
+                    (Shape::Displaced(d), Local::Map(h)) => (d.resolve_geometry(&h), &d.color),
+                    (Shape::Curved(c), Local::Curved(h)) => (c.resolve(&h, shading), &c.color),
+                    _ => unreachable!("matched above"),
                 };
                 out.position = r.position;
                 out.geometric_normal = r.geometric_normal;
                 out.shading_normal = r.shading_normal;
                 out.uv = r.uv;
                 out.iterations = r.iterations;
-                if let (true, Some(tex)) = (shading, &d.color) {
+                if let (true, Some(tex)) = (shading, color) {
                     out.tint = tex.sample(r.uv);
                 }
             }

@@ -7,8 +7,11 @@
 use super::super::spec::DisplacementSpec;
 use super::super::world::MeshDisplacement;
 use super::ctx::Ctx;
+use crate::curved_face::CurvedFace;
+use crate::curved_shell::CurvedShell;
 use crate::displaced::{DisplacedFace, FaceFrame};
 use crate::error::{Error, Result};
+use crate::mesh::MeshTriangle;
 use crate::shapes::Triangle;
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
@@ -187,6 +190,28 @@ impl DispBuild {
     ) -> Result<DisplacedFace> {
         let (_, (dpdu, dpdv)) = triangle_frame(tri, uv)
             .ok_or_else(|| cx.err(format!("{what}: degenerate texture coordinates")))?;
+        let (trace, shift, local) = self.window(cx, uv, what)?;
+        let frame = FaceFrame {
+            origin: tri.p0 - local[0].x * dpdu - local[0].y * dpdv,
+            dpdu,
+            dpdv,
+            normal: tri.normal(),
+            depth: self.depth,
+        };
+        let face = DisplacedFace::new(frame, self.map.clone(), trace, Some(local), shift);
+        self.finish(face, cx, what)
+    }
+
+    /// The map window of a triangle with texture coordinates `uv`: its
+    /// trace options (a repeating map's `tiles` grown to the tiles the
+    /// coordinates touch), the whole-tile shift that brings them into
+    /// `[0, tiles]`, and the shifted coordinates.
+    fn window(
+        &self,
+        cx: &Ctx,
+        uv: &[Vec2; 3],
+        what: &str,
+    ) -> Result<(TraceOptions, Vec2, [Vec2; 3])> {
         let lo = uv[0].min(uv[1]).min(uv[2]);
         let hi = uv[0].max(uv[1]).max(uv[2]);
         let mut trace = self.trace;
@@ -208,14 +233,32 @@ impl DispBuild {
         };
         let local =
             uv.map(|c| (c - shift).clamp(Vec2::ZERO, Vec2::new(trace.tiles[0], trace.tiles[1])));
-        let frame = FaceFrame {
-            origin: tri.p0 - local[0].x * dpdu - local[0].y * dpdv,
-            dpdu,
-            dpdv,
-            normal: tri.normal(),
-            depth: self.depth,
-        };
-        let face = DisplacedFace::new(frame, self.map.clone(), trace, Some(local), shift);
-        self.finish(face, cx, what)
+        Ok((trace, shift, local))
+    }
+
+    /// The curved face over mesh triangle `t`, whose unit vertex normals
+    /// the shell follows, topped at `top` (one level for the whole mesh,
+    /// so neighbours share their sides), `shared` saying which sides a
+    /// neighbour continues; `None` when `t` has no normals.
+    pub(super) fn curved_triangle(
+        &self,
+        cx: &Ctx,
+        t: &MeshTriangle,
+        top: f64,
+        shared: [bool; 3],
+        what: &str,
+    ) -> Result<CurvedFace> {
+        let (corners, uv) = (t.positions, &t.uvs);
+        let normals = t
+            .normals
+            .ok_or_else(|| cx.err(format!("{what}: a curved triangle needs vertex normals")))?;
+        let (trace, shift, local) = self.window(cx, uv, what)?;
+        let shell = CurvedShell::new(corners, normals, self.depth, top)
+            .ok_or_else(|| cx.err(format!("{what}: the displaced triangle is degenerate")))?;
+        let mut face = CurvedFace::new(shell, self.map.clone(), trace, local, shift, shared)
+            .ok_or_else(|| cx.err(format!("{what}: degenerate texture coordinates")))?;
+        face.color = self.color.clone();
+        face.normal_map = self.normal_map.clone();
+        Ok(face)
     }
 }

@@ -1,0 +1,458 @@
+//! A triangle of a curved displaced mesh as the renderer's primitive: its
+//! shell ([`crate::curved_shell`]) in the world, traced through the
+//! triangle's texture space with the same distance map and exact
+//! refinement as a flat face ([`crate::displaced`]).
+//!
+//! Inside the shell the map coordinates `(x, y, w)` are a smooth function
+//! of the world position, so a straight world ray is a curve in map space
+//! ("curved rays in texture space"). The curve is cut into chords, each
+//! bisected until its midpoint lies within [`CHORD_TOLERANCE`] (map units,
+//! which are shell depths) of the curve's; each chord is traced by the
+//! core's tracer exactly as a flat face's ray is: sphere steps through the
+//! conservative distance map (Donnelly, section 8.3), which are safe in map
+//! space whatever the world mapping stretches, then the exact walk over the
+//! bilinear patches. A hit on a chord is carried back to the world ray and
+//! refined there on the true curve (regula falsi on `w - h(uv)`), so the
+//! world hit lies on the surface `S = P + depth h(uv) N` to double
+//! precision; the chords' tolerance bounds what they can miss (a bump the
+//! curve grazes by less than it).
+//!
+//! A ray entering the shell under the surface hits what it entered
+//! through: the base, or a side that no neighbour shares (the mesh's open
+//! boundary, creases and texture seams that split the surface), as the
+//! flat prisms' walls are hit; a side shared with a neighbour is not a
+//! wall (the neighbour's shell continues the same surface), and a ray
+//! entering through it under the surface meets the surface there (a hit
+//! the neighbour's trace left within rounding of the shared side).
+
+use crate::curved_shell::{normal_to_world, Boundary, Crossing, CurvedShell, Located};
+use crate::displaced::{map_shading_direction, DisplacedHit};
+use crate::geometry::{Aabb, Ray};
+use crate::texture::Texture;
+use displace_core::sphere_trace::HitKind;
+use displace_core::{DisplacementMap, MapRay, TraceOptions};
+use glam::{DVec2, DVec3, Vec2, Vec3};
+use std::sync::Arc;
+
+/// How far (map units, shell depths) a chord's midpoint may lie from the
+/// curve's before the chord is halved: a ten-thousandth of the depth,
+/// far under what a render resolves and under the tests' thresholds.
+pub const CHORD_TOLERANCE: f64 = 1e-4;
+
+/// Deepest halving of one stretch of a ray into chords.
+const MAX_CHORD_DEPTH: u32 = 24;
+
+/// A hit on a curved face before it is shaded: where in the world and in
+/// the triangle's shell coordinates.
+#[derive(Clone, Copy, Debug)]
+pub struct CurvedHit {
+    /// World position.
+    pub position: Vec3,
+    /// Unit geometric normal: the height field's, carried to the world by
+    /// the mapping's inverse transpose, or the wall's.
+    pub geometric_normal: Vec3,
+    /// Shell coordinates of the hit.
+    b: DVec2,
+    w: f64,
+    /// Texture coordinate in tiles within the face's map window.
+    local_uv: Vec2,
+    /// The wall (base or unshared side) was hit, not the surface.
+    pub wall: bool,
+    /// Distance-map steps and patches walked over all chords.
+    pub iterations: u32,
+}
+
+/// A displaced triangle of a curved mesh (module docs).
+#[derive(Clone, Debug)]
+pub struct CurvedFace {
+    shell: CurvedShell,
+    /// Corners' texture coordinates in map units (`uv * aspect`, within the
+    /// face's map window).
+    corners: [DVec2; 3],
+    /// Inverse of the texture triangle's edge matrix: map `xy` to `b`.
+    to_bary: [[f64; 2]; 2],
+    aspect: DVec2,
+    map: Arc<DisplacementMap>,
+    trace: TraceOptions,
+    uv_offset: Vec2,
+    /// Which sides (edge `k`: corners `k`, `k + 1`) a neighbour shares.
+    shared: [bool; 3],
+    bounds: Aabb,
+    /// Base colour texture (the scene's `color_texture`).
+    pub color: Option<Arc<Texture>>,
+    /// Tangent-space normal map standing in for the baked normals.
+    pub normal_map: Option<Arc<Texture>>,
+}
+
+impl CurvedFace {
+    /// The face over `shell`, whose corners have texture coordinates
+    /// `local_uv` (tiles, within `[0, trace.tiles]`); `uv_offset` is added
+    /// back to every hit's coordinate and `shared` says which sides a
+    /// neighbouring shell continues. `None` for degenerate texture
+    /// coordinates.
+    pub fn new(
+        shell: CurvedShell,
+        map: Arc<DisplacementMap>,
+        trace: TraceOptions,
+        local_uv: [Vec2; 3],
+        uv_offset: Vec2,
+        shared: [bool; 3],
+    ) -> Option<Self> {
+        let [ax, ay] = map.aspect();
+        let aspect = DVec2::new(ax as f64, ay as f64);
+        let corners = local_uv.map(|uv| uv.as_dvec2() * aspect);
+        let (c1, c2) = (corners[1] - corners[0], corners[2] - corners[0]);
+        let det = c1.x * c2.y - c2.x * c1.y;
+        if !(det.abs() > 1e-300 && det.is_finite()) {
+            return None;
+        }
+        let to_bary = [[c2.y / det, -c2.x / det], [-c1.y / det, c1.x / det]];
+        let bounds = Aabb::from_points(shell.corners().map(|c| c.as_vec3()));
+        Some(Self {
+            shell,
+            corners,
+            to_bary,
+            aspect,
+            map,
+            trace,
+            uv_offset,
+            shared,
+            bounds,
+            color: None,
+            normal_map: None,
+        })
+    }
+
+    /// World bounds of the shell.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The shared displacement map.
+    pub fn map(&self) -> &Arc<DisplacementMap> {
+        &self.map
+    }
+
+    /// The shell.
+    pub fn shell(&self) -> &CurvedShell {
+        &self.shell
+    }
+
+    /// Changes the map-space tracer (as [`crate::displaced::DisplacedFace::set_method`]).
+    pub fn set_method(&mut self, method: displace_core::Method) {
+        self.trace.method = method;
+    }
+
+    /// Map-space point `(x, y, w)` of shell coordinates `loc`, `b` kept on
+    /// the triangle (a point located on its boundary may round outside).
+    fn map_point(&self, loc: &Located) -> DVec3 {
+        let b = clamp_bary(loc.b);
+        let xy = self.corners[0]
+            + b.x * (self.corners[1] - self.corners[0])
+            + b.y * (self.corners[2] - self.corners[0]);
+        xy.extend(loc.w)
+    }
+
+    /// Texture coordinate (tiles, the face's window) of a map point.
+    fn local_uv(&self, c: DVec3) -> Vec2 {
+        Vec2::new((c.x / self.aspect.x) as f32, (c.y / self.aspect.y) as f32)
+    }
+
+    /// The height of the surface over map point `c`, and `w - h`.
+    fn above(&self, c: DVec3) -> f64 {
+        let uv = self.local_uv(c);
+        c.z - self.map.height.sample(uv.x, uv.y) as f64
+    }
+
+    /// Shell coordinates, map point and `w - h` of the ray at `t`.
+    fn probe(&self, o: DVec3, d: DVec3, t: f64, hint: f64) -> Option<(Located, DVec3, f64)> {
+        let loc = self.shell.locate(o + t * d, hint)?;
+        let c = self.map_point(&loc);
+        Some((loc, c, self.above(c)))
+    }
+
+    /// First hit with world distance in `[t_min, t_max]`.
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, CurvedHit)> {
+        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+        let (t_min, t_max) = (t_min as f64, t_max as f64);
+        let (mut xs, n) = self.shell.crossings(o, d, t_min, t_max);
+        let xs = &mut xs[..n];
+        xs.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
+        // The stretches between crossings, each inside the shell or not
+        // (its midpoint located): rounding at an edge or corner may count
+        // one crossing twice, which leaves an empty or outside stretch.
+        let end = if t_max.is_finite() {
+            t_max
+        } else {
+            xs.last()?.t
+        };
+        let mut start = (t_min, None::<Crossing>);
+        let mut iterations = 0u32;
+        for k in 0..=xs.len() {
+            let (b, next) = match xs.get(k) {
+                Some(c) => (c.t, Some(*c)),
+                None => (end, None),
+            };
+            let (a, entry) = start;
+            if b > a {
+                let mid = 0.5 * (a + b);
+                let inside = self
+                    .shell
+                    .locate(o + mid * d, 0.5 * self.shell.top())
+                    .is_some_and(|loc| self.shell.contains(&loc, 1e-9));
+                if inside {
+                    if let Some(hit) = self.stretch(o, d, a, b, entry, &mut iterations) {
+                        return Some(hit);
+                    }
+                }
+            }
+            match next {
+                Some(c) => start = (c.t, Some(c)),
+                None => break,
+            }
+        }
+        None
+    }
+
+    /// Whether the face's solid blocks the ray within `[t_min, t_max]`.
+    pub fn occludes(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.intersect(ray, t_min, t_max).is_some()
+    }
+
+    /// The first hit on `[ta, tb]`, a stretch inside the shell entered
+    /// through `entry` (`None`: the ray starts inside).
+    fn stretch(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        ta: f64,
+        tb: f64,
+        entry: Option<Crossing>,
+        iterations: &mut u32,
+    ) -> Option<(f32, CurvedHit)> {
+        let hint = match entry.map(|c| c.boundary) {
+            Some(Boundary::Top) => self.shell.top(),
+            Some(Boundary::Base) => 0.0,
+            _ => 0.5 * self.shell.top(),
+        };
+        let (la, ca, ga) = self
+            .probe(o, d, ta, hint)
+            .or_else(|| self.probe(o, d, ta + 1e-9 * (tb - ta), hint))?;
+        if ga < 0.0 {
+            // Entered under the surface: the wall entered through, except
+            // a shared side (or the top, within rounding), where the
+            // surface meets it.
+            let wall = match entry {
+                Some(Crossing {
+                    boundary: Boundary::Side(k),
+                    ..
+                }) if self.shared[k] => None,
+                Some(Crossing {
+                    boundary: Boundary::Top,
+                    ..
+                }) => None,
+                Some(c) => Some(c.normal),
+                None => Some(-d),
+            };
+            let n = wall.unwrap_or_else(|| self.surface_normal(&la, ca));
+            return Some(self.hit(o, d, ta, &la, ca, n, wall.is_some(), *iterations));
+        }
+        let (_, cb, _) = self
+            .probe(o, d, tb, la.lambda)
+            .or_else(|| self.probe(o, d, tb - 1e-9 * (tb - ta), la.lambda))?;
+        let t = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations)?;
+        let t = self.refine(o, d, ta, tb, t, la.lambda);
+        let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
+        let n = self.surface_normal(&loc, c);
+        Some(self.hit(o, d, t, &loc, c, n, false, *iterations))
+    }
+
+    /// The first chord hit on the curve from `a` to `b` (ray parameters
+    /// and map points), as a ray parameter: the chord halved while its
+    /// midpoint strays from the curve's, then traced by the core.
+    fn chords(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        a: (f64, DVec3, f64),
+        b: (f64, DVec3),
+        depth: u32,
+        iterations: &mut u32,
+    ) -> Option<f64> {
+        let (ta, ca, hint) = a;
+        let (tb, cb) = b;
+        if depth < MAX_CHORD_DEPTH {
+            let tm = 0.5 * (ta + tb);
+            if let Some((lm, cm, _)) = self.probe(o, d, tm, hint) {
+                if (cm - 0.5 * (ca + cb)).length() > CHORD_TOLERANCE {
+                    return self
+                        .chords(o, d, a, (tm, cm), depth + 1, iterations)
+                        .or_else(|| {
+                            self.chords(o, d, (tm, cm, lm.lambda), b, depth + 1, iterations)
+                        });
+                }
+            }
+        }
+        let v = cb - ca;
+        let len = v.length();
+        if len.is_nan() || len <= 0.0 {
+            return None;
+        }
+        let ray = MapRay {
+            origin: ca.as_vec3(),
+            dir: (v / len).as_vec3(),
+        };
+        let mut opts = self.trace;
+        opts.t_min = 0.0;
+        opts.t_max = len as f32;
+        let hit = self.map.trace(&ray, &opts)?;
+        *iterations += hit.iterations;
+        let f = match hit.kind {
+            HitKind::Wall => 0.0,
+            HitKind::Surface => (hit.t as f64 / len).clamp(0.0, 1.0),
+        };
+        Some(ta + f * (tb - ta))
+    }
+
+    /// The root of `w - h` on the true curve near a chord's hit at `t`,
+    /// within `[ta, tb]` where `w - h >= 0` at `ta`: regula falsi (the
+    /// Illinois variant) on a bracket found next to `t`; `t` itself when
+    /// the curve stays above within the chords' tolerance.
+    fn refine(&self, o: DVec3, d: DVec3, ta: f64, tb: f64, t: f64, hint: f64) -> f64 {
+        let g = |t: f64| self.probe(o, d, t, hint).map(|(_, _, g)| g);
+        let Some(gt) = g(t) else {
+            return t;
+        };
+        if gt == 0.0 {
+            return t;
+        }
+        // A bracket: [last point above, first point under].
+        let (mut lo, mut hi, mut glo, mut ghi) = if gt < 0.0 {
+            // Back towards `ta` (above) in growing steps.
+            let mut step = 1e-6 * (tb - ta).max(1e-12);
+            let mut lo = t;
+            let mut glo = gt;
+            while glo < 0.0 && lo > ta {
+                lo = (t - step).max(ta);
+                glo = g(lo).unwrap_or(0.0);
+                step *= 4.0;
+            }
+            if glo < 0.0 {
+                return t;
+            }
+            (lo, t, glo, gt)
+        } else {
+            let mut step = 1e-6 * (tb - ta).max(1e-12);
+            let mut hi = t;
+            let mut ghi = gt;
+            while ghi > 0.0 && hi < tb {
+                hi = (t + step).min(tb);
+                ghi = g(hi).unwrap_or(0.0);
+                step *= 4.0;
+            }
+            if ghi > 0.0 {
+                return t;
+            }
+            (t, hi, gt, ghi)
+        };
+        let mut side = 0i8;
+        for _ in 0..60 {
+            let m = (lo * ghi - hi * glo) / (ghi - glo);
+            let m = if m > lo && m < hi { m } else { 0.5 * (lo + hi) };
+            let Some(gm) = g(m) else { break };
+            if gm >= 0.0 {
+                lo = m;
+                glo = gm;
+                if side == 1 {
+                    ghi *= 0.5;
+                }
+                side = 1;
+            } else {
+                hi = m;
+                ghi = gm;
+                if side == -1 {
+                    glo *= 0.5;
+                }
+                side = -1;
+            }
+            if hi - lo <= 1e-12 * (1.0 + hi.abs()) {
+                break;
+            }
+        }
+        // The first point under the surface: never in front of it.
+        hi
+    }
+
+    /// The geometric normal of the surface at shell coordinates `loc` and
+    /// map point `c`: the bilinear height field's, carried to the world by
+    /// the mapping's inverse transpose.
+    fn surface_normal(&self, loc: &Located, c: DVec3) -> DVec3 {
+        let uv = self.local_uv(c);
+        let [gx, gy] = self.map.height.gradient(uv.x, uv.y);
+        let n_map = DVec3::new(-gx as f64 / self.aspect.x, -gy as f64 / self.aspect.y, 1.0);
+        let j = self.shell.jacobian(clamp_bary(loc.b), loc.w, self.to_bary);
+        normal_to_world(&j, n_map)
+    }
+
+    /// The hit at `t` along the ray, at shell coordinates `loc` and map
+    /// point `c`, with geometric normal `n`: on the surface, or on a wall.
+    #[allow(clippy::too_many_arguments)]
+    fn hit(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        t: f64,
+        loc: &Located,
+        c: DVec3,
+        n: DVec3,
+        wall: bool,
+        iterations: u32,
+    ) -> (f32, CurvedHit) {
+        (
+            t as f32,
+            CurvedHit {
+                position: (o + t * d).as_vec3(),
+                geometric_normal: n.as_vec3(),
+                b: clamp_bary(loc.b),
+                w: loc.w,
+                local_uv: self.local_uv(c),
+                wall,
+                iterations,
+            },
+        )
+    }
+
+    /// The world description of a hit; with `shading`, the normal map's
+    /// (baked or given) normal carried to the world by the mapping's
+    /// inverse transpose at the hit, else the geometric normal.
+    pub fn resolve(&self, hit: &CurvedHit, shading: bool) -> DisplacedHit {
+        let uv = hit.local_uv + self.uv_offset;
+        let shading_normal = if hit.wall || !shading {
+            hit.geometric_normal
+        } else {
+            let n_map =
+                map_shading_direction(&self.map, self.normal_map.as_deref(), hit.local_uv, uv);
+            let j = self.shell.jacobian(hit.b, hit.w, self.to_bary);
+            normal_to_world(&j, n_map.as_dvec3()).as_vec3()
+        };
+        DisplacedHit {
+            position: hit.position,
+            geometric_normal: hit.geometric_normal,
+            shading_normal,
+            uv,
+            iterations: hit.iterations,
+            wall: hit.wall,
+        }
+    }
+}
+
+/// `b` moved onto the triangle (weights non-negative, summing to at most 1).
+fn clamp_bary(b: DVec2) -> DVec2 {
+    let b = b.max(DVec2::ZERO);
+    let s = b.x + b.y;
+    if s > 1.0 {
+        b / s
+    } else {
+        b
+    }
+}

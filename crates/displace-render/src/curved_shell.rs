@@ -1,0 +1,580 @@
+//! The shell of one triangle of a curved displaced mesh: the volume its
+//! displaced surface `S = P + depth h(uv) N` can occupy, and the mapping
+//! between that volume and the triangle's texture space.
+//!
+//! Both source documents leave curved surfaces as future work: Donnelly
+//! (GPU Gems 2, section 8.7) treats the surface under each fragment as
+//! locally flat and notes that this "results in distortion in regions of
+//! high curvature"; the ray-tracer paper's prisms (its section 2.4) are
+//! extruded along the flat face normal, so neighbouring prisms of a smooth
+//! mesh neither meet nor follow the interpolated normals. Here a triangle
+//! with corners `P_i` and unit vertex normals `N_i` is extruded along the
+//! *unnormalised* interpolated normal `N(b) = sum b_i N_i`:
+//!
+//! ```text
+//! X(b, lambda) = P(b) + lambda N(b),   b in the triangle, lambda in [0, top]
+//! ```
+//!
+//! For a fixed `lambda` that is the flat triangle with corners
+//! `P_i + lambda N_i`, so the shell is bounded by two flat triangles (the
+//! base, `lambda = 0`, and the top) and by three bilinear patches, one over
+//! each edge, ruled by the lines `P(s) + lambda N(s)`. A side depends only
+//! on its edge's two corners and normals, so two triangles that share an
+//! edge (positions and normals) share its side bit for bit: the shells of
+//! a smooth mesh tile space without gaps or overlaps (the "shell mapping"
+//! of Porumbescu et al. 2005 and Jeschke, Mantler and Wimmer 2007, with
+//! bilinear sides).
+//!
+//! Along each line of the column the normalised normal is the line's own
+//! direction, so the point `P(b) + depth w N(b)/|N(b)|` of `S` at height
+//! `w` sits at `lambda = depth w / |N(b)|`: a point of the shell has the
+//! map coordinates `(uv(b), w)` with `w = lambda |N(b)| / depth`, and the
+//! displaced surface is exactly `w = h(uv(b))`, the height field of the
+//! planar case in curved coordinates. `|N(b)|^2 = sum b_i b_j N_i . N_j`
+//! is at least the smallest `N_i . N_j`, so a top at
+//! `depth / sqrt(min N_i . N_j)` holds every height up to 1
+//! ([`lambda_for_depth`]).
+//!
+//! Finding `(b, lambda)` for a world point is a cubic in `lambda`: the point
+//! lies in the plane of the level-`lambda` triangle when
+//! `det[X - P_0 - lambda N_0, E_1 + lambda F_1, E_2 + lambda F_2] = 0`
+//! (`E_k = P_k - P_0`, `F_k = N_k - N_0`), after which `b` is a 2x2 solve.
+//! All of it runs in double precision: the cubic's leading terms are small
+//! on gently curved meshes.
+
+use glam::{DVec2, DVec3, Vec3};
+
+/// Where a world point sits in a shell: barycentric `(b1, b2)` (the first
+/// corner's weight is `1 - b1 - b2`), the level `lambda` along the
+/// unnormalised interpolated normal, and the height `w` in depths.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Located {
+    /// Barycentric weights of corners 1 and 2.
+    pub b: DVec2,
+    /// Distance along `N(b)` in units of `|N(b)|`.
+    pub lambda: f64,
+    /// Height above the base in shell depths: `lambda |N(b)| / depth`.
+    pub w: f64,
+}
+
+/// Which part of a shell's boundary a ray crosses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Boundary {
+    /// The base triangle (`lambda = 0`).
+    Base,
+    /// The top triangle (`lambda = top`).
+    Top,
+    /// The bilinear side over edge `k` (corners `k` and `k + 1 mod 3`).
+    Side(usize),
+}
+
+/// A ray crossing a shell's boundary: where, through what, and the
+/// boundary's normal there (unit, facing against the ray).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Crossing {
+    /// Ray parameter.
+    pub t: f64,
+    /// The boundary crossed.
+    pub boundary: Boundary,
+    /// Unit normal of that boundary at the crossing, turned to face the
+    /// ray's origin side.
+    pub normal: DVec3,
+}
+
+/// The shell of one curved triangle (module docs), in double precision.
+#[derive(Clone, Copy, Debug)]
+pub struct CurvedShell {
+    p: [DVec3; 3],
+    n: [DVec3; 3],
+    /// `E_1, E_2`.
+    e: [DVec3; 2],
+    /// `F_1, F_2`.
+    f: [DVec3; 2],
+    /// `(E_1 + l F_1) x (E_2 + l F_2) = c0 + l c1 + l^2 c2`.
+    c: [DVec3; 3],
+    depth: f64,
+    top: f64,
+}
+
+/// The smallest length `|N(b)|` the interpolated normal of unit normals
+/// `n` can take over the triangle, bounded below by the square root of
+/// their smallest pairwise dot product (`|N(b)|^2` is a convex combination
+/// of the dot products); `None` when two normals are 90 degrees or more
+/// apart, where the interpolated normal can vanish and the shell fold.
+pub fn min_normal_length(n: &[Vec3; 3]) -> Option<f64> {
+    let n = n.map(|v| v.as_dvec3());
+    let m = n[0].dot(n[1]).min(n[1].dot(n[2])).min(n[2].dot(n[0]));
+    (m > 0.0).then(|| m.sqrt())
+}
+
+/// The top level `lambda` a shell needs so that every height up to 1 lies
+/// under it, for a mesh whose triangles' [`min_normal_length`] is at least
+/// `min_length`: shells that share sides must share it, so a mesh uses one.
+pub fn lambda_for_depth(depth: f64, min_length: f64) -> f64 {
+    // A hair over the bound, so the surface at height 1 is never cut by
+    // the top's rounding.
+    depth / min_length * (1.0 + 1e-9)
+}
+
+fn det(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    a.dot(b.cross(c))
+}
+
+impl CurvedShell {
+    /// The shell over corners `p` with unit normals `n`, `depth` world
+    /// units per height 1, topped at `top` ([`lambda_for_depth`]); `None`
+    /// for a degenerate triangle or normals that cannot carry a shell
+    /// ([`min_normal_length`]).
+    pub fn new(p: [Vec3; 3], n: [Vec3; 3], depth: f32, top: f64) -> Option<Self> {
+        min_normal_length(&n)?;
+        let p = p.map(|v| v.as_dvec3());
+        let n = n.map(|v| v.as_dvec3().normalize());
+        let e = [p[1] - p[0], p[2] - p[0]];
+        let f = [n[1] - n[0], n[2] - n[0]];
+        let area = e[0].cross(e[1]).length();
+        if !(area > 0.0 && area.is_finite() && depth > 0.0 && top > 0.0) {
+            return None;
+        }
+        let c = [
+            e[0].cross(e[1]),
+            e[0].cross(f[1]) + f[0].cross(e[1]),
+            f[0].cross(f[1]),
+        ];
+        Some(Self {
+            p,
+            n,
+            e,
+            f,
+            c,
+            depth: depth as f64,
+            top,
+        })
+    }
+
+    /// The top level of the shell.
+    pub fn top(&self) -> f64 {
+        self.top
+    }
+
+    /// The six corners of the shell (base, then top), which bound it: the
+    /// sides are bilinear patches, inside the hull of their corners.
+    pub fn corners(&self) -> [DVec3; 6] {
+        let t = self.top;
+        [
+            self.p[0],
+            self.p[1],
+            self.p[2],
+            self.p[0] + t * self.n[0],
+            self.p[1] + t * self.n[1],
+            self.p[2] + t * self.n[2],
+        ]
+    }
+
+    /// The interpolated, unnormalised normal `N(b)`.
+    pub fn normal_at(&self, b: DVec2) -> DVec3 {
+        self.n[0] + b.x * self.f[0] + b.y * self.f[1]
+    }
+
+    /// The world point at barycentric `b` and height `w` (depths): `P(b) +
+    /// depth w N(b)/|N(b)|`, a point of `S` when `w = h(uv(b))`.
+    pub fn point(&self, b: DVec2, w: f64) -> DVec3 {
+        let n = self.normal_at(b);
+        self.p[0] + b.x * self.e[0] + b.y * self.e[1] + (self.depth * w / n.length()) * n
+    }
+
+    /// The coefficients of `det[x - P_0 - l N_0, E_1 + l F_1, E_2 + l
+    /// F_2]`, lowest power first.
+    fn cubic(&self, x: DVec3) -> [f64; 4] {
+        let r = x - self.p[0];
+        let n0 = self.n[0];
+        let [c0, c1, c2] = self.c;
+        [
+            r.dot(c0),
+            r.dot(c1) - n0.dot(c0),
+            r.dot(c2) - n0.dot(c1),
+            -n0.dot(c2),
+        ]
+    }
+
+    /// `b` of world point `x` on level `lambda` (the plane of the
+    /// level-`lambda` triangle is assumed to hold `x`).
+    fn barycentric(&self, x: DVec3, lambda: f64) -> Option<DVec2> {
+        let a = x - self.p[0] - lambda * self.n[0];
+        let b1 = self.e[0] + lambda * self.f[0];
+        let b2 = self.e[1] + lambda * self.f[1];
+        let n = b1.cross(b2);
+        let nn = n.dot(n);
+        if nn.is_nan() || nn <= 0.0 {
+            return None;
+        }
+        Some(DVec2::new(a.cross(b2).dot(n), b1.cross(a).dot(n)) / nn)
+    }
+
+    /// How far `b` and `lambda` lie outside the shell's ranges (0 inside):
+    /// the larger of the barycentric overshoot and the level's, in
+    /// barycentric units and units of `top`.
+    pub fn outside(&self, loc: &Located) -> f64 {
+        let b0 = 1.0 - loc.b.x - loc.b.y;
+        let bary = (-loc.b.x).max(-loc.b.y).max(-b0).max(0.0);
+        let level = (-loc.lambda).max(loc.lambda - self.top).max(0.0) / self.top;
+        bary.max(level)
+    }
+
+    /// The shell coordinates of world point `x`: of the roots of the cubic
+    /// near the shell's levels, the one inside the shell (or least outside
+    /// it), nearest `hint` among equals. `None` where no level's plane
+    /// holds `x` near the shell.
+    pub fn locate(&self, x: DVec3, hint: f64) -> Option<Located> {
+        let k = self.cubic(x);
+        let (lo, hi) = (-0.5 * self.top, 1.5 * self.top);
+        let mut best: Option<(f64, f64, Located)> = None;
+        for lambda in real_roots(k, lo, hi) {
+            let Some(b) = self.barycentric(x, lambda) else {
+                continue;
+            };
+            let w = lambda * self.normal_at(b).length() / self.depth;
+            let loc = Located { b, lambda, w };
+            let out = self.outside(&loc);
+            let near = (lambda - hint).abs();
+            let better = match &best {
+                None => true,
+                Some((o, d, _)) => out < *o - 1e-12 || (out <= *o + 1e-12 && near < *d),
+            };
+            if better {
+                best = Some((out, near, loc));
+            }
+        }
+        best.map(|(_, _, loc)| loc)
+    }
+
+    /// Whether `loc` lies in the shell, within `tol` (barycentric units and
+    /// fractions of the top).
+    pub fn contains(&self, loc: &Located, tol: f64) -> bool {
+        self.outside(loc) <= tol
+    }
+
+    /// Every crossing of the ray `o + t d` with the shell's boundary for
+    /// `t` in `(t_min, t_max)`, unsorted: at most eight (the base, the top,
+    /// two per side), the first `count` of the array.
+    pub fn crossings(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> ([Crossing; 8], usize) {
+        let none = Crossing {
+            t: f64::INFINITY,
+            boundary: Boundary::Base,
+            normal: DVec3::ZERO,
+        };
+        let mut out = [none; 8];
+        let mut count = 0;
+        let mut push = |c: Crossing| {
+            if c.t > t_min && c.t < t_max && count < 8 {
+                out[count] = c;
+                count += 1;
+            }
+        };
+        let top = self.top;
+        let lifted = [0, 1, 2].map(|i| self.p[i] + top * self.n[i]);
+        for (corners, boundary) in [(self.p, Boundary::Base), (lifted, Boundary::Top)] {
+            if let Some((t, n)) = ray_triangle(o, d, corners) {
+                push(Crossing {
+                    t,
+                    boundary,
+                    normal: facing(n, d),
+                });
+            }
+        }
+        for k in 0..3 {
+            let (i, j) = (k, (k + 1) % 3);
+            let (a0, a1) = (self.p[i] - o, self.p[j] - self.p[i]);
+            let (b0, b1) = (self.n[i], self.n[j] - self.n[i]);
+            // The ray meets the ruling at `s` when (A(s) - o) . (d x B(s)) = 0.
+            let q0 = a0.dot(d.cross(b0));
+            let q1 = a1.dot(d.cross(b0)) + a0.dot(d.cross(b1));
+            let q2 = a1.dot(d.cross(b1));
+            for s in quadratic_roots(q2, q1, q0) {
+                if !(-1e-12..=1.0 + 1e-12).contains(&s) {
+                    continue;
+                }
+                let a = self.p[i] + s * a1;
+                let b = b0 + s * b1;
+                let dxb = d.cross(b);
+                let den = dxb.dot(dxb);
+                if den.is_nan() || den <= 0.0 {
+                    continue;
+                }
+                let r = a - o;
+                let t = r.cross(b).dot(dxb) / den;
+                let mu = r.cross(d).dot(dxb) / den;
+                if !(mu >= -1e-12 * top && mu <= top * (1.0 + 1e-12)) {
+                    continue;
+                }
+                push(Crossing {
+                    t,
+                    boundary: Boundary::Side(k),
+                    normal: facing((a1 + mu * b1).cross(b), d),
+                });
+            }
+        }
+        (out, count)
+    }
+
+    /// The columns `dX/dx, dX/dy, dX/dz` of the mapping from map space
+    /// (`x, y` the texture coordinate in map units through `to_bary`, the
+    /// inverse of the texture triangle's edge matrix; `z = w`) to the
+    /// world at `(b, w)`: what carries map-space normals to the world
+    /// (by its inverse transpose).
+    pub fn jacobian(&self, b: DVec2, w: f64, to_bary: [[f64; 2]; 2]) -> [DVec3; 3] {
+        let n = self.normal_at(b);
+        let len = n.length();
+        let nh = n / len;
+        let dx = |k: usize| {
+            let dn = (self.f[k] - nh * nh.dot(self.f[k])) / len;
+            self.e[k] + self.depth * w * dn
+        };
+        let (db1, db2) = (dx(0), dx(1));
+        [
+            db1 * to_bary[0][0] + db2 * to_bary[1][0],
+            db1 * to_bary[0][1] + db2 * to_bary[1][1],
+            self.depth * nh,
+        ]
+    }
+}
+
+/// The world normal of map-space normal `n` under a mapping with columns
+/// `j` (its inverse transpose, up to scale), unit.
+pub fn normal_to_world(j: &[DVec3; 3], n: DVec3) -> DVec3 {
+    let (c0, c1, c2) = (j[0], j[1], j[2]);
+    let sign = det(c0, c1, c2).signum();
+    ((n.x * c1.cross(c2) + n.y * c2.cross(c0) + n.z * c0.cross(c1)) * sign).normalize()
+}
+
+/// `n` turned against `d` (the side a ray through it comes from), unit.
+fn facing(n: DVec3, d: DVec3) -> DVec3 {
+    let n = n.normalize();
+    if n.dot(d) > 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+/// Möller-Trumbore in double precision, edges included: the ray parameter
+/// and the triangle's (unnormalised) normal.
+fn ray_triangle(o: DVec3, d: DVec3, c: [DVec3; 3]) -> Option<(f64, DVec3)> {
+    let (e1, e2) = (c[1] - c[0], c[2] - c[0]);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - c[0];
+    let b1 = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let b2 = d.dot(q) * inv;
+    let eps = 1e-12;
+    if b1 < -eps || b2 < -eps || b1 + b2 > 1.0 + eps {
+        return None;
+    }
+    Some((e2.dot(q) * inv, e1.cross(e2)))
+}
+
+/// Real roots of `a x^2 + b x + c` (a linear or constant one when `a`
+/// vanishes against the others), by the stable form.
+fn quadratic_roots(a: f64, b: f64, c: f64) -> impl Iterator<Item = f64> {
+    let mut out = [f64::NAN; 2];
+    let scale = a.abs().max(b.abs()).max(c.abs());
+    if scale == 0.0 || !scale.is_finite() {
+        // No equation: no roots.
+    } else if a.abs() <= 1e-14 * scale {
+        if b != 0.0 {
+            out[0] = -c / b;
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc >= 0.0 {
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            if q != 0.0 {
+                out[0] = q / a;
+                out[1] = c / q;
+            } else {
+                out[0] = 0.0;
+            }
+        }
+    }
+    out.into_iter().filter(|x: &f64| x.is_finite())
+}
+
+/// The real roots in `[lo, hi]` of the cubic with coefficients `k`
+/// (lowest power first): the interval cut where the derivative vanishes
+/// into monotone pieces, and each piece whose ends differ in sign solved
+/// by Newton's method kept inside its bracket (bisection when a step would
+/// leave it).
+pub fn real_roots(k: [f64; 4], lo: f64, hi: f64) -> impl Iterator<Item = f64> {
+    let f = |x: f64| ((k[3] * x + k[2]) * x + k[1]) * x + k[0];
+    let df = |x: f64| (3.0 * k[3] * x + 2.0 * k[2]) * x + k[1];
+    let mut cuts = [lo, hi, hi, hi];
+    let mut m = 1;
+    let mut crit: Vec<f64> = quadratic_roots(3.0 * k[3], 2.0 * k[2], k[1])
+        .filter(|x| *x > lo && *x < hi)
+        .collect();
+    crit.sort_by(f64::total_cmp);
+    for c in crit {
+        cuts[m] = c;
+        m += 1;
+    }
+    cuts[m] = hi;
+    let mut roots = [f64::NAN; 3];
+    for p in 0..m {
+        let (mut a, mut b) = (cuts[p], cuts[p + 1]);
+        let (mut fa, fb) = (f(a), f(b));
+        if fa == 0.0 {
+            roots[p] = a;
+            continue;
+        }
+        if fb == 0.0 {
+            roots[p] = b;
+            continue;
+        }
+        if (fa > 0.0) == (fb > 0.0) {
+            continue;
+        }
+        let mut x = 0.5 * (a + b);
+        for _ in 0..100 {
+            let fx = f(x);
+            if fx == 0.0 {
+                break;
+            }
+            if (fx > 0.0) == (fa > 0.0) {
+                a = x;
+                fa = fx;
+            } else {
+                b = x;
+            }
+            let d = df(x);
+            let newton = x - fx / d;
+            let next = if d != 0.0 && newton > a && newton < b {
+                newton
+            } else {
+                0.5 * (a + b)
+            };
+            if (next - x).abs() <= 1e-15 * (1.0 + x.abs()) {
+                x = next;
+                break;
+            }
+            x = next;
+        }
+        roots[p] = x;
+    }
+    roots.into_iter().filter(|x: &f64| x.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bent() -> CurvedShell {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let n = [
+            Vec3::new(-0.2, -0.1, 1.0).normalize(),
+            Vec3::new(0.3, 0.0, 1.0).normalize(),
+            Vec3::new(0.0, 0.25, 1.0).normalize(),
+        ];
+        let top = lambda_for_depth(0.2, min_normal_length(&n).unwrap());
+        CurvedShell::new(p, n, 0.2, top).unwrap()
+    }
+
+    #[test]
+    fn cubic_roots_are_found_in_their_interval() {
+        // (x - 1)(x - 2)(x + 3) = x^3 - 7x + 6.
+        let mut r: Vec<f64> = real_roots([6.0, -7.0, 0.0, 1.0], -10.0, 10.0).collect();
+        r.sort_by(f64::total_cmp);
+        assert_eq!(r.len(), 3);
+        for (a, b) in r.iter().zip([-3.0, 1.0, 2.0]) {
+            assert!((a - b).abs() < 1e-12, "{r:?}");
+        }
+        // A nearly linear cubic, as on a gently curved mesh.
+        let r: Vec<f64> = real_roots([-0.5, 1.0, 1e-9, 1e-12], -1.0, 2.0).collect();
+        assert_eq!(r.len(), 1);
+        assert!((r[0] - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn locate_inverts_point() {
+        let s = bent();
+        for i in 0..=10 {
+            for j in 0..=(10 - i) {
+                for w in [0.0, 0.3, 1.0] {
+                    let b = DVec2::new(i as f64 / 10.0, j as f64 / 10.0);
+                    let x = s.point(b, w);
+                    let loc = s.locate(x, 0.0).unwrap();
+                    assert!((loc.b - b).length() < 1e-9, "{b} {loc:?}");
+                    assert!((loc.w - w).abs() < 1e-9, "{w} {loc:?}");
+                    assert!(s.contains(&loc, 1e-9));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_vertical_ray_crosses_top_and_base() {
+        let s = bent();
+        let o = DVec3::new(0.3, 0.3, 5.0);
+        let (out, n) = s.crossings(o, DVec3::NEG_Z, 0.0, f64::INFINITY);
+        let mut out = out[..n].to_vec();
+        out.sort_by(|a, b| a.t.total_cmp(&b.t));
+        let kinds: Vec<Boundary> = out.iter().map(|c| c.boundary).collect();
+        assert_eq!(kinds, [Boundary::Top, Boundary::Base]);
+        assert!((out[1].t - 5.0).abs() < 1e-12);
+        assert!(out.iter().all(|c| c.normal.z > 0.0));
+    }
+
+    #[test]
+    fn sides_are_met_where_their_rulings_are() {
+        let s = bent();
+        // A point on the side over edge 0 (corners 0 and 1), half way up.
+        let b = DVec2::new(0.4, 0.0);
+        let x = s.point(b, 0.5);
+        let d = DVec3::new(0.1, -1.0, 0.05).normalize();
+        let o = x - 2.0 * d;
+        let (out, n) = s.crossings(o, d, 0.0, 10.0);
+        let side = out[..n]
+            .iter()
+            .find(|c| c.boundary == Boundary::Side(0))
+            .expect("crosses side 0");
+        assert!((side.t - 2.0).abs() < 1e-9, "{side:?}");
+        assert!(side.normal.dot(d) < 0.0);
+    }
+
+    #[test]
+    fn the_jacobian_matches_finite_differences() {
+        let s = bent();
+        // Texture triangle (map units): corners at (0,0), (3,0), (0,2).
+        let m = [DVec2::ZERO, DVec2::new(3.0, 0.0), DVec2::new(0.0, 2.0)];
+        let t = [
+            [m[1].x - m[0].x, m[2].x - m[0].x],
+            [m[1].y - m[0].y, m[2].y - m[0].y],
+        ];
+        let det = t[0][0] * t[1][1] - t[0][1] * t[1][0];
+        let inv = [
+            [t[1][1] / det, -t[0][1] / det],
+            [-t[1][0] / det, t[0][0] / det],
+        ];
+        let to_b = |xy: DVec2| {
+            let r = xy - m[0];
+            DVec2::new(
+                inv[0][0] * r.x + inv[0][1] * r.y,
+                inv[1][0] * r.x + inv[1][1] * r.y,
+            )
+        };
+        let (xy, w) = (DVec2::new(0.7, 0.5), 0.6);
+        let j = s.jacobian(to_b(xy), w, inv);
+        let h = 1e-6;
+        let fd = [
+            (s.point(to_b(xy + DVec2::X * h), w) - s.point(to_b(xy - DVec2::X * h), w)) / (2.0 * h),
+            (s.point(to_b(xy + DVec2::Y * h), w) - s.point(to_b(xy - DVec2::Y * h), w)) / (2.0 * h),
+            (s.point(to_b(xy), w + h) - s.point(to_b(xy), w - h)) / (2.0 * h),
+        ];
+        for k in 0..3 {
+            assert!((j[k] - fd[k]).length() < 1e-7, "{k}: {} {}", j[k], fd[k]);
+        }
+    }
+}
