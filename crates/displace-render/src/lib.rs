@@ -49,6 +49,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod merge;
+pub mod mesh_shells;
 pub mod mesh;
 pub mod output;
 pub mod path;

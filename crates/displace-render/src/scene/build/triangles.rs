@@ -17,13 +17,11 @@ use super::ctx::Ctx;
 use super::displacement::{displacement_of, triangle_frame, DispBuild};
 use super::shapes::Geometry;
 use crate::builtin_mesh;
-use crate::curved_shell::{lambda_for_depth, min_normal_length};
+use crate::mesh_shells::MeshShells;
 use crate::error::{Error, Result};
 use crate::mesh::MeshTriangle;
 use crate::shapes::Triangle;
-use displace_core::Address;
 use glam::{Mat3, Vec2, Vec3};
-use std::collections::HashMap;
 use std::path::PathBuf;
 
 /// World-space triangles, none of zero area, each with its index in the
@@ -201,10 +199,11 @@ pub(super) fn add(
     geo: &mut Geometry,
 ) -> Result<()> {
     let first = geo.prims.len();
+    let triangles: Vec<MeshTriangle> = placed.triangles.iter().map(|(_, t)| *t).collect();
     let curved = placed
         .displacement
         .as_ref()
-        .map(|b| CurvedMesh::of(&placed.triangles, b.depth, b.address));
+        .map(|b| MeshShells::of(&triangles, b.depth, b.address));
     for (m, (k, t)) in placed.triangles.iter().enumerate() {
         let [p0, p1, p2] = t.positions;
         let tri = Triangle::new(p0, p1, p2);
@@ -212,7 +211,7 @@ pub(super) fn add(
         let shape = match (&placed.displacement, &curved) {
             (Some(b), Some(c)) => match c.top {
                 Some(top) if c.curved[m] => {
-                    let face = b.curved_triangle(cx, t, top, c.shared[m], &name())?;
+                    let face = b.curved_triangle(cx, t, top, c.shared(m), &name())?;
                     Shape::Curved(Box::new(face))
                 }
                 _ => Shape::Displaced(Box::new(b.triangle(cx, &tri, &t.uvs, &name())?)),
@@ -231,7 +230,7 @@ pub(super) fn add(
         geo.push(shape, material, None, Some(index));
     }
     geo.meshes.push(SceneMesh {
-        triangles: placed.triangles.into_iter().map(|(_, t)| t).collect(),
+        triangles,
         material,
         displacement: placed.displacement.as_ref().map(DispBuild::shared),
         prims: first..geo.prims.len(),
@@ -255,98 +254,3 @@ fn mesh_extent(tris: &[MeshTriangle], xf: &dyn Fn(Vec3) -> Vec3) -> Option<Vec2>
     (weight > 0.0).then(|| sum / weight)
 }
 
-/// Which triangles of a displaced mesh are curved, the one top level
-/// their shells share, and which of their sides a neighbour continues.
-///
-/// A triangle is curved when its vertex normals are not all its face
-/// normal; a planar one (a flat mesh, a cube's faces, a lone triangle)
-/// keeps the flat prism of the ray-tracer paper, traced through its exact
-/// affine frame. Normals 75 degrees or more apart within one triangle
-/// cannot carry a shell without folding ([`min_normal_length`]): such a
-/// triangle falls back to the flat prism too.
-struct CurvedMesh {
-    curved: Vec<bool>,
-    shared: Vec<[bool; 3]>,
-    /// `None` when no triangle is curved.
-    top: Option<f64>,
-}
-
-impl CurvedMesh {
-    fn of(triangles: &[(usize, MeshTriangle)], depth: f32, address: Address) -> Self {
-        let curved: Vec<bool> = triangles
-            .iter()
-            .map(|(_, t)| is_curved(t).is_some())
-            .collect();
-        let min_len = triangles
-            .iter()
-            .filter_map(|(_, t)| is_curved(t))
-            .fold(f64::INFINITY, f64::min);
-        let top = min_len
-            .is_finite()
-            .then(|| lambda_for_depth(depth as f64, min_len));
-        // Sides keyed by their corners' positions and normals, bit for bit
-        // (a mesh's shared vertices are transformed alike).
-        type Corner = ([u32; 3], [u32; 3]);
-        let corner = |t: &MeshTriangle, i: usize| -> Corner {
-            let n = t.normals.map_or(Vec3::ZERO, |n| n[i]);
-            (
-                t.positions[i].to_array().map(f32::to_bits),
-                n.to_array().map(f32::to_bits),
-            )
-        };
-        let mut sides: HashMap<(Corner, Corner), Vec<(usize, usize)>> = HashMap::new();
-        for (m, (_, t)) in triangles.iter().enumerate() {
-            if !curved[m] {
-                continue;
-            }
-            for k in 0..3 {
-                let (a, b) = (corner(t, k), corner(t, (k + 1) % 3));
-                let key = if a <= b { (a, b) } else { (b, a) };
-                sides.entry(key).or_default().push((m, k));
-            }
-        }
-        let mut shared = vec![[false; 3]; triangles.len()];
-        for users in sides.values() {
-            let &[(m1, k1), (m2, k2)] = users.as_slice() else {
-                continue;
-            };
-            let (t1, t2) = (&triangles[m1].1, &triangles[m2].1);
-            // The two triangles' coordinates at the side's two corners
-            // (matched by position) must differ alike: not at all on a
-            // clamped map, by whole tiles on a repeating one.
-            let ends = |t: &MeshTriangle, k: usize| {
-                [(k, t.positions[k]), ((k + 1) % 3, t.positions[(k + 1) % 3])]
-            };
-            let [(i1, p1), (j1, _)] = ends(t1, k1);
-            let [(i2, p2), (j2, _)] = ends(t2, k2);
-            let (i2, j2) = if p1 == p2 { (i2, j2) } else { (j2, i2) };
-            let (da, db) = (t1.uvs[i1] - t2.uvs[i2], t1.uvs[j1] - t2.uvs[j2]);
-            let whole = |v: Vec2| (v - v.round()).abs().max_element() <= 1e-6;
-            let continues = match address {
-                Address::Clamp => da.abs().max_element() <= 1e-6 && db.abs().max_element() <= 1e-6,
-                Address::Repeat => (da - db).abs().max_element() <= 1e-6 && whole(da),
-            };
-            if continues {
-                shared[m1][k1] = true;
-                shared[m2][k2] = true;
-            }
-        }
-        Self {
-            curved,
-            shared,
-            top,
-        }
-    }
-}
-
-/// The [`min_normal_length`] of a triangle whose vertex normals make it
-/// curved (module docs of [`crate::curved_shell`]), `None` for a planar one
-/// or one whose normals cannot carry a shell.
-fn is_curved(t: &MeshTriangle) -> Option<f64> {
-    let normals = t.normals?;
-    let face = Triangle::new(t.positions[0], t.positions[1], t.positions[2]).normal();
-    if normals.iter().all(|n| n.dot(face) >= 1.0 - 1e-6) {
-        return None;
-    }
-    min_normal_length(&normals).filter(|&m| m >= 0.5)
-}
