@@ -264,8 +264,14 @@ fn surface_at(o: vec3f, d: vec3f, t: f32, iterations: u32, converged: bool) -> T
 // cannot resolve, Donnelly's fixed loop, or the exact walk alone, as
 // displace_core::sphere_trace::trace does it.
 fn trace_map(o: vec3f, d: vec3f) -> TraceHit {
+    return trace_range(o, d, params.t_min, params.t_max);
+}
+
+// trace_map over the hits with t in [t_min, t_max] (a curved mesh's
+// chords, curved.wgsl).
+fn trace_range(o: vec3f, d: vec3f, t_min: f32, t_max: f32) -> TraceHit {
     let hi = vec3f(params.aspect.x * params.tiles.x, params.aspect.y * params.tiles.y, 1.0);
-    let clip = clip_shell(o, d, hi, params.t_min, params.t_max);
+    let clip = clip_shell(o, d, hi, t_min, t_max);
     if (!clip.ok) {
         return trace_miss(0u);
     }

@@ -58,6 +58,11 @@ pub const TAU_VOXELS: f32 = displace_core::convention::TRACE_STOP_VOXELS;
 /// underestimate bound, plus `tau`.
 pub const BAND_FACTOR: f32 = displace_core::convention::TRACE_BAND_FACTOR;
 
+/// A curved mesh's chords are halved while their midpoints stray further
+/// than this from the ray's curve in map space
+/// ([`displace_render::curved_face::CHORD_TOLERANCE`]).
+pub const CHORD_TOLERANCE: f32 = displace_render::curved_face::CHORD_TOLERANCE as f32;
+
 /// Bits of fixed-point precision assumed for a linear sampler's weights.
 /// Vulkan only promises `subTexelPrecisionBits >= 4`; desktop GPUs and
 /// lavapipe use 8. The filtered path subtracts the resulting worst-case

@@ -79,8 +79,17 @@ pub(crate) fn frame_uniform_entry() -> wgpu::BindGroupLayoutEntry {
 
 /// A storage-buffer entry of a compute bind group layout.
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    storage_entry_in(binding, read_only, wgpu::ShaderStages::COMPUTE)
+}
+
+/// A storage-buffer entry visible to `stages`.
+pub(crate) fn storage_entry_in(
+    binding: u32,
+    read_only: bool,
+    stages: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     let ty = buffer(wgpu::BufferBindingType::Storage { read_only }, None);
-    layout_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
+    layout_entry(binding, stages, ty)
 }
 
 /// A buffer binding without dynamic offsets.

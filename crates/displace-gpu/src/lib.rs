@@ -21,6 +21,7 @@ mod batch;
 pub mod bench;
 pub mod context;
 pub mod convention;
+pub mod curved;
 mod descriptors;
 pub mod error;
 pub mod gpu_map;
@@ -37,6 +38,7 @@ pub mod trace;
 pub mod view;
 
 pub use context::GpuContext;
+pub use curved::CurvedShells;
 pub use error::Error;
 pub use gpu_map::{GpuMap, MapParams};
 pub use mesh::{MeshTriangle, ShellMesh};

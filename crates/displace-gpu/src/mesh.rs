@@ -17,17 +17,16 @@
 //! window ([`ShellMesh::tiles`]) sideways or the shell through its bottom is
 //! discarded.
 //!
-//! Where this differs from the CPU renderer: the CPU extrudes every triangle
-//! along its flat face normal into its own prism and traces the triangle's
-//! exact affine frame, so a ray crosses from prism to prism; here one
-//! fragment's ray stays in the frame it started in (the frame is exact on a
-//! planar face, such as a quad or a cube's side, and drifts where the
-//! surface curves within the ray's walk), and the lateral scale is the
+//! Scenes draw only meshes whose triangles are all planar this way
+//! ([`crate::scene_draws`]): there the frame is exact and this is the CPU's
+//! prism. A mesh with curved triangles is drawn through the CPU's own
+//! shells along the vertex normals ([`crate::curved`]), since here one
+//! fragment's ray stays in the frame it started in (the frame drifts where
+//! the surface curves within the ray's walk) and the lateral scale is the
 //! MikkTSpace magnitudes `|dP/du|`, `|dP/dv|` of the vertex rather than of
-//! the triangle. Both agree on planar faces and at creases; on an open
-//! mesh that covers only part of its map window (a lone triangle), a ray
-//! leaving through a boundary wall may find surface beyond the edge, which
-//! the CPU's prism would not.
+//! the triangle. On an open mesh that covers only part of its map window
+//! (a lone triangle), a ray leaving through a boundary wall may find
+//! surface beyond the edge, which the CPU's prism would not.
 
 use crate::{Error, Result};
 use bevy_mikktspace::{Geometry, TangentSpace};

@@ -35,6 +35,8 @@ pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 /// The shell of a mesh: vertex and fragment stages with per-vertex frames.
 pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
+/// The raster path of curved meshes: their shells walked per fragment.
+pub const CURVED: &str = include_str!("../shaders/curved.wgsl");
 /// Non-displaced triangles, shaded like the CPU's direct light.
 pub const PLAIN: &str = include_str!("../shaders/plain.wgsl");
 /// The roofline: dependent trilinear fetches and nothing else.
@@ -210,6 +212,12 @@ pub fn mesh_source(texture: DistanceTexture) -> String {
     compose("mesh.wgsl", MESH, texture)
 }
 
+/// The curved-mesh variant of the raster path: the CPU's shells along the
+/// vertex normals, walked prism to prism per fragment.
+pub fn curved_source(texture: DistanceTexture) -> String {
+    compose("curved.wgsl", CURVED, texture)
+}
+
 /// Non-displaced triangles beside the displaced draws (no map: the
 /// flavour only names the modules it does not import).
 pub fn plain_source() -> String {
@@ -231,6 +239,7 @@ pub fn all_modules() -> Vec<(String, String)> {
         ));
         out.push((format!("raster/{}", t.name()), raster_source(t)));
         out.push((format!("mesh/{}", t.name()), mesh_source(t)));
+        out.push((format!("curved/{}", t.name()), curved_source(t)));
         out.push((
             format!("technique-compute/{}", t.name()),
             technique_compute_source(t),

@@ -77,6 +77,7 @@ fn convention_constants_match_rust() {
         ("ROOT_EPS", rs::ROOT_EPS as f64),
         ("LINEAR_EPS", rs::LINEAR_EPS as f64),
         ("BIG", rs::BIG as f64),
+        ("CHORD_TOLERANCE", rs::CHORD_TOLERANCE as f64),
     ]
     .into_iter()
     .collect();

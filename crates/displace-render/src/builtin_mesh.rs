@@ -30,8 +30,8 @@ pub fn generate(name: &str) -> Result<Mesh> {
     let triangles = match name {
         "plane" => plane(),
         "cube" => cube(),
-        "sphere" => grid(SPHERE_SEGMENTS, sphere_point),
-        "torus" => grid(TORUS_SEGMENTS, torus_point),
+        "sphere" => grid(SPHERE_SEGMENTS, [true, false], sphere_point),
+        "torus" => grid(TORUS_SEGMENTS, [true, true], torus_point),
         other => {
             return Err(Error::Mesh {
                 path: format!("{PREFIX}{other}").into(),
@@ -113,11 +113,24 @@ fn torus_point(u: f32, v: f32) -> (Vec3, Vec3) {
 }
 
 /// A `[nu, nv]` grid of quads over `[0, 1]^2` through `point(u, v) ->
-/// (position, normal)`, dropping the triangles a pole collapses.
-fn grid([nu, nv]: [usize; 2], point: impl Fn(f32, f32) -> (Vec3, Vec3)) -> Vec<MeshTriangle> {
+/// (position, normal)`, dropping the triangles a pole collapses. Along an
+/// axis that `wraps` (a closed mesh's texture seam) the last column's
+/// corners are the first's, bit for bit (`cos(2 pi)` is not `cos(0)` in
+/// single precision), with their own texture coordinate one tile on: the
+/// two sides of the seam share positions and normals, so their curved
+/// shells share their sides ([`crate::mesh_shells`]).
+fn grid(
+    [nu, nv]: [usize; 2],
+    wraps: [bool; 2],
+    point: impl Fn(f32, f32) -> (Vec3, Vec3),
+) -> Vec<MeshTriangle> {
     let vertex = |i: usize, j: usize| {
         let uv = Vec2::new(i as f32 / nu as f32, j as f32 / nv as f32);
-        let (p, n) = point(uv.x, uv.y);
+        let (wi, wj) = (
+            if wraps[0] { i % nu } else { i },
+            if wraps[1] { j % nv } else { j },
+        );
+        let (p, n) = point(wi as f32 / nu as f32, wj as f32 / nv as f32);
         (p, n, uv)
     };
     let mut out = Vec::with_capacity(2 * nu * nv);

@@ -201,7 +201,8 @@ impl CurvedFace {
                     .locate(o + mid * d, 0.5 * self.shell.top())
                     .is_some_and(|loc| self.shell.contains(&loc, 1e-9));
                 if inside {
-                    if let Some(hit) = self.stretch(o, d, a, b, entry, &mut iterations) {
+                    let exit = next.map(|c| c.boundary);
+                    if let Some(hit) = self.stretch(o, d, (a, b), entry, exit, &mut iterations) {
                         return Some(hit);
                     }
                 }
@@ -220,14 +221,15 @@ impl CurvedFace {
     }
 
     /// The first hit on `[ta, tb]`, a stretch inside the shell entered
-    /// through `entry` (`None`: the ray starts inside).
+    /// through `entry` (`None`: the ray starts inside) and left through
+    /// `exit` (`None`: it ends inside).
     fn stretch(
         &self,
         o: DVec3,
         d: DVec3,
-        ta: f64,
-        tb: f64,
+        (ta, tb): (f64, f64),
         entry: Option<Crossing>,
+        exit: Option<Boundary>,
         iterations: &mut u32,
     ) -> Option<(f32, CurvedHit)> {
         let hint = match entry.map(|c| c.boundary) {
@@ -260,7 +262,18 @@ impl CurvedFace {
         let (_, cb, _) = self
             .probe(o, d, tb, la.lambda)
             .or_else(|| self.probe(o, d, tb - 1e-9 * (tb - ta), la.lambda))?;
-        let t = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations)?;
+        let Some(t) = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations) else {
+            // Heights never go below the base: a ray leaving through it
+            // has met the surface there
+            // (`displace_core::sphere_trace::leaves_through_floor`), where
+            // the chords' walks may not resolve the root at their very end.
+            if exit != Some(Boundary::Base) {
+                return None;
+            }
+            let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
+            let n = self.surface_normal(&loc, c);
+            return Some(self.hit(o, d, tb, &loc, c, n, false, *iterations));
+        };
         let t = self.refine(o, d, ta, tb, t, la.lambda);
         let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
         let n = self.surface_normal(&loc, c);

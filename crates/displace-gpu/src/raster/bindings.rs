@@ -58,6 +58,13 @@ impl MapShading {
                 tiles, uv_shift, ..
             } => (*tiles, *uv_shift),
         };
+        let prisms = match geometry {
+            Geometry::Mesh {
+                prisms: Some(group),
+                ..
+            } => Some(group.clone()),
+            _ => None,
+        };
         let opts = TraceOptions {
             method: draw.method,
             iterations: draw.iterations,
@@ -83,7 +90,7 @@ impl MapShading {
                 wgpu::BindingResource::Sampler(&self.sampler),
             ],
         );
-        Ok(vec![map_group, shade])
+        Ok([map_group, shade].into_iter().chain(prisms).collect())
     }
 }
 

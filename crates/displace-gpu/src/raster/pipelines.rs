@@ -7,15 +7,16 @@
 
 use super::targets::{AOV_FORMAT, COLOR_FORMAT, DEPTH_FORMAT};
 use super::textures::{albedo_texel, checker_mips, normal_texels, shading_sampler, texture_2d};
-use super::vertex::SHELL_VERTEX_LAYOUT;
+use super::vertex::{CURVED_VERTEX_LAYOUT, SHELL_VERTEX_LAYOUT};
+use crate::curved::CurvedShells;
 use crate::descriptors::{
-    bind_group_layout, buffer_of, color_target, frame_uniform_entry, pipeline_layout,
-    render_pipeline, sampler_entry, shader_module, texture_entry, RenderStages,
+    bind_group, bind_group_layout, buffer_of, color_target, frame_uniform_entry, pipeline_layout,
+    render_pipeline, sampler_entry, shader_module, storage_entry_in, texture_entry, RenderStages,
 };
 use crate::gpu_map::GpuMap;
 use crate::mesh::ShellMesh;
 use crate::plain::{PlainMesh, PLAIN_VERTEX_LAYOUT};
-use crate::shaders::{mesh_source, plain_source, raster_source, DistanceTexture};
+use crate::shaders::{curved_source, mesh_source, plain_source, raster_source, DistanceTexture};
 use crate::{Error, GpuContext, Result};
 use displace_core::DisplacementMap;
 use glam::Vec2;
@@ -24,12 +25,14 @@ use glam::Vec2;
 pub(super) enum Geometry {
     /// The planar face's shell box, placed by its draw's [`super::Face`].
     ShellBox { mirrored: bool },
-    /// A mesh's shell, in world space ([`ShellMesh`]).
+    /// A mesh's shell, in world space ([`ShellMesh`]), or a curved mesh's
+    /// shells ([`CurvedShells`]) with their prisms bound as group 2.
     Mesh {
         vertices: wgpu::Buffer,
         count: u32,
         uv_shift: Vec2,
         tiles: [f32; 2],
+        prisms: Option<wgpu::BindGroup>,
     },
 }
 
@@ -79,6 +82,7 @@ enum Colour {
 enum Shape<'a> {
     Box { mirrored: bool },
     Mesh(&'a ShellMesh),
+    Curved(&'a CurvedShells),
 }
 
 impl Renderer {
@@ -109,6 +113,20 @@ impl Renderer {
         mesh: &ShellMesh,
     ) -> Result<Self> {
         Self::with_colour(ctx, map, texture, Colour::Albedo(albedo), Shape::Mesh(mesh))
+    }
+
+    /// A renderer of a curved mesh's shells in the constant linear
+    /// `albedo` (as [`Renderer::with_albedo`]), walked prism to prism per
+    /// fragment (`shaders/curved.wgsl`).
+    pub fn for_curved(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        albedo: [f32; 3],
+        shells: &CurvedShells,
+    ) -> Result<Self> {
+        let shape = Shape::Curved(shells);
+        Self::with_colour(ctx, map, texture, Colour::Albedo(albedo), shape)
     }
 
     /// A renderer whose surface colour is the constant linear `albedo`
@@ -183,10 +201,13 @@ impl Renderer {
         colour: Colour,
         shape: Shape,
     ) -> Result<Self> {
-        if let Shape::Mesh(mesh) = shape {
-            if mesh.vertices.is_empty() {
-                return Err(Error::InvalidOption("the mesh has no triangles".into()));
-            }
+        let empty = match shape {
+            Shape::Mesh(mesh) => mesh.vertices.is_empty(),
+            Shape::Curved(shells) => shells.vertices.is_empty(),
+            Shape::Box { .. } => false,
+        };
+        if empty {
+            return Err(Error::InvalidOption("the mesh has no triangles".into()));
         }
         let (colour_mips, colour_size) = match colour {
             Colour::Checker => (checker_mips(256, 16), 256),
@@ -208,67 +229,107 @@ impl Renderer {
             &colour_mips,
         );
         let sampler = shading_sampler(ctx, map);
-        let (pipeline, shade_group) = ctx.checked("building the raster pipeline", || {
-            let source = match shape {
-                Shape::Box { .. } => raster_source(texture),
-                Shape::Mesh(_) => mesh_source(texture),
-            };
-            let module = shader_module(ctx, "raster", &source);
-            let fragment = wgpu::ShaderStages::FRAGMENT;
-            let tex =
-                |binding| texture_entry(binding, fragment, true, wgpu::TextureViewDimension::D2);
-            let shade_group = bind_group_layout(
-                ctx,
-                "shading",
-                &[
-                    frame_uniform_entry(),
-                    tex(1),
-                    tex(2),
-                    sampler_entry(3, fragment),
-                ],
-            );
-            let layout = pipeline_layout(ctx, "raster", &[&gpu_map.layout, &shade_group]);
-            let (vertex, fragment, buffers): (_, _, &[_]) = match shape {
-                Shape::Box { .. } => ("vs_main", "fs_main", &[]),
-                Shape::Mesh(_) => ("vs_mesh", "fs_mesh", &[SHELL_VERTEX_LAYOUT]),
-            };
-            let pipeline = render_pipeline(
-                ctx,
-                "raster",
-                &layout,
-                RenderStages {
-                    module: &module,
-                    vertex,
-                    fragment,
-                    buffers,
-                    targets: &color_targets(),
-                },
-                wgpu::PrimitiveState {
-                    front_face: if matches!(shape, Shape::Box { mirrored: true }) {
-                        wgpu::FrontFace::Cw
-                    } else {
-                        wgpu::FrontFace::Ccw
+        let (pipeline, shade_group, prism_layout) =
+            ctx.checked("building the raster pipeline", || {
+                let source = match shape {
+                    Shape::Box { .. } => raster_source(texture),
+                    Shape::Mesh(_) => mesh_source(texture),
+                    Shape::Curved(_) => curved_source(texture),
+                };
+                let module = shader_module(ctx, "raster", &source);
+                let fragment = wgpu::ShaderStages::FRAGMENT;
+                let tex = |binding| {
+                    texture_entry(binding, fragment, true, wgpu::TextureViewDimension::D2)
+                };
+                let shade_group = bind_group_layout(
+                    ctx,
+                    "shading",
+                    &[
+                        frame_uniform_entry(),
+                        tex(1),
+                        tex(2),
+                        sampler_entry(3, fragment),
+                    ],
+                );
+                let prism_layout = bind_group_layout(
+                    ctx,
+                    "curved prisms",
+                    &[storage_entry_in(0, true, wgpu::ShaderStages::FRAGMENT)],
+                );
+                let layout = match shape {
+                    Shape::Curved(_) => pipeline_layout(
+                        ctx,
+                        "raster",
+                        &[&gpu_map.layout, &shade_group, &prism_layout],
+                    ),
+                    _ => pipeline_layout(ctx, "raster", &[&gpu_map.layout, &shade_group]),
+                };
+                let (vertex, fragment, buffers): (_, _, &[_]) = match shape {
+                    Shape::Box { .. } => ("vs_main", "fs_main", &[]),
+                    Shape::Mesh(_) => ("vs_mesh", "fs_mesh", &[SHELL_VERTEX_LAYOUT]),
+                    Shape::Curved(_) => ("vs_curved", "fs_curved", &[CURVED_VERTEX_LAYOUT]),
+                };
+                let pipeline = render_pipeline(
+                    ctx,
+                    "raster",
+                    &layout,
+                    RenderStages {
+                        module: &module,
+                        vertex,
+                        fragment,
+                        buffers,
+                        targets: &color_targets(),
                     },
-                    cull_mode: Some(wgpu::Face::Back),
-                    ..Default::default()
-                },
-                Some(depth_state()),
-            );
-            (pipeline, shade_group)
-        })?;
+                    wgpu::PrimitiveState {
+                        front_face: if matches!(shape, Shape::Box { mirrored: true }) {
+                            wgpu::FrontFace::Cw
+                        } else {
+                            wgpu::FrontFace::Ccw
+                        },
+                        cull_mode: Some(wgpu::Face::Back),
+                        ..Default::default()
+                    },
+                    Some(depth_state()),
+                );
+                (pipeline, shade_group, prism_layout)
+            })?;
+        let mesh = |vertices: &[u8], count: usize, uv_shift, tiles, prisms| Geometry::Mesh {
+            vertices: buffer_of(ctx, "shell vertices", vertices, wgpu::BufferUsages::VERTEX),
+            count: count as u32,
+            uv_shift,
+            tiles,
+            prisms,
+        };
         let geometry = match shape {
             Shape::Box { mirrored } => Geometry::ShellBox { mirrored },
-            Shape::Mesh(mesh) => Geometry::Mesh {
-                vertices: buffer_of(
+            Shape::Mesh(m) => mesh(
+                bytemuck::cast_slice(&m.vertices),
+                m.vertices.len(),
+                m.uv_shift,
+                m.tiles,
+                None,
+            ),
+            Shape::Curved(shells) => {
+                let prisms = buffer_of(
                     ctx,
-                    "shell vertices",
-                    bytemuck::cast_slice(&mesh.vertices),
-                    wgpu::BufferUsages::VERTEX,
-                ),
-                count: mesh.vertices.len() as u32,
-                uv_shift: mesh.uv_shift,
-                tiles: mesh.tiles,
-            },
+                    "curved prisms",
+                    bytemuck::cast_slice(&shells.prisms),
+                    wgpu::BufferUsages::STORAGE,
+                );
+                let group = bind_group(
+                    ctx,
+                    "curved prisms",
+                    &prism_layout,
+                    &[prisms.as_entire_binding()],
+                );
+                mesh(
+                    bytemuck::cast_slice(&shells.vertices),
+                    shells.vertices.len(),
+                    shells.uv_shift,
+                    shells.tiles,
+                    Some(group),
+                )
+            }
         };
         Ok(Self {
             pipeline,

@@ -1,7 +1,16 @@
 //! The vertex buffer layout of a mesh's shell ([`ShellVertex`]): what the
 //! mesh pipeline's vertex stage (section 8.4) reads per prism corner.
 
+use crate::curved::CurvedVertex;
 use crate::mesh::ShellVertex;
+
+/// One [`CurvedVertex`] per vertex: a world position and its prism.
+pub(super) const CURVED_VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> =
+    wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<CurvedVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32],
+    };
 
 /// One [`ShellVertex`] per vertex, tightly strided.
 pub(super) const SHELL_VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> =

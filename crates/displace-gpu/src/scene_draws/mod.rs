@@ -28,8 +28,8 @@ mod stage;
 use crate::convention::check_iterations;
 use crate::raster::{render_faces, shared_depth_range};
 use crate::{
-    DistanceTexture, Draw, DrawShape, Error, Face, GpuContext, Image, PlainMesh, Renderer, Result,
-    Shadows, View,
+    CurvedShells, DistanceTexture, Draw, DrawShape, Error, Face, GpuContext, Image, PlainMesh,
+    Renderer, Result, Shadows, View,
 };
 use displace_core::{Method, TraceOptions};
 use displace_render::displaced::DisplacedFace;
@@ -209,25 +209,35 @@ impl Draws<'_> {
         }
         let shading = material_shading(material, self.stage.intensity);
         shading.note(&mut self.left_out);
-        let shell = shapes::shell_of(mesh, disp.map.address())
-            .map_err(step(format!("preparing the shell of mesh {k}")))?;
-        let shape = DrawShape::Mesh {
-            bounds: shapes::bounds(mesh),
+        let curved = CurvedShells::new(
+            &mesh.triangles,
+            disp.depth,
+            disp.map.aspect(),
+            disp.map.address(),
+        )
+        .map_err(step(format!("preparing the shells of mesh {k}")))?;
+        let albedo = shading.albedo.to_array();
+        let (bounds, renderer) = match &curved {
+            Some(shells) => (
+                shells.bounds,
+                Renderer::for_curved(self.ctx, &disp.map, self.texture, albedo, shells),
+            ),
+            None => {
+                let shell = shapes::shell_of(mesh, disp.map.address())
+                    .map_err(step(format!("preparing the shell of mesh {k}")))?;
+                (
+                    shapes::bounds(mesh),
+                    Renderer::for_mesh(self.ctx, &disp.map, self.texture, albedo, &shell),
+                )
+            }
         };
+        let renderer = renderer.map_err(step(format!("uploading displaced mesh {k}")))?;
         let draw = Draw {
             depth: disp.depth,
             method: disp.trace.method,
             iterations: disp.trace.iterations,
-            ..self.stage.draw(shape, &shading)
+            ..self.stage.draw(DrawShape::Mesh { bounds }, &shading)
         };
-        let renderer = Renderer::for_mesh(
-            self.ctx,
-            &disp.map,
-            self.texture,
-            shading.albedo.to_array(),
-            &shell,
-        )
-        .map_err(step(format!("uploading displaced mesh {k}")))?;
         self.draws.push((renderer, draw));
         Ok(())
     }

@@ -17,9 +17,9 @@ use super::ctx::Ctx;
 use super::displacement::{displacement_of, triangle_frame, DispBuild};
 use super::shapes::Geometry;
 use crate::builtin_mesh;
-use crate::mesh_shells::MeshShells;
 use crate::error::{Error, Result};
 use crate::mesh::MeshTriangle;
+use crate::mesh_shells::MeshShells;
 use crate::shapes::Triangle;
 use glam::{Mat3, Vec2, Vec3};
 use std::path::PathBuf;
@@ -253,4 +253,3 @@ fn mesh_extent(tris: &[MeshTriangle], xf: &dyn Fn(Vec3) -> Vec3) -> Option<Vec2>
     }
     (weight > 0.0).then(|| sum / weight)
 }
-

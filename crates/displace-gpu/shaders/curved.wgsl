@@ -1,0 +1,767 @@
+#import displace::bindings::params
+#import displace::convention::{BIG, CHORD_TOLERANCE, HIT_SURFACE, HIT_WALL}
+#import displace::surface::{TraceHit, height_sample, surface_normal, trace_range}
+#import displace::shade::{FsOut, color_tex, frame, normal_tex, shade_sampler, shadow, shell_out}
+#import displace::lighting::blinn_phong
+
+// The raster path for curved meshes: the displaced surface S = P + depth
+// h(uv) N of the CPU renderer (displace-render's curved_shell.rs and
+// curved_face.rs, whose docs derive every formula here), traced per
+// fragment through the same shells. Each triangle's shell runs along its
+// vertex normals, X(b, l) = P(b) + l N(b) with N(b) unnormalised, from the
+// base triangle to the mesh's one top level; its sides are bilinear
+// patches shared bit for bit with the neighbours. The outer boundary of
+// the shells is drawn (tops, bases and the sides no neighbour shares), so
+// a fragment is where the eye ray enters a shell; it then walks from shell
+// to shell through the shared sides (the prisms' `adj`), tracing each
+// stretch of the ray inside a shell as chords of its curve in texture
+// space through the distance map (trace_range), refined on the true ray.
+// A walk that leaves through a top or a wall is discarded: the fragment
+// where the ray enters again carries on from there.
+
+struct Prism {
+    // Corners; p0.w: the shells' top level, p1.w: the displacement depth.
+    p0: vec4f,
+    p1: vec4f,
+    p2: vec4f,
+    // Unit shell normals.
+    n0: vec4f,
+    n1: vec4f,
+    n2: vec4f,
+    // Texture coordinates of the corners in map units within the mesh's
+    // map window: (m0, m1) and (m2, unused).
+    m01: vec4f,
+    m2: vec4f,
+    // The shell across side k (corners k and k + 1 mod 3); -1: a wall.
+    adj: vec4i,
+}
+
+@group(2) @binding(0) var<storage, read> prisms: array<Prism>;
+
+struct CurvedVertex {
+    @location(0) position: vec3f,
+    @location(1) prism: u32,
+}
+
+struct CurvedVsOut {
+    @builtin(position) clip: vec4f,
+    @location(0) world: vec3f,
+    @location(1) @interpolate(flat) prism: u32,
+}
+
+@vertex
+fn vs_curved(v: CurvedVertex) -> CurvedVsOut {
+    var out: CurvedVsOut;
+    out.clip = frame.view_proj * vec4f(v.position, 1.0);
+    out.world = v.position;
+    out.prism = v.prism;
+    return out;
+}
+
+// One shell, relative to its first corner (curved_shell.rs `CurvedShell`).
+struct Shell {
+    p0: vec3f,
+    e1: vec3f,
+    e2: vec3f,
+    n0: vec3f,
+    n1: vec3f,
+    n2: vec3f,
+    f1: vec3f,
+    f2: vec3f,
+    c0: vec3f,
+    c1: vec3f,
+    c2: vec3f,
+    depth: f32,
+    top: f32,
+    m0: vec2f,
+    m1: vec2f,
+    m2: vec2f,
+    adj: vec4i,
+}
+
+fn shell_of(i: u32) -> Shell {
+    let p = prisms[i];
+    var s: Shell;
+    s.p0 = p.p0.xyz;
+    s.e1 = p.p1.xyz - p.p0.xyz;
+    s.e2 = p.p2.xyz - p.p0.xyz;
+    s.n0 = p.n0.xyz;
+    s.n1 = p.n1.xyz;
+    s.n2 = p.n2.xyz;
+    s.f1 = p.n1.xyz - p.n0.xyz;
+    s.f2 = p.n2.xyz - p.n0.xyz;
+    s.c0 = cross(s.e1, s.e2);
+    s.c1 = cross(s.e1, s.f2) + cross(s.f1, s.e2);
+    s.c2 = cross(s.f1, s.f2);
+    s.top = p.p0.w;
+    s.depth = p.p1.w;
+    s.m0 = p.m01.xy;
+    s.m1 = p.m01.zw;
+    s.m2 = p.m2.xy;
+    s.adj = p.adj;
+    return s;
+}
+
+struct Roots {
+    r: array<f32, 3>,
+    n: u32,
+}
+
+// Real roots of a x^2 + b x + c, stable form (curved_shell.rs `quadratic_roots`).
+fn quadratic_roots(a: f32, b: f32, c: f32) -> Roots {
+    var out: Roots;
+    out.n = 0u;
+    let scale = max(abs(a), max(abs(b), abs(c)));
+    if (scale == 0.0) {
+        return out;
+    }
+    if (abs(a) <= 1e-7 * scale) {
+        if (b != 0.0) {
+            out.r[0] = -c / b;
+            out.n = 1u;
+        }
+        return out;
+    }
+    let disc = b * b - 4.0 * a * c;
+    if (disc < 0.0) {
+        return out;
+    }
+    var sb = 1.0;
+    if (b < 0.0) {
+        sb = -1.0;
+    }
+    let q = -0.5 * (b + sb * sqrt(disc));
+    if (q == 0.0) {
+        out.r[0] = 0.0;
+        out.n = 1u;
+        return out;
+    }
+    out.r[0] = q / a;
+    out.r[1] = c / q;
+    out.n = 2u;
+    return out;
+}
+
+fn cubic_at(k: vec4f, x: f32) -> f32 {
+    return ((k.w * x + k.z) * x + k.y) * x + k.x;
+}
+
+// Real roots in [lo, hi] of k.x + k.y x + k.z x^2 + k.w x^3: monotone
+// pieces between the derivative's roots, each with a sign change solved by
+// Newton's method inside its bracket (curved_shell.rs `real_roots`).
+fn cubic_roots(k: vec4f, lo: f32, hi: f32) -> Roots {
+    var cuts = array<f32, 4>(lo, hi, hi, hi);
+    var m = 1u;
+    let crit = quadratic_roots(3.0 * k.w, 2.0 * k.z, k.y);
+    var c0 = BIG;
+    var c1 = BIG;
+    if (crit.n > 0u) {
+        c0 = crit.r[0];
+    }
+    if (crit.n > 1u) {
+        c1 = crit.r[1];
+    }
+    let a0 = min(c0, c1);
+    let a1 = max(c0, c1);
+    if (a0 > lo && a0 < hi) {
+        cuts[m] = a0;
+        m += 1u;
+    }
+    if (a1 > lo && a1 < hi && a1 != a0) {
+        cuts[m] = a1;
+        m += 1u;
+    }
+    cuts[m] = hi;
+    var out: Roots;
+    out.n = 0u;
+    for (var p = 0u; p < m; p++) {
+        var a = cuts[p];
+        var b = cuts[p + 1u];
+        var fa = cubic_at(k, a);
+        let fb = cubic_at(k, b);
+        if (fa == 0.0) {
+            out.r[out.n] = a;
+            out.n += 1u;
+            continue;
+        }
+        if ((fa > 0.0) == (fb > 0.0)) {
+            continue;
+        }
+        var x = 0.5 * (a + b);
+        for (var i = 0u; i < 24u; i++) {
+            let fx = cubic_at(k, x);
+            if (fx == 0.0) {
+                break;
+            }
+            if ((fx > 0.0) == (fa > 0.0)) {
+                a = x;
+                fa = fx;
+            } else {
+                b = x;
+            }
+            let dfx = (3.0 * k.w * x + 2.0 * k.z) * x + k.y;
+            var next = 0.5 * (a + b);
+            if (dfx != 0.0) {
+                let newton = x - fx / dfx;
+                if (newton > a && newton < b) {
+                    next = newton;
+                }
+            }
+            if (abs(next - x) <= 1e-7 * (abs(x) + 1e-6)) {
+                x = next;
+                break;
+            }
+            x = next;
+        }
+        out.r[out.n] = x;
+        out.n += 1u;
+    }
+    return out;
+}
+
+struct Loc {
+    ok: bool,
+    b: vec2f,
+    lambda: f32,
+    w: f32,
+    outside: f32,
+}
+
+fn outside_of(s: Shell, b: vec2f, lambda: f32) -> f32 {
+    let b0 = 1.0 - b.x - b.y;
+    let bary = max(max(-b.x, -b.y), max(-b0, 0.0));
+    let level = max(max(-lambda, lambda - s.top), 0.0) / s.top;
+    return max(bary, level);
+}
+
+// Shell coordinates of the point r (relative to the first corner) on
+// level l.
+fn level_loc(s: Shell, r: vec3f, l: f32) -> Loc {
+    let a = r - l * s.n0;
+    let b1 = s.e1 + l * s.f1;
+    let b2 = s.e2 + l * s.f2;
+    let n = cross(b1, b2);
+    let nn = dot(n, n);
+    var loc: Loc;
+    loc.ok = nn > 0.0;
+    if (!loc.ok) {
+        return loc;
+    }
+    let b = vec2f(dot(cross(a, b2), n), dot(cross(b1, a), n)) / nn;
+    let nb = s.n0 + b.x * s.f1 + b.y * s.f2;
+    return Loc(true, b, l, l * length(nb) / s.depth, outside_of(s, b, l));
+}
+
+// Shell coordinates of world point x (curved_shell.rs `locate`).
+fn locate(s: Shell, x: vec3f, hint: f32) -> Loc {
+    let r = x - s.p0;
+    let k = vec4f(
+        dot(r, s.c0),
+        dot(r, s.c1) - dot(s.n0, s.c0),
+        dot(r, s.c2) - dot(s.n0, s.c1),
+        -dot(s.n0, s.c2),
+    );
+    // Along a ray the level moves little from one probe to the next:
+    // Newton's method from the hint first (a few loop iterations: lavapipe
+    // ends an invocation's loops after 65535 iterations in all), the
+    // bracketed solve of every root only when it does not settle in the
+    // shell.
+    var l = hint;
+    for (var i = 0u; i < 8u; i++) {
+        let f = cubic_at(k, l);
+        let df = (3.0 * k.w * l + 2.0 * k.z) * l + k.y;
+        if (df == 0.0) {
+            break;
+        }
+        let step = f / df;
+        l -= step;
+        if (abs(step) <= 1e-6 * s.top) {
+            let quick = level_loc(s, r, l);
+            if (quick.ok && quick.outside <= 1e-3) {
+                return quick;
+            }
+            break;
+        }
+    }
+    let roots = cubic_roots(k, -0.5 * s.top, 1.5 * s.top);
+    var best: Loc;
+    best.ok = false;
+    best.outside = BIG;
+    var best_near = BIG;
+    for (var i = 0u; i < roots.n; i++) {
+        let loc = level_loc(s, r, roots.r[i]);
+        if (!loc.ok) {
+            continue;
+        }
+        let near = abs(loc.lambda - hint);
+        if (loc.outside < best.outside - 1e-6 || (loc.outside <= best.outside + 1e-6 && near < best_near)) {
+            best = loc;
+            best_near = near;
+        }
+    }
+    return best;
+}
+
+fn clamp_bary(b: vec2f) -> vec2f {
+    let c = max(b, vec2f(0.0));
+    let sum = c.x + c.y;
+    if (sum > 1.0) {
+        return c / sum;
+    }
+    return c;
+}
+
+// Map point (x, y in map units, z = w) of shell coordinates loc.
+fn map_point(s: Shell, loc: Loc) -> vec3f {
+    let b = clamp_bary(loc.b);
+    let xy = s.m0 + b.x * (s.m1 - s.m0) + b.y * (s.m2 - s.m0);
+    return vec3f(xy, loc.w);
+}
+
+fn above(c: vec3f) -> f32 {
+    return c.z - height_sample(c.x / params.aspect.x, c.y / params.aspect.y);
+}
+
+struct Probe {
+    ok: bool,
+    loc: Loc,
+    c: vec3f,
+    g: f32,
+}
+
+fn probe(s: Shell, o: vec3f, d: vec3f, t: f32, hint: f32) -> Probe {
+    var p: Probe;
+    p.loc = locate(s, o + t * d, hint);
+    p.ok = p.loc.ok;
+    if (p.ok) {
+        p.c = map_point(s, p.loc);
+        p.g = above(p.c);
+    }
+    return p;
+}
+
+// Boundary kinds of a crossing: 0 base, 1 top, 2 + k side k.
+struct Crossing {
+    t: f32,
+    kind: u32,
+    normal: vec3f,
+}
+
+struct Crossings {
+    x: array<Crossing, 8>,
+    n: u32,
+}
+
+fn facing(n: vec3f, d: vec3f) -> vec3f {
+    let u = normalize(n);
+    if (dot(u, d) > 0.0) {
+        return -u;
+    }
+    return u;
+}
+
+struct TriHit {
+    ok: bool,
+    t: f32,
+    n: vec3f,
+}
+
+fn ray_triangle(o: vec3f, d: vec3f, a: vec3f, b: vec3f, c: vec3f) -> TriHit {
+    let e1 = b - a;
+    let e2 = c - a;
+    let p = cross(d, e2);
+    let det = dot(e1, p);
+    var h: TriHit;
+    h.ok = false;
+    if (det == 0.0) {
+        return h;
+    }
+    let inv = 1.0 / det;
+    let sv = o - a;
+    let b1 = dot(sv, p) * inv;
+    let q = cross(sv, e1);
+    let b2 = dot(d, q) * inv;
+    let eps = 1e-6;
+    if (b1 < -eps || b2 < -eps || b1 + b2 > 1.0 + eps) {
+        return h;
+    }
+    h.ok = true;
+    h.t = dot(e2, q) * inv;
+    h.n = cross(e1, e2);
+    return h;
+}
+
+// Every crossing of o + t d with the shell's boundary for t > t_min
+// (curved_shell.rs `crossings`), o relative to the shell's first corner.
+fn crossings(s: Shell, o: vec3f, d: vec3f, t_min: f32) -> Crossings {
+    var out: Crossings;
+    out.n = 0u;
+    let z = vec3f(0.0);
+    let top = s.top;
+    let base = ray_triangle(o, d, z, s.e1, s.e2);
+    if (base.ok && base.t > t_min) {
+        out.x[out.n] = Crossing(base.t, 0u, facing(base.n, d));
+        out.n += 1u;
+    }
+    let lid = ray_triangle(o, d, top * s.n0, s.e1 + top * s.n1, s.e2 + top * s.n2);
+    if (lid.ok && lid.t > t_min) {
+        out.x[out.n] = Crossing(lid.t, 1u, facing(lid.n, d));
+        out.n += 1u;
+    }
+    var corner = array<vec3f, 3>(z, s.e1, s.e2);
+    var normal = array<vec3f, 3>(s.n0, s.n1, s.n2);
+    for (var k = 0u; k < 3u; k++) {
+        let j = (k + 1u) % 3u;
+        let a0 = corner[k] - o;
+        let a1 = corner[j] - corner[k];
+        let b0 = normal[k];
+        let b1 = normal[j] - normal[k];
+        let q0 = dot(a0, cross(d, b0));
+        let q1 = dot(a1, cross(d, b0)) + dot(a0, cross(d, b1));
+        let q2 = dot(a1, cross(d, b1));
+        let roots = quadratic_roots(q2, q1, q0);
+        for (var i = 0u; i < roots.n; i++) {
+            let sv = roots.r[i];
+            if (sv < -1e-6 || sv > 1.0 + 1e-6) {
+                continue;
+            }
+            let a = corner[k] + sv * a1;
+            let b = b0 + sv * b1;
+            let dxb = cross(d, b);
+            let den = dot(dxb, dxb);
+            if (den <= 0.0) {
+                continue;
+            }
+            let r = a - o;
+            let t = dot(cross(r, b), dxb) / den;
+            let mu = dot(cross(r, d), dxb) / den;
+            if (mu < -1e-6 * top || mu > top * (1.0 + 1e-6) || t <= t_min || out.n >= 8u) {
+                continue;
+            }
+            out.x[out.n] = Crossing(t, 2u + k, facing(cross(a1 + mu * b1, b), d));
+            out.n += 1u;
+        }
+    }
+    // Sorted by t (insertion sort of at most eight).
+    for (var i = 1u; i < out.n; i++) {
+        let key = out.x[i];
+        var j = i;
+        while (j > 0u && out.x[j - 1u].t > key.t) {
+            out.x[j] = out.x[j - 1u];
+            j -= 1u;
+        }
+        out.x[j] = key;
+    }
+    return out;
+}
+
+// Columns dX/dx, dX/dy, dX/dz of the map-to-world mapping at (b, w)
+// (curved_shell.rs `jacobian`).
+fn jacobian(s: Shell, b: vec2f, w: f32) -> mat3x3f {
+    let n = s.n0 + b.x * s.f1 + b.y * s.f2;
+    let len = length(n);
+    let nh = n / len;
+    let db1 = s.e1 + s.depth * w * (s.f1 - nh * dot(nh, s.f1)) / len;
+    let db2 = s.e2 + s.depth * w * (s.f2 - nh * dot(nh, s.f2)) / len;
+    // Map xy to b: the inverse of the texture triangle's edge matrix.
+    let t1 = s.m1 - s.m0;
+    let t2 = s.m2 - s.m0;
+    let det = t1.x * t2.y - t2.x * t1.y;
+    let i00 = t2.y / det;
+    let i01 = -t2.x / det;
+    let i10 = -t1.y / det;
+    let i11 = t1.x / det;
+    return mat3x3f(db1 * i00 + db2 * i10, db1 * i01 + db2 * i11, s.depth * nh);
+}
+
+// Rows of the inverse of j: map-space components of a world vector.
+fn inverse_rows(j: mat3x3f) -> mat3x3f {
+    let r0 = cross(j[1], j[2]);
+    let r1 = cross(j[2], j[0]);
+    let r2 = cross(j[0], j[1]);
+    let det = dot(j[0], r0);
+    return transpose(mat3x3f(r0, r1, r2)) * (1.0 / det);
+}
+
+// World normal of map-space normal n (the inverse transpose of j).
+fn normal_to_world(j: mat3x3f, n: vec3f) -> vec3f {
+    let r0 = cross(j[1], j[2]);
+    let r1 = cross(j[2], j[0]);
+    let r2 = cross(j[0], j[1]);
+    let sign = sign(dot(j[0], r0));
+    return normalize((n.x * r0 + n.y * r1 + n.z * r2) * sign);
+}
+
+struct CurvedHit {
+    found: bool,
+    t: f32,
+    loc: Loc,
+    c: vec3f,
+    wall: bool,
+    normal: vec3f,
+}
+
+// The root of w - h near the chord hit t, within [ta, tb] where the ray
+// is above at ta (curved_face.rs `refine`, regula falsi).
+fn refine(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, t: f32, hint: f32) -> f32 {
+    let pt = probe(s, o, d, t, hint);
+    if (!pt.ok || pt.g == 0.0) {
+        return t;
+    }
+    var lo = t;
+    var hi = t;
+    var glo = pt.g;
+    var ghi = pt.g;
+    var step = 1e-5 * max(tb - ta, 1e-9);
+    if (pt.g < 0.0) {
+        for (var i = 0u; i < 12u && glo < 0.0 && lo > ta; i++) {
+            lo = max(t - step, ta);
+            let p = probe(s, o, d, lo, hint);
+            glo = select(0.0, p.g, p.ok);
+            step *= 4.0;
+        }
+        if (glo < 0.0) {
+            return t;
+        }
+    } else {
+        for (var i = 0u; i < 12u && ghi > 0.0 && hi < tb; i++) {
+            hi = min(t + step, tb);
+            let p = probe(s, o, d, hi, hint);
+            ghi = select(0.0, p.g, p.ok);
+            step *= 4.0;
+        }
+        if (ghi > 0.0) {
+            return t;
+        }
+    }
+    var side = 0;
+    for (var i = 0u; i < 16u; i++) {
+        var m = (lo * ghi - hi * glo) / (ghi - glo);
+        if (!(m > lo && m < hi)) {
+            m = 0.5 * (lo + hi);
+        }
+        let p = probe(s, o, d, m, hint);
+        if (!p.ok) {
+            break;
+        }
+        if (p.g >= 0.0) {
+            lo = m;
+            glo = p.g;
+            if (side == 1) {
+                ghi *= 0.5;
+            }
+            side = 1;
+        } else {
+            hi = m;
+            ghi = p.g;
+            if (side == -1) {
+                glo *= 0.5;
+            }
+            side = -1;
+        }
+        if (hi - lo <= 1e-7 * (1.0 + abs(hi))) {
+            break;
+        }
+    }
+    return hi;
+}
+
+const MAX_CHORD_DEPTH: u32 = 16u;
+
+// The first hit on [ta, tb], a stretch inside shell s entered through
+// boundary `entry` (its outward normal `entry_normal`; 99: the ray starts
+// inside), as curved_face.rs `stretch` finds it: chords of the curve in
+// texture space, halved while their midpoints stray, each traced through
+// the distance map.
+fn stretch(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, entry: u32, entry_normal: vec3f, exit: u32) -> CurvedHit {
+    var hit: CurvedHit;
+    hit.found = false;
+    var hint = 0.5 * s.top;
+    if (entry == 1u) {
+        hint = s.top;
+    } else if (entry == 0u) {
+        hint = 0.0;
+    }
+    var pa = probe(s, o, d, ta, hint);
+    if (!pa.ok) {
+        pa = probe(s, o, d, ta + 1e-6 * (tb - ta), hint);
+        if (!pa.ok) {
+            return hit;
+        }
+    }
+    if (pa.g < 0.0) {
+        // Entered under the surface: the wall entered through, except a
+        // shared side or the top, where the surface meets it.
+        var wall = true;
+        var n = entry_normal;
+        if (entry == 1u || (entry >= 2u && entry < 5u && s.adj[entry - 2u] >= 0)) {
+            wall = false;
+        }
+        if (entry == 99u) {
+            n = -d;
+        }
+        hit = CurvedHit(true, ta, pa.loc, pa.c, wall, n);
+        return hit;
+    }
+    var pb = probe(s, o, d, tb, pa.loc.lambda);
+    if (!pb.ok) {
+        pb = probe(s, o, d, tb - 1e-6 * (tb - ta), pa.loc.lambda);
+        if (!pb.ok) {
+            return hit;
+        }
+    }
+    // Depth-first halving with an explicit stack of pending right ends.
+    var stack_t: array<f32, 16>;
+    var stack_c: array<vec3f, 16>;
+    var sp = 0u;
+    var at = ta;
+    var ac = pa.c;
+    var bt = tb;
+    var bc = pb.c;
+    let hint2 = pa.loc.lambda;
+    for (var guard = 0u; guard < 512u; guard++) {
+        if (sp < MAX_CHORD_DEPTH) {
+            let tm = 0.5 * (at + bt);
+            let pm = probe(s, o, d, tm, hint2);
+            if (pm.ok && length(pm.c - 0.5 * (ac + bc)) > CHORD_TOLERANCE) {
+                stack_t[sp] = bt;
+                stack_c[sp] = bc;
+                sp += 1u;
+                bt = tm;
+                bc = pm.c;
+                continue;
+            }
+        }
+        let v = bc - ac;
+        let len = length(v);
+        if (len > 0.0) {
+            let th = trace_range(ac, v / len, 0.0, len);
+            if (th.kind == HIT_SURFACE || th.kind == HIT_WALL) {
+                var f = 0.0;
+                if (th.kind == HIT_SURFACE) {
+                    f = clamp(th.t / len, 0.0, 1.0);
+                }
+                let t = refine(s, o, d, ta, tb, at + f * (bt - at), hint2);
+                let p = probe(s, o, d, t, hint2);
+                if (p.ok) {
+                    hit = CurvedHit(true, t, p.loc, p.c, false, vec3f(0.0));
+                    return hit;
+                }
+            }
+        }
+        if (sp == 0u) {
+            // Heights never go below the base: a ray leaving through it
+            // has met the surface there (sphere_trace.rs
+            // `leaves_through_floor`), where the chords' walks may not
+            // resolve the root at their very end.
+            if (exit == 0u) {
+                let p = probe(s, o, d, tb, hint2);
+                if (p.ok) {
+                    hit = CurvedHit(true, tb, p.loc, p.c, false, vec3f(0.0));
+                }
+            }
+            break;
+        }
+        sp -= 1u;
+        at = bt;
+        ac = bc;
+        bt = stack_t[sp];
+        bc = stack_c[sp];
+    }
+    return hit;
+}
+
+const MAX_SHELLS: u32 = 64u;
+
+@fragment
+fn fs_curved(in: CurvedVsOut) -> FsOut {
+    let eye = frame.eye.xyz;
+    let to = in.world - eye;
+    let t_frag = length(to);
+    let d = to / t_frag;
+    var prism = in.prism;
+    // The rasterised sides are flat, the shells' bilinear: look for the
+    // entry a little before the fragment.
+    var t_from = t_frag * (1.0 - 1e-3);
+    var hit: CurvedHit;
+    hit.found = false;
+    var s = shell_of(prism);
+    for (var walk = 0u; walk < MAX_SHELLS; walk++) {
+        s = shell_of(prism);
+        let o = eye - s.p0;
+        let xs = crossings(s, o, d, 0.0);
+        // The first stretch inside the shell that ends after t_from.
+        var a = 0.0;
+        var entry = 99u;
+        var entry_n = vec3f(0.0);
+        var exit = 99u;
+        var found_stretch = false;
+        var sa = 0.0;
+        var sb = 0.0;
+        var s_entry = 99u;
+        var s_entry_n = vec3f(0.0);
+        for (var k = 0u; k < xs.n; k++) {
+            let b = xs.x[k].t;
+            if (b > a && b > t_from + 1e-6 * (1.0 + t_from)) {
+                let mid_w = locate(s, eye + 0.5 * (a + b) * d, 0.5 * s.top);
+                if (mid_w.ok && mid_w.outside <= 1e-5) {
+                    found_stretch = true;
+                    sa = max(a, 0.0);
+                    sb = b;
+                    s_entry = entry;
+                    s_entry_n = entry_n;
+                    exit = xs.x[k].kind;
+                    break;
+                }
+            }
+            a = b;
+            entry = xs.x[k].kind;
+            entry_n = xs.x[k].normal;
+        }
+        if (!found_stretch) {
+            discard;
+        }
+        hit = stretch(s, eye, d, sa, sb, s_entry, s_entry_n, exit);
+        if (hit.found) {
+            break;
+        }
+        if (exit >= 2u && exit < 5u && s.adj[exit - 2u] >= 0) {
+            prism = u32(s.adj[exit - 2u]);
+            t_from = sb;
+            continue;
+        }
+        discard;
+    }
+    if (!hit.found) {
+        discard;
+    }
+    let world = eye + hit.t * d;
+    let uv_local = hit.c.xy / params.aspect;
+    let j = jacobian(s, clamp_bary(hit.loc.b), hit.loc.w);
+    var n_map = vec3f(0.0, 0.0, 1.0);
+    var n = hit.normal;
+    var kind = HIT_WALL;
+    if (!hit.wall) {
+        kind = HIT_SURFACE;
+        n_map = normalize(textureSampleLevel(normal_tex, shade_sampler, uv_local, 0.0).xyz * 2.0 - 1.0);
+        n = normal_to_world(j, n_map);
+    } else {
+        n_map = normalize(inverse_rows(j) * n);
+    }
+    let to_light = frame.light.xyz - world;
+    let l = normalize(to_light);
+    // Self-shadowing along the hit's local frame: the light direction in
+    // map space, marched straight from the hit.
+    let inv = inverse_rows(j);
+    let l_map_v = inv * to_light;
+    let l_map = normalize(l_map_v);
+    var lit = max(dot(n, l), 0.0) * shadow(hit.c + n_map * params.tau, l_map, length(l_map_v));
+    if (frame.falloff == 1u) {
+        let r = length(to_light);
+        lit = lit / max(r * r, 1e-20);
+    }
+    let albedo = textureSampleLevel(color_tex, shade_sampler, uv_local, 0.0).rgb;
+    let half_vec = normalize(l - d);
+    let rgb = blinn_phong(albedo, n, half_vec, lit, frame.ambient, frame.light_intensity, frame.specular, frame.shininess);
+    return shell_out(rgb, uv_local + frame.uv_shift, TraceHit(kind, hit.t, n_map, 0u, true), world);
+}

@@ -1,0 +1,195 @@
+//! Curved meshes for the raster path: the shells of the CPU renderer
+//! (`displace_render::curved_shell`, the triangles' extrusions along their
+//! vertex normals) as a storage buffer of prisms with their neighbours,
+//! and the outer boundary of those shells as triangles to rasterise
+//! (`shaders/curved.wgsl` walks the prisms per fragment).
+//!
+//! Which triangles are curved, the top level and the neighbours come from
+//! [`MeshShells`], the one answer the CPU's primitives are built from, so
+//! both renderers trace the same shells; a mesh with no curved triangle
+//! keeps the locally flat shells of [`crate::mesh`].
+
+use crate::{Error, Result};
+use bytemuck::{Pod, Zeroable};
+use displace_core::Address;
+use displace_render::mesh::MeshTriangle;
+use displace_render::mesh_shells::{shell_normals, MeshShells};
+use glam::{Vec2, Vec3};
+
+/// One shell. Mirror of WGSL `Prism` (curved.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPrism {
+    /// Corners; `p[0][3]` is the top level, `p[1][3]` the depth.
+    pub p: [[f32; 4]; 3],
+    /// Unit shell normals (`w` unused).
+    pub n: [[f32; 4]; 3],
+    /// Texture corners 0 and 1 in map units within the map window.
+    pub m01: [f32; 4],
+    /// Texture corner 2 (`zw` unused).
+    pub m2: [f32; 4],
+    /// The prism across side `k` (corners `k`, `k + 1`), -1 for a wall.
+    pub adj: [i32; 4],
+}
+
+/// A vertex of the shells' outer boundary. Mirror of WGSL `CurvedVertex`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct CurvedVertex {
+    /// World position.
+    pub position: [f32; 3],
+    /// The prism the face belongs to.
+    pub prism: u32,
+}
+
+/// A curved mesh ready to upload.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurvedShells {
+    /// One per triangle, in the mesh's order.
+    pub prisms: Vec<GpuPrism>,
+    /// The outer boundary: every top and base, and the sides no neighbour
+    /// shares, wound counter-clockwise seen from outside.
+    pub vertices: Vec<CurvedVertex>,
+    /// Subtracted from the texture coordinates to put them in the map
+    /// window (added back to the UV output).
+    pub uv_shift: Vec2,
+    /// Tiles the map window spans.
+    pub tiles: [f32; 2],
+    /// World box of the shells.
+    pub bounds: [Vec3; 2],
+}
+
+impl CurvedShells {
+    /// The shells of `triangles` (world space, texture coordinates in
+    /// tiles) displaced by `depth` over a map of tile proportions `aspect`
+    /// and `address`ing; `None` when no triangle is curved.
+    pub fn new(
+        triangles: &[MeshTriangle],
+        depth: f32,
+        aspect: [f32; 2],
+        address: Address,
+    ) -> Result<Option<Self>> {
+        let shells = MeshShells::of(triangles, depth, address);
+        let Some(top) = shells.top else {
+            return Ok(None);
+        };
+        if triangles.len() > i32::MAX as usize {
+            return Err(Error::InvalidOption("too many mesh triangles".into()));
+        }
+        let (uv_shift, tiles) = window(triangles, address);
+        let aspect = Vec2::from_array(aspect);
+        let top32 = top as f32;
+        let mut prisms = Vec::with_capacity(triangles.len());
+        let mut vertices = Vec::new();
+        let mut bounds = [Vec3::INFINITY, Vec3::NEG_INFINITY];
+        for (m, t) in triangles.iter().enumerate() {
+            let n = shell_normals(t, shells.curved[m]);
+            let p = t.positions;
+            let m_uv = t.uvs.map(|uv| (uv - uv_shift) * aspect);
+            let adj = shells.neighbours[m].map(|a| a.map_or(-1, |a| a as i32));
+            prisms.push(GpuPrism {
+                p: [
+                    p[0].extend(top32).to_array(),
+                    p[1].extend(depth).to_array(),
+                    p[2].extend(0.0).to_array(),
+                ],
+                n: n.map(|v| v.extend(0.0).to_array()),
+                m01: [m_uv[0].x, m_uv[0].y, m_uv[1].x, m_uv[1].y],
+                m2: [m_uv[2].x, m_uv[2].y, 0.0, 0.0],
+                adj: [adj[0], adj[1], adj[2], -1],
+            });
+            let lid = [0, 1, 2].map(|i| p[i] + top32 * n[i]);
+            for q in p.iter().chain(&lid) {
+                bounds = [bounds[0].min(*q), bounds[1].max(*q)];
+            }
+            let up = n[0] + n[1] + n[2];
+            let centre = (p[0] + p[1] + p[2]) / 3.0;
+            let prism = m as u32;
+            let mut face = |corners: &[Vec3], outward: Vec3| {
+                let normal = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+                let flip = normal.dot(outward) < 0.0;
+                for k in 1..corners.len() - 1 {
+                    let tri = if flip {
+                        [corners[0], corners[k + 1], corners[k]]
+                    } else {
+                        [corners[0], corners[k], corners[k + 1]]
+                    };
+                    vertices.extend(tri.map(|v| CurvedVertex {
+                        position: v.to_array(),
+                        prism,
+                    }));
+                }
+            };
+            face(&lid, up);
+            face(&p, -up);
+            for k in 0..3 {
+                if shells.neighbours[m][k].is_none() {
+                    let j = (k + 1) % 3;
+                    let out = 0.5 * (p[k] + p[j]) - centre;
+                    face(&[p[k], p[j], lid[j], lid[k]], out);
+                }
+            }
+        }
+        Ok(Some(Self {
+            prisms,
+            vertices,
+            uv_shift,
+            tiles,
+            bounds,
+        }))
+    }
+}
+
+/// The map window of a mesh: one tile for a clamped map; the whole tiles
+/// its coordinates touch for a repeating one.
+fn window(triangles: &[MeshTriangle], address: Address) -> (Vec2, [f32; 2]) {
+    match address {
+        Address::Clamp => (Vec2::ZERO, [1.0, 1.0]),
+        Address::Repeat => {
+            let (lo, hi) = triangles
+                .iter()
+                .flat_map(|t| t.uvs)
+                .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), uv| {
+                    (lo.min(uv), hi.max(uv))
+                });
+            let shift = lo.floor();
+            let tiles = (hi - shift).ceil().max(Vec2::ONE);
+            (shift, [tiles.x, tiles.y])
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prism_layout_matches_the_wgsl_struct() {
+        // Nine vec4 of 16 bytes: the std430 array stride of `Prism`.
+        assert_eq!(std::mem::size_of::<GpuPrism>(), 144);
+        assert_eq!(std::mem::size_of::<CurvedVertex>(), 16);
+    }
+
+    #[test]
+    fn a_closed_curved_mesh_draws_tops_and_bases_only() {
+        let mesh = displace_render::builtin_mesh::generate("torus").unwrap();
+        let tris: Vec<MeshTriangle> = mesh.triangles;
+        let s = CurvedShells::new(&tris, 0.1, [10.0, 10.0], Address::Repeat)
+            .unwrap()
+            .expect("the torus is curved");
+        assert_eq!(s.prisms.len(), tris.len());
+        // Every side is shared on a closed mesh whose texture seams are
+        // whole tiles apart, so only tops and bases are drawn.
+        assert_eq!(s.vertices.len(), tris.len() * 6);
+        // Tops face away from the tube's centre line (the unit circle in
+        // the xz plane), bases towards it.
+        for (k, tri) in s.vertices.chunks(3).enumerate() {
+            let p: Vec<Vec3> = tri.iter().map(|v| Vec3::from_array(v.position)).collect();
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            let c = (p[0] + p[1] + p[2]) / 3.0;
+            let axis = Vec3::new(c.x, 0.0, c.z).normalize();
+            let out = n.dot(c - axis);
+            assert!(if k % 2 == 0 { out > 0.0 } else { out < 0.0 }, "{k}");
+        }
+    }
+}
