@@ -123,15 +123,18 @@ map_size = {list(msize)}
 
 
 def read_ply(path):
-    """The binary PLY that `displace export-mesh` writes: 8 float32 per
-    vertex (x y z nx ny nz u v), faces as (uchar 3, int32 x 3)."""
+    """The binary PLY that `displace export-mesh` writes: float32 vertex
+    properties starting with x y z (8 for a height field: x y z nx ny nz u
+    v; 5 for a scene's surface: x y z u v), faces as (uchar 3, int32 x 3)."""
     with open(path, "rb") as f:
         header = b""
         while not header.endswith(b"end_header\n"):
             header += f.readline()
         nv = int(re.search(rb"element vertex (\d+)", header).group(1))
         nf = int(re.search(rb"element face (\d+)", header).group(1))
-        verts = np.fromfile(f, np.float32, nv * 8).reshape(nv, 8)
+        vertex_part = header.split(b"element face")[0]
+        k = len(re.findall(rb"property float ", vertex_part))
+        verts = np.fromfile(f, np.float32, nv * k).reshape(nv, k)
         faces = np.fromfile(f, np.dtype([("n", "u1"), ("i", "<i4", 3)]), nf)
     assert (faces["n"] == 3).all()
     return np.ascontiguousarray(verts[:, :3]), np.ascontiguousarray(faces["i"])

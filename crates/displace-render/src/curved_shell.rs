@@ -210,6 +210,13 @@ impl CurvedShell {
         Some(DVec2::new(a.cross(b2).dot(n), b1.cross(a).dot(n)) / nn)
     }
 
+    /// The shell coordinates of world point `x` on level `lambda`.
+    fn at_level(&self, x: DVec3, lambda: f64) -> Option<Located> {
+        let b = self.barycentric(x, lambda)?;
+        let w = lambda * self.normal_at(b).length() / self.depth;
+        Some(Located { b, lambda, w })
+    }
+
     /// How far `b` and `lambda` lie outside the shell's ranges (0 inside):
     /// the larger of the barycentric overshoot and the level's, in
     /// barycentric units and units of `top`.
@@ -224,16 +231,36 @@ impl CurvedShell {
     /// near the shell's levels, the one inside the shell (or least outside
     /// it), nearest `hint` among equals. `None` where no level's plane
     /// holds `x` near the shell.
+    ///
+    /// Along a ray the level moves little from one point to the next, so
+    /// Newton's method from `hint` comes first; every root of the cubic
+    /// is isolated only when that does not settle inside the shell.
     pub fn locate(&self, x: DVec3, hint: f64) -> Option<Located> {
         let k = self.cubic(x);
+        let mut lambda = hint;
+        for _ in 0..8 {
+            let f = ((k[3] * lambda + k[2]) * lambda + k[1]) * lambda + k[0];
+            let df = (3.0 * k[3] * lambda + 2.0 * k[2]) * lambda + k[1];
+            if df == 0.0 || !df.is_finite() {
+                break;
+            }
+            let step = f / df;
+            lambda -= step;
+            if step.abs() <= 1e-12 * self.top {
+                if let Some(loc) = self.at_level(x, lambda) {
+                    if self.outside(&loc) <= 1e-3 {
+                        return Some(loc);
+                    }
+                }
+                break;
+            }
+        }
         let (lo, hi) = (-0.5 * self.top, 1.5 * self.top);
         let mut best: Option<(f64, f64, Located)> = None;
         for lambda in real_roots(k, lo, hi) {
-            let Some(b) = self.barycentric(x, lambda) else {
+            let Some(loc) = self.at_level(x, lambda) else {
                 continue;
             };
-            let w = lambda * self.normal_at(b).length() / self.depth;
-            let loc = Located { b, lambda, w };
             let out = self.outside(&loc);
             let near = (lambda - hint).abs();
             let better = match &best {
