@@ -502,8 +502,9 @@ struct CurvedHit {
 }
 
 // The root of w - h near the chord hit t, within [ta, tb] where the ray
-// is above at ta (curved_face.rs `refine`, regula falsi).
-fn refine(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, t: f32, hint: f32) -> f32 {
+// is above at ta, the bracket's first probe a thousandth of the chord
+// (span) away (curved_face.rs `refine`, regula falsi).
+fn refine(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, t: f32, span: f32, hint: f32) -> f32 {
     let pt = probe(s, o, d, t, hint);
     if (!pt.ok || pt.g == 0.0) {
         return t;
@@ -512,13 +513,13 @@ fn refine(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, t: f32, hint: f32) -> 
     var hi = t;
     var glo = pt.g;
     var ghi = pt.g;
-    var step = 1e-5 * max(tb - ta, 1e-9);
+    var step = 1e-3 * max(span, 1e-9);
     if (pt.g < 0.0) {
         for (var i = 0u; i < 12u && glo < 0.0 && lo > ta; i++) {
             lo = max(t - step, ta);
             let p = probe(s, o, d, lo, hint);
             glo = select(0.0, p.g, p.ok);
-            step *= 4.0;
+            step *= 8.0;
         }
         if (glo < 0.0) {
             return t;
@@ -528,7 +529,7 @@ fn refine(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, t: f32, hint: f32) -> 
             hi = min(t + step, tb);
             let p = probe(s, o, d, hi, hint);
             ghi = select(0.0, p.g, p.ok);
-            step *= 4.0;
+            step *= 8.0;
         }
         if (ghi > 0.0) {
             return t;
@@ -641,7 +642,7 @@ fn stretch(s: Shell, o: vec3f, d: vec3f, ta: f32, tb: f32, entry: u32, entry_nor
                 if (th.kind == HIT_SURFACE) {
                     f = clamp(th.t / len, 0.0, 1.0);
                 }
-                let t = refine(s, o, d, ta, tb, at + f * (bt - at), hint2);
+                let t = refine(s, o, d, ta, tb, at + f * (bt - at), bt - at, hint2);
                 let p = probe(s, o, d, t, hint2);
                 if (p.ok) {
                     hit = CurvedHit(true, t, p.loc, p.c, false, vec3f(0.0));

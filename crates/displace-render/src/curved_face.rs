@@ -262,7 +262,8 @@ impl CurvedFace {
         let (_, cb, _) = self
             .probe(o, d, tb, la.lambda)
             .or_else(|| self.probe(o, d, tb - 1e-9 * (tb - ta), la.lambda))?;
-        let Some(t) = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations) else {
+        let Some((t, span)) = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations)
+        else {
             // Heights never go below the base: a ray leaving through it
             // has met the surface there
             // (`displace_core::sphere_trace::leaves_through_floor`), where
@@ -274,15 +275,16 @@ impl CurvedFace {
             let n = self.surface_normal(&loc, c);
             return Some(self.hit(o, d, tb, &loc, c, n, false, *iterations));
         };
-        let t = self.refine(o, d, ta, tb, t, la.lambda);
+        let t = self.refine(o, d, (ta, tb), t, span, la.lambda);
         let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
         let n = self.surface_normal(&loc, c);
         Some(self.hit(o, d, t, &loc, c, n, false, *iterations))
     }
 
     /// The first chord hit on the curve from `a` to `b` (ray parameters
-    /// and map points), as a ray parameter: the chord halved while its
-    /// midpoint strays from the curve's, then traced by the core.
+    /// and map points), as a ray parameter with the chord's span of ray
+    /// parameters: the chord halved while its midpoint strays from the
+    /// curve's, then traced by the core.
     fn chords(
         &self,
         o: DVec3,
@@ -291,7 +293,7 @@ impl CurvedFace {
         b: (f64, DVec3),
         depth: u32,
         iterations: &mut u32,
-    ) -> Option<f64> {
+    ) -> Option<(f64, f64)> {
         let (ta, ca, hint) = a;
         let (tb, cb) = b;
         if depth < MAX_CHORD_DEPTH {
@@ -324,14 +326,24 @@ impl CurvedFace {
             HitKind::Wall => 0.0,
             HitKind::Surface => (hit.t as f64 / len).clamp(0.0, 1.0),
         };
-        Some(ta + f * (tb - ta))
+        Some((ta + f * (tb - ta), tb - ta))
     }
 
     /// The root of `w - h` on the true curve near a chord's hit at `t`,
     /// within `[ta, tb]` where `w - h >= 0` at `ta`: regula falsi (the
-    /// Illinois variant) on a bracket found next to `t`; `t` itself when
-    /// the curve stays above within the chords' tolerance.
-    fn refine(&self, o: DVec3, d: DVec3, ta: f64, tb: f64, t: f64, hint: f64) -> f64 {
+    /// Illinois variant) on a bracket found next to `t`, its first probe a
+    /// thousandth of the chord (`span`) away, since the chord lies within
+    /// [`CHORD_TOLERANCE`] of the curve; `t` itself when the curve stays
+    /// above within that tolerance.
+    fn refine(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        (ta, tb): (f64, f64),
+        t: f64,
+        span: f64,
+        hint: f64,
+    ) -> f64 {
         let g = |t: f64| self.probe(o, d, t, hint).map(|(_, _, g)| g);
         let Some(gt) = g(t) else {
             return t;
@@ -339,29 +351,30 @@ impl CurvedFace {
         if gt == 0.0 {
             return t;
         }
+        let first = 1e-3 * span.max(1e-12);
         // A bracket: [last point above, first point under].
         let (mut lo, mut hi, mut glo, mut ghi) = if gt < 0.0 {
             // Back towards `ta` (above) in growing steps.
-            let mut step = 1e-6 * (tb - ta).max(1e-12);
+            let mut step = first;
             let mut lo = t;
             let mut glo = gt;
             while glo < 0.0 && lo > ta {
                 lo = (t - step).max(ta);
                 glo = g(lo).unwrap_or(0.0);
-                step *= 4.0;
+                step *= 8.0;
             }
             if glo < 0.0 {
                 return t;
             }
             (lo, t, glo, gt)
         } else {
-            let mut step = 1e-6 * (tb - ta).max(1e-12);
+            let mut step = first;
             let mut hi = t;
             let mut ghi = gt;
             while ghi > 0.0 && hi < tb {
                 hi = (t + step).min(tb);
                 ghi = g(hi).unwrap_or(0.0);
-                step *= 4.0;
+                step *= 8.0;
             }
             if ghi > 0.0 {
                 return t;
