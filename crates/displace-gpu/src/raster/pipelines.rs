@@ -201,6 +201,19 @@ impl Renderer {
         colour: Colour,
         shape: Shape,
     ) -> Result<Self> {
+        if let Shape::Curved(shells) = shape {
+            // One storage binding holds every prism: refuse a mesh the
+            // device cannot bind before anything is uploaded.
+            let bytes = std::mem::size_of_val(shells.prisms.as_slice()) as u64;
+            let limit = ctx.limits.max_storage_buffer_binding_size;
+            if bytes > limit {
+                return Err(Error::InvalidOption(format!(
+                    "the curved mesh's {} shells take {bytes} bytes, over this GPU's \
+                     {limit}-byte storage binding: use a coarser mesh",
+                    shells.prisms.len()
+                )));
+            }
+        }
         let empty = match shape {
             Shape::Mesh(mesh) => mesh.vertices.is_empty(),
             Shape::Curved(shells) => shells.vertices.is_empty(),
