@@ -55,7 +55,7 @@ const LINEAR_EPS: f32 = 1e-12;
 
 // How far (map units) a chord of a curved mesh's ray may stray from the
 // curve at its midpoint before it is halved (curved_face.rs).
-const CHORD_TOLERANCE: f32 = 1e-4;
+const CHORD_TOLERANCE: f32 = 1e-3;
 
 // Stands in for infinity (WGSL has no infinity literal, and shader compilers
 // may assume none occurs).
