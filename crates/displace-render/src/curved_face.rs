@@ -179,6 +179,9 @@ impl CurvedFace {
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, CurvedHit)> {
         let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
         let (t_min, t_max) = (t_min as f64, t_max as f64);
+        if !self.shell.admits(o, d, t_min, t_max) {
+            return None;
+        }
         let (mut xs, n) = self.shell.crossings(o, d, t_min, t_max);
         let xs = &mut xs[..n];
         xs.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));

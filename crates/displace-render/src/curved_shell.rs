@@ -94,6 +94,10 @@ pub struct CurvedShell {
     c: [DVec3; 3],
     depth: f64,
     top: f64,
+    /// Supporting planes of the six corners' hull (`n . x <= c` inside),
+    /// at most ten: a cheap test before the crossings ([`CurvedShell::admits`]).
+    hull: [(DVec3, f64); 10],
+    hull_planes: usize,
 }
 
 /// The smallest length `|N(b)|` the interpolated normal of unit normals
@@ -114,6 +118,59 @@ pub fn lambda_for_depth(depth: f64, min_length: f64) -> f64 {
     // A hair over the bound, so the surface at height 1 is never cut by
     // the top's rounding.
     depth / min_length * (1.0 + 1e-9)
+}
+
+/// Supporting planes `(n, c)` (inside: `n . x <= c`) of the hull of a
+/// shell's six corners: every plane through three corners of the base, of
+/// the top or of one side that has all six on its inner side, pushed out by
+/// a hair of the corners' scale. Each kept plane bounds the hull whether or
+/// not it is one of its facets, so the test stays conservative.
+fn hull_planes(p: &[DVec3; 3], n: &[DVec3; 3], top: f64) -> ([(DVec3, f64); 10], usize) {
+    let q: [DVec3; 6] = [
+        p[0],
+        p[1],
+        p[2],
+        p[0] + top * n[0],
+        p[1] + top * n[1],
+        p[2] + top * n[2],
+    ];
+    let centre = q.iter().copied().sum::<DVec3>() / 6.0;
+    let scale = q
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let size = q.iter().map(|v| (*v - centre).length()).fold(0.0, f64::max);
+    let mut out = [(DVec3::ZERO, 0.0); 10];
+    let mut count = 0;
+    let mut candidates = vec![[0, 1, 2], [3, 4, 5]];
+    for k in 0..3 {
+        let (i, j) = (k, (k + 1) % 3);
+        candidates.extend([
+            [i, j, 3 + j],
+            [i, 3 + j, 3 + i],
+            [i, j, 3 + i],
+            [j, 3 + j, 3 + i],
+        ]);
+    }
+    for [a, b, c] in candidates {
+        let normal = (q[b] - q[a]).cross(q[c] - q[a]);
+        let len = normal.length();
+        if len.is_nan() || len <= 1e-12 * size * size || count == out.len() {
+            continue;
+        }
+        let mut normal = normal / len;
+        if normal.dot(centre - q[a]) > 0.0 {
+            normal = -normal;
+        }
+        let pad = 1e-9 * (scale + size);
+        let offset = normal.dot(q[a]) + pad;
+        if q.iter().all(|v| normal.dot(*v) <= offset) {
+            out[count] = (normal, offset);
+            count += 1;
+        }
+    }
+    (out, count)
 }
 
 fn det(a: DVec3, b: DVec3, c: DVec3) -> f64 {
@@ -140,6 +197,7 @@ impl CurvedShell {
             e[0].cross(f[1]) + f[0].cross(e[1]),
             f[0].cross(f[1]),
         ];
+        let (hull, hull_planes) = hull_planes(&p, &n, top);
         Some(Self {
             p,
             n,
@@ -148,7 +206,40 @@ impl CurvedShell {
             c,
             depth: depth as f64,
             top,
+            hull,
+            hull_planes,
         })
+    }
+
+    /// Whether the ray `o + t d` may meet the shell for `t` in `[t_min,
+    /// t_max]`: false when it misses the hull of the six corners, which
+    /// holds the shell (a point `P(b) + l N(b)` is a convex combination of
+    /// the corners `P_i + l N_i` of its level, each one of `P_i` and `P_i +
+    /// top N_i`). A BVH's boxes around the thin, slanted shells of a curved
+    /// mesh overlap; this drops most of the shells a box admits before
+    /// their five crossings are solved.
+    pub fn admits(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> bool {
+        let (mut lo, mut hi) = (t_min, t_max);
+        for &(n, c) in &self.hull[..self.hull_planes] {
+            let f0 = n.dot(o) - c;
+            let fd = n.dot(d);
+            if fd == 0.0 {
+                if f0 > 0.0 {
+                    return false;
+                }
+                continue;
+            }
+            let t = -f0 / fd;
+            if fd < 0.0 {
+                lo = lo.max(t);
+            } else {
+                hi = hi.min(t);
+            }
+            if lo > hi {
+                return false;
+            }
+        }
+        true
     }
 
     /// The top level of the shell.
@@ -569,6 +660,41 @@ mod tests {
             .expect("crosses side 0");
         assert!((side.t - 2.0).abs() < 1e-9, "{side:?}");
         assert!(side.normal.dot(d) < 0.0);
+    }
+
+    #[test]
+    fn the_hull_admits_every_ray_through_the_shell() {
+        let s = bent();
+        assert!(s.hull_planes >= 5, "{}", s.hull_planes);
+        let mut k = 7u32;
+        let mut next = || {
+            k = k.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (k >> 8) as f64 / (1u32 << 24) as f64
+        };
+        let mut rejected = 0;
+        for _ in 0..4000 {
+            let (u, v) = (next(), next());
+            let b = if u + v > 1.0 {
+                DVec2::new(1.0 - u, 1.0 - v)
+            } else {
+                DVec2::new(u, v)
+            };
+            // Anywhere up to the top level (w can exceed 1 there).
+            let w_top = s.top * s.normal_at(b).length() / s.depth;
+            let x = s.point(b, next() * w_top);
+            let d = DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize();
+            let t = 0.5 + next();
+            assert!(s.admits(x - t * d, d, 0.0, 10.0), "{x} {d}");
+            // The same ray shifted well off the shell's side is refused.
+            let off = DVec3::new(3.0, 3.0, 0.0);
+            rejected += usize::from(!s.admits(
+                x - t * d + off,
+                d.with_z(0.0).normalize_or(DVec3::X),
+                0.0,
+                0.5,
+            ));
+        }
+        assert!(rejected > 3000, "{rejected}");
     }
 
     #[test]
