@@ -106,6 +106,9 @@ pub struct CurvedShell {
 /// of the dot products); `None` when two normals are 90 degrees or more
 /// apart, where the interpolated normal can vanish and the shell fold.
 pub fn min_normal_length(n: &[Vec3; 3]) -> Option<f64> {
+    if n.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
     let n = n.map(|v| v.as_dvec3());
     let m = n[0].dot(n[1]).min(n[1].dot(n[2])).min(n[2].dot(n[0]));
     (m > 0.0).then(|| m.sqrt())

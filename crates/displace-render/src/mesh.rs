@@ -105,14 +105,31 @@ pub fn load(path: &Path) -> Result<Mesh> {
                     message: format!("model `{}` face {f} has a non-finite vertex", m.name),
                 });
             }
+            let normals = with_normals.then(|| idx.map(|i| v3(&mesh.normals, i)));
+            let uvs = if with_uvs {
+                idx.map(|i| Vec2::new(mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]))
+            } else {
+                [Vec2::ZERO; 3]
+            };
+            // A NaN normal or coordinate would pass through every later
+            // step as a shell or a texel that silently matches nothing.
+            let bad = if normals.is_some_and(|n| n.iter().any(|v| !v.is_finite())) {
+                Some("normal (vn)")
+            } else if uvs.iter().any(|uv| !uv.is_finite()) {
+                Some("texture coordinate (vt)")
+            } else {
+                None
+            };
+            if let Some(what) = bad {
+                return Err(Error::Mesh {
+                    path: path.to_path_buf(),
+                    message: format!("model `{}` face {f} has a non-finite {what}", m.name),
+                });
+            }
             triangles.push(MeshTriangle {
                 positions,
-                normals: with_normals.then(|| idx.map(|i| v3(&mesh.normals, i))),
-                uvs: if with_uvs {
-                    idx.map(|i| Vec2::new(mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]))
-                } else {
-                    [Vec2::ZERO; 3]
-                },
+                normals,
+                uvs,
             });
         }
     }
@@ -278,6 +295,36 @@ mod tests {
         )
         .unwrap();
         assert_eq!(load(&path).unwrap().triangles.len(), 1);
+    }
+
+    #[test]
+    fn non_finite_vertices_normals_and_coordinates_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let quad = |v: &str, vt: &str, vn: &str| {
+            format!(
+                "v {v}\nv 1 0 0\nv 0 1 0\nvt {vt}\nvt 1 0\nvt 0 1\nvn {vn}\nvn 0 0 1\nvn 0 0 1\nf 1/1/1 2/2/2 3/3/3\n"
+            )
+        };
+        for (name, text, what) in [
+            ("v.obj", quad("nan 0 0", "0 0", "0 0 1"), "vertex"),
+            ("vn.obj", quad("0 0 0", "0 0", "nan 0 1"), "normal (vn)"),
+            (
+                "vt.obj",
+                quad("0 0 0", "inf 0", "0 0 1"),
+                "texture coordinate (vt)",
+            ),
+        ] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            let e = load(&path).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("non-finite {what}")) && e.contains(name),
+                "{e}"
+            );
+        }
+        let ok = dir.path().join("ok.obj");
+        std::fs::write(&ok, quad("0 0 0", "0 0", "0 0 1")).unwrap();
+        assert_eq!(load(&ok).unwrap().triangles.len(), 1);
     }
 
     #[test]
