@@ -66,6 +66,23 @@ pub struct CurvedHit {
     pub iterations: u32,
 }
 
+/// What a trace of a curved face is asked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Query {
+    /// The first hit, refined, with its normal.
+    First,
+    /// Whether anything blocks the ray (a shadow ray).
+    Any,
+}
+
+/// What a trace of a curved face found.
+enum Found {
+    /// The hit at a world distance.
+    Hit(f32, CurvedHit),
+    /// A blocker, for [`Query::Any`].
+    Blocked,
+}
+
 /// A displaced triangle of a curved mesh (module docs).
 #[derive(Clone, Debug)]
 pub struct CurvedFace {
@@ -177,6 +194,22 @@ impl CurvedFace {
 
     /// First hit with world distance in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, CurvedHit)> {
+        match self.trace(ray, t_min, t_max, Query::First)? {
+            Found::Hit(t, hit) => Some((t, hit)),
+            Found::Blocked => unreachable!("a first-hit query reports its hit"),
+        }
+    }
+
+    /// Whether the face's solid blocks the ray within `[t_min, t_max]`: a
+    /// shadow ray's any-hit query, which stops at the first proof of a
+    /// blocker (a chord's hit, before its refinement and normal).
+    pub fn occludes(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.trace(ray, t_min, t_max, Query::Any).is_some()
+    }
+
+    /// The stretches of the ray inside the shell, in order, until one
+    /// finds what `query` asks for.
+    fn trace(&self, ray: &Ray, t_min: f32, t_max: f32, query: Query) -> Option<Found> {
         let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
         let (t_min, t_max) = (t_min as f64, t_max as f64);
         if !self.shell.admits(o, d, t_min, t_max) {
@@ -209,8 +242,9 @@ impl CurvedFace {
                     .is_some_and(|loc| self.shell.contains(&loc, 1e-9));
                 if inside {
                     let exit = next.map(|c| c.boundary);
-                    if let Some(hit) = self.stretch(o, d, (a, b), entry, exit, &mut iterations) {
-                        return Some(hit);
+                    let ends = ((a, entry), (b, exit));
+                    if let Some(found) = self.stretch(o, d, ends, query, &mut iterations) {
+                        return Some(found);
                     }
                 }
             }
@@ -222,23 +256,18 @@ impl CurvedFace {
         None
     }
 
-    /// Whether the face's solid blocks the ray within `[t_min, t_max]`.
-    pub fn occludes(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        self.intersect(ray, t_min, t_max).is_some()
-    }
-
-    /// The first hit on `[ta, tb]`, a stretch inside the shell entered
-    /// through `entry` (`None`: the ray starts inside) and left through
-    /// `exit` (`None`: it ends inside).
+    /// The first hit on `[ta, tb]` (or, for [`Query::Any`], the proof of
+    /// one), a stretch inside the shell entered through `entry` (`None`:
+    /// the ray starts inside) and left through `exit` (`None`: it ends
+    /// inside).
     fn stretch(
         &self,
         o: DVec3,
         d: DVec3,
-        (ta, tb): (f64, f64),
-        entry: Option<Crossing>,
-        exit: Option<Boundary>,
+        ((ta, entry), (tb, exit)): ((f64, Option<Crossing>), (f64, Option<Boundary>)),
+        query: Query,
         iterations: &mut u32,
-    ) -> Option<(f32, CurvedHit)> {
+    ) -> Option<Found> {
         let hint = match entry.map(|c| c.boundary) {
             Some(Boundary::Top) => self.shell.top(),
             Some(Boundary::Base) => 0.0,
@@ -248,6 +277,9 @@ impl CurvedFace {
             .probe(o, d, ta, hint)
             .or_else(|| self.probe(o, d, ta + 1e-9 * (tb - ta), hint))?;
         if ga < 0.0 {
+            if query == Query::Any {
+                return Some(Found::Blocked);
+            }
             // Entered under the surface: the wall entered through, except
             // a shared side (or the top, within rounding), where the
             // surface meets it.
@@ -278,10 +310,16 @@ impl CurvedFace {
             if exit != Some(Boundary::Base) {
                 return None;
             }
+            if query == Query::Any {
+                return Some(Found::Blocked);
+            }
             let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
             let n = self.surface_normal(&loc, c);
             return Some(self.hit(o, d, tb, &loc, c, n, false, *iterations));
         };
+        if query == Query::Any {
+            return Some(Found::Blocked);
+        }
         let t = self.refine(o, d, (ta, tb), t, span, la.lambda);
         let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
         let n = self.surface_normal(&loc, c);
@@ -440,8 +478,8 @@ impl CurvedFace {
         n: DVec3,
         wall: bool,
         iterations: u32,
-    ) -> (f32, CurvedHit) {
-        (
+    ) -> Found {
+        Found::Hit(
             t as f32,
             CurvedHit {
                 position: (o + t * d).as_vec3(),

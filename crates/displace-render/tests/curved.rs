@@ -378,7 +378,14 @@ proptest! {
         let target = shell.point(DVec2::new(tx as f64 * 0.5, ty as f64 * 0.5), 0.3).as_vec3();
         let origin = Vec3::new(ox, oy, 1.5);
         let ray = Ray::new(origin, target - origin);
-        let Some((t_hit, hit)) = face.intersect(&ray, 0.0, f32::INFINITY) else {
+        let first = face.intersect(&ray, 0.0, f32::INFINITY);
+        // The any-hit query (shadow rays) stops at the first proof of a
+        // blocker, and agrees with the first hit.
+        prop_assert_eq!(face.occludes(&ray, 0.0, f32::INFINITY), first.is_some());
+        if let Some((t, _)) = first {
+            prop_assert!(!face.occludes(&ray, 0.0, t * 0.999), "blocked before the hit at {}", t);
+        }
+        let Some((t_hit, hit)) = first else {
             return Ok(());
         };
         // The hit lies on the surface (or on a wall).
