@@ -23,17 +23,15 @@ Mitsuba's, after its JIT compile), with the ratios.
 import argparse
 import glob
 import json
-import math
 import os
 import re
 import sys
 import tempfile
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import bench_render_peers as peers  # noqa: E402  (run_measured, trace_ours, the Embree worker)
+import bench_render_peers as peers  # noqa: E402  (the scene, rays, Embree and Mitsuba workers)
 
 CAMERA = (np.array([0.0, 0.8, -3.4]), np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
 VFOV = 38.0
@@ -43,33 +41,12 @@ ALBEDO = 0.7
 DEPTH = 0.05
 
 
+VIEW = (*CAMERA, VFOV)
+LIGHT = (LIGHT_POS, LIGHT_INTENSITY)
+
+
 def scene_toml(size, spp):
-    pos, look, up = CAMERA
-    v = lambda a: "[" + ", ".join(repr(float(x)) for x in a) + "]"
-    return f"""# written by scripts/bench_curved_peers.py
-[image]
-width = {size}
-height = {size}
-spp = {spp}
-shadow_samples = 1
-max_depth = 0
-seed = 1
-
-[camera]
-position = {v(pos)}
-look_at = {v(look)}
-up = {v(up)}
-vfov = {VFOV}
-
-[materials.white]
-type = "lambert"
-color = {v([ALBEDO] * 3)}
-
-[[lights]]
-type = "point"
-position = {v(LIGHT_POS)}
-intensity = {v([LIGHT_INTENSITY] * 3)}
-
+    return peers.scene_header(size, spp, VIEW, LIGHT, ALBEDO, "scripts/bench_curved_peers.py") + f"""
 [[shapes]]
 type = "mesh"
 path = "builtin:sphere"
@@ -82,71 +59,6 @@ map_size = [512, 512, 16]
 address = "repeat"
 tiles = [2, 1]
 """
-
-
-def camera_rays(n):
-    """Pinhole rays through the pixel centres of an n x n image."""
-    pos, look, up = CAMERA
-    fwd = (look - pos) / np.linalg.norm(look - pos)
-    right = np.cross(fwd, up)
-    right /= np.linalg.norm(right)
-    upv = np.cross(right, fwd)
-    t = math.tan(math.radians(VFOV) / 2)
-    f = (np.arange(n) + 0.5) / n
-    fx, fy = np.meshgrid(f, f)
-    d = fwd + ((2 * fx - 1) * t).reshape(-1, 1) * right + ((1 - 2 * fy) * t).reshape(-1, 1) * upv
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    o = np.broadcast_to(pos, d.shape)
-    return np.concatenate([o, d], axis=1).astype(np.float32)
-
-
-def shadow_rays(hits_path, rays_path, out_path):
-    """From each of our first hits (just off the surface, on the camera's
-    side) to the light, where the light is above the surface."""
-    hits, rays = np.load(hits_path), np.load(rays_path)
-    ok = np.isfinite(hits[:, 0])
-    p, n, d = hits[ok, 1:4], hits[ok, 4:7], rays[ok, 3:6]
-    n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)
-    o = p + n * 1e-4
-    to = np.array(LIGHT_POS, np.float32) - o
-    lit = np.sum(to * n, axis=1) > 0
-    out = np.concatenate([o[lit], to[lit], np.full((lit.sum(), 1), 1.0 - 1e-4)], axis=1)
-    np.save(out_path, out.astype(np.float32))
-    return len(out)
-
-
-def worker_mitsuba(ply, size, spp):
-    import mitsuba as mi
-
-    mi.set_variant("llvm_ad_rgb")
-    pos, look, up = CAMERA
-    t = time.perf_counter()
-    scene = mi.load_dict({
-        "type": "scene",
-        "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
-        "sensor": {
-            "type": "perspective", "fov": VFOV, "fov_axis": "y",
-            "to_world": mi.ScalarTransform4f().look_at(
-                origin=pos.tolist(), target=look.tolist(), up=up.tolist()),
-            "film": {"type": "hdrfilm", "width": size, "height": size,
-                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-            "sampler": {"type": "independent", "sample_count": spp},
-        },
-        "sphere": {"type": "ply", "filename": ply,
-                   "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": ALBEDO}}},
-        "light": {"type": "point", "position": list(LIGHT_POS),
-                  "intensity": {"type": "rgb", "value": LIGHT_INTENSITY}},
-    })
-    load_s = time.perf_counter() - t
-    times = []
-    for _ in range(2):  # the first includes the LLVM kernel compile
-        t = time.perf_counter()
-        img = np.array(mi.render(scene, seed=len(times)))
-        times.append(time.perf_counter() - t)
-    out_path = ply.replace(".ply", ".mitsuba.npy")
-    np.save(out_path, img[..., :3].astype(np.float32))
-    print(json.dumps({"load_s": load_s, "first_s": times[0], "render_s": times[1],
-                      "image": out_path}))
 
 
 def main():
@@ -164,7 +76,7 @@ def main():
     ap.add_argument("--ply", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker == "mitsuba":
-        return worker_mitsuba(a.ply, a.size, a.spp)
+        return peers.worker_mitsuba(a.ply, a.size, a.spp, VIEW, LIGHT, ALBEDO)
 
     env = dict(os.environ)
     llvm = sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/*/libLLVM-19*.so*"))
@@ -187,13 +99,13 @@ def main():
     mt = re.search(r"setup ([\d.]+) s.*render ([\d.]+) s", err)
     img_ours = peers.read_linear(ours_img)
     rays_path = os.path.join(work, "rays.npy")
-    np.save(rays_path, camera_rays(a.rays))
+    np.save(rays_path, np.concatenate(peers.camera_rays(a.rays, VIEW), axis=1))
     hits_path = os.path.join(work, "hits.npy")
     shadow_path = os.path.join(work, "shadow.npy")
     blocked_path = os.path.join(work, "blocked.npy")
     f1 = peers.trace_ours(exe, toml, rays_path, hits_path, 1, a.repeat, env)
     fn = peers.trace_ours(exe, toml, rays_path, hits_path, a.threads, a.repeat, env)
-    n_shadow = shadow_rays(hits_path, rays_path, shadow_path)
+    n_shadow = peers.shadow_rays(hits_path, rays_path, shadow_path, LIGHT_POS)
     s1 = peers.trace_ours(exe, toml, shadow_path, blocked_path, 1, a.repeat, env, True)
     sn = peers.trace_ours(exe, toml, shadow_path, blocked_path, a.threads, a.repeat, env, True)
     ours = {"setup_s": fn["load_s"], "memory_mb": fn["maps_mb"], "rss": max(fn["rss"], rss_render),

@@ -60,16 +60,17 @@ def camera():
     return pos, c, np.array([0.0, 0.0, 1.0])
 
 
-def camera_rays(n):
+def camera_rays(n, view=None):
     """Rays through the pixel centres of an n x n image, as
     displace_render::camera::Camera::ray makes them (pinhole); written once
-    to a file that both tools read."""
-    pos, look, up = camera()
+    to a file that both tools read. `view` is (position, look_at, up, vfov),
+    this script's camera by default."""
+    pos, look, up, vfov = view or (*camera(), VFOV)
     fwd = (look - pos) / np.linalg.norm(look - pos)
     right = np.cross(fwd, up)
     right /= np.linalg.norm(right)
     upv = np.cross(right, fwd)
-    t = math.tan(math.radians(VFOV) / 2)
+    t = math.tan(math.radians(vfov) / 2)
     f = (np.arange(n) + 0.5) / n
     fx, fy = np.meshgrid(f, f)
     sx = ((2 * fx - 1) * t).reshape(-1, 1)
@@ -80,11 +81,17 @@ def camera_rays(n):
     return np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32)
 
 
-def scene_toml(m, size, spp):
-    src, texels, (sx, sy, sz), msize = MAPS[m]
-    pos, look, up = camera()
-    v = lambda a: "[" + ", ".join(repr(float(x)) for x in a) + "]"
-    return f"""# written by scripts/bench_render_peers.py
+def toml_vec(a):
+    return "[" + ", ".join(repr(float(x)) for x in a) + "]"
+
+
+def scene_header(size, spp, view, light, albedo, source):
+    """The scene TOML every peer benchmark shares before its shape: the
+    image, the pinhole `view` (position, look_at, up, vfov), one white
+    Lambertian material and one point `light` (position, intensity)."""
+    pos, look, up, vfov = view
+    v = toml_vec
+    return f"""# written by {source}
 [image]
 width = {size}
 height = {size}
@@ -97,17 +104,25 @@ seed = 1
 position = {v(pos)}
 look_at = {v(look)}
 up = {v(up)}
-vfov = {VFOV}
+vfov = {vfov}
 
 [materials.white]
 type = "lambert"
-color = {v([ALBEDO] * 3)}
+color = {v([albedo] * 3)}
 
 [[lights]]
 type = "point"
-position = {v(LIGHT_POS)}
-intensity = {v([LIGHT_INTENSITY] * 3)}
+position = {v(light[0])}
+intensity = {v([light[1]] * 3)}
+"""
 
+
+def scene_toml(m, size, spp):
+    src, texels, (sx, sy, sz), msize = MAPS[m]
+    view = (*camera(), VFOV)
+    light = (LIGHT_POS, LIGHT_INTENSITY)
+    v = toml_vec
+    return scene_header(size, spp, view, light, ALBEDO, "scripts/bench_render_peers.py") + f"""
 [[shapes]]
 type = "quad"
 origin = [0.0, 0.0, 0.0]
@@ -198,11 +213,16 @@ def worker_embree(ply, rays_path, shadow_path, threads, repeat):
     print(json.dumps(out))
 
 
-def worker_mitsuba(ply, size, spp):
+def worker_mitsuba(ply, size, spp, view=None, light=None, albedo=ALBEDO):
+    """Mitsuba 3 (`llvm_ad_rgb`, `direct`) renders the PLY mesh under `view`
+    (position, look_at, up, vfov) lit by the point `light` (position,
+    intensity), this script's scene by default; prints the load time, both
+    renders' times and where the second render's image is."""
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-    pos, look, up = camera()
+    pos, look, up, vfov = view or (*camera(), VFOV)
+    light_pos, intensity = light or (LIGHT_POS, LIGHT_INTENSITY)
     t = time.perf_counter()
     scene = mi.load_dict({
         "type": "scene",
@@ -210,18 +230,18 @@ def worker_mitsuba(ply, size, spp):
         # BSDF samples, so they would only cost rays.
         "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
         "sensor": {
-            "type": "perspective", "fov": VFOV, "fov_axis": "y",
+            "type": "perspective", "fov": vfov, "fov_axis": "y",
             "to_world": mi.ScalarTransform4f().look_at(
                 origin=pos.tolist(), target=look.tolist(), up=up.tolist()),
             "film": {"type": "hdrfilm", "width": size, "height": size,
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
             "sampler": {"type": "independent", "sample_count": spp},
         },
-        "grid": {"type": "ply", "filename": ply,
+        "mesh": {"type": "ply", "filename": ply,
                  "bsdf": {"type": "diffuse",
-                          "reflectance": {"type": "rgb", "value": ALBEDO}}},
-        "light": {"type": "point", "position": list(LIGHT_POS),
-                  "intensity": {"type": "rgb", "value": LIGHT_INTENSITY}},
+                          "reflectance": {"type": "rgb", "value": albedo}}},
+        "light": {"type": "point", "position": list(light_pos),
+                  "intensity": {"type": "rgb", "value": intensity}},
     })
     load_s = time.perf_counter() - t
     times = []
@@ -302,16 +322,17 @@ def trace_ours(exe, toml, rays, out, threads, repeat, env, any_hit=False):
             "found": found}
 
 
-def shadow_rays(hits_path, rays_path, out_path):
+def shadow_rays(hits_path, rays_path, out_path, light_pos=LIGHT_POS):
     """The render's shadow rays from our first hits: from each hit (just off
-    the surface on the camera's side) to the point light, where the light
-    is above the surface: `(N, 7)`, t_max just short of the light."""
+    the surface on the camera's side) to the point light at `light_pos`,
+    where the light is above the surface: `(N, 7)`, t_max just short of the
+    light."""
     hits, rays = np.load(hits_path), np.load(rays_path)
     ok = np.isfinite(hits[:, 0])
     p, n, d = hits[ok, 1:4], hits[ok, 4:7], rays[ok, 3:6]
     n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)
     o = p + n * 1e-4
-    to = np.array(LIGHT_POS, np.float32) - o
+    to = np.array(light_pos, np.float32) - o
     lit = np.sum(to * n, axis=1) > 0
     out = np.concatenate([o[lit], to[lit], np.full((lit.sum(), 1), 1.0 - 1e-4)], axis=1)
     np.save(out_path, out.astype(np.float32))
