@@ -60,19 +60,27 @@ pub struct CurvedShells {
 }
 
 impl CurvedShells {
-    /// The shells of `triangles` (world space, texture coordinates in
-    /// tiles) displaced by `depth` over a map of tile proportions `aspect`
-    /// and `address`ing; `None` when no triangle is curved.
+    /// The `shells` of `triangles` (world space, texture coordinates in
+    /// tiles; the scene's [`MeshShells`] of them) displaced by `depth` over
+    /// a map of tile proportions `aspect` and `address`ing; `None` when no
+    /// triangle is curved.
     pub fn new(
         triangles: &[MeshTriangle],
+        shells: &MeshShells,
         depth: f32,
         aspect: [f32; 2],
         address: Address,
     ) -> Result<Option<Self>> {
-        let shells = MeshShells::of(triangles, depth, address);
         let Some(top) = shells.top else {
             return Ok(None);
         };
+        if shells.curved.len() != triangles.len() {
+            return Err(Error::InvalidOption(format!(
+                "the shells describe {} triangles, the mesh has {}",
+                shells.curved.len(),
+                triangles.len()
+            )));
+        }
         if triangles.len() > i32::MAX as usize {
             return Err(Error::InvalidOption("too many mesh triangles".into()));
         }
@@ -174,7 +182,8 @@ mod tests {
     fn a_closed_curved_mesh_draws_tops_and_bases_only() {
         let mesh = displace_render::builtin_mesh::generate("torus").unwrap();
         let tris: Vec<MeshTriangle> = mesh.triangles;
-        let s = CurvedShells::new(&tris, 0.1, [10.0, 10.0], Address::Repeat)
+        let shells = MeshShells::of(&tris, 0.1, Address::Repeat);
+        let s = CurvedShells::new(&tris, &shells, 0.1, [10.0, 10.0], Address::Repeat)
             .unwrap()
             .expect("the torus is curved");
         assert_eq!(s.prisms.len(), tris.len());

@@ -211,6 +211,7 @@ impl Draws<'_> {
         shading.note(&mut self.left_out);
         let curved = CurvedShells::new(
             &mesh.triangles,
+            &disp.shells,
             disp.depth,
             disp.map.aspect(),
             disp.map.address(),

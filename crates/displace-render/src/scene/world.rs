@@ -6,6 +6,7 @@ use crate::curved_face::{CurvedFace, CurvedHit};
 use crate::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
 use crate::mesh::MeshTriangle;
+use crate::mesh_shells::MeshShells;
 use crate::shapes::{Quad, Sphere, Triangle};
 use displace_core::{DisplacementMap, MapHit, TraceOptions};
 use glam::{Vec2, Vec3};
@@ -53,6 +54,10 @@ pub struct MeshDisplacement {
     pub trace: TraceOptions,
     /// The displacement has its own colour texture or normal map.
     pub textured: bool,
+    /// Which triangles are curved, their shells' top level and each side's
+    /// neighbour: the answer the CPU's primitives were built from, for any
+    /// other renderer to draw the same shells.
+    pub shells: MeshShells,
 }
 
 /// The geometry of a primitive.

@@ -12,6 +12,7 @@ use crate::curved_shell::CurvedShell;
 use crate::displaced::{DisplacedFace, FaceFrame};
 use crate::error::{Error, Result};
 use crate::mesh::MeshTriangle;
+use crate::mesh_shells::MeshShells;
 use crate::shapes::Triangle;
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
@@ -158,13 +159,15 @@ impl DispBuild {
         })
     }
 
-    /// What every face of this displacement shares, for [`SceneMesh`].
-    pub(super) fn shared(&self) -> MeshDisplacement {
+    /// What every face of this displacement shares, for [`SceneMesh`],
+    /// with the mesh's `shells`.
+    pub(super) fn shared(&self, shells: MeshShells) -> MeshDisplacement {
         MeshDisplacement {
             map: self.map.clone(),
             depth: self.depth,
             trace: self.trace,
             textured: self.color.is_some() || self.normal_map.is_some(),
+            shells,
         }
     }
 

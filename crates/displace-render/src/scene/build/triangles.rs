@@ -200,7 +200,7 @@ pub(super) fn add(
 ) -> Result<()> {
     let first = geo.prims.len();
     let triangles: Vec<MeshTriangle> = placed.triangles.iter().map(|(_, t)| *t).collect();
-    let curved = placed
+    let shells = placed
         .displacement
         .as_ref()
         .map(|b| MeshShells::of(&triangles, b.depth, b.address));
@@ -208,7 +208,7 @@ pub(super) fn add(
         let [p0, p1, p2] = t.positions;
         let tri = Triangle::new(p0, p1, p2);
         let name = || (placed.name)(what, *k);
-        let shape = match (&placed.displacement, &curved) {
+        let shape = match (&placed.displacement, &shells) {
             (Some(b), Some(c)) => match c.top {
                 Some(top) if c.curved[m] => {
                     let face = b.curved_triangle(cx, t, top, c.shared(m), &name())?;
@@ -232,7 +232,11 @@ pub(super) fn add(
     geo.meshes.push(SceneMesh {
         triangles,
         material,
-        displacement: placed.displacement.as_ref().map(DispBuild::shared),
+        displacement: placed
+            .displacement
+            .as_ref()
+            .zip(shells)
+            .map(|(b, s)| b.shared(s)),
         prims: first..geo.prims.len(),
     });
     Ok(())
