@@ -264,19 +264,17 @@ impl Renderer {
                         sampler_entry(3, fragment),
                     ],
                 );
-                let prism_layout = bind_group_layout(
-                    ctx,
-                    "curved prisms",
-                    &[storage_entry_in(0, true, wgpu::ShaderStages::FRAGMENT)],
-                );
-                let layout = match shape {
-                    Shape::Curved(_) => pipeline_layout(
+                // Group 2, curved meshes only: their prisms.
+                let prism_layout = matches!(shape, Shape::Curved(_)).then(|| {
+                    bind_group_layout(
                         ctx,
-                        "raster",
-                        &[&gpu_map.layout, &shade_group, &prism_layout],
-                    ),
-                    _ => pipeline_layout(ctx, "raster", &[&gpu_map.layout, &shade_group]),
-                };
+                        "curved prisms",
+                        &[storage_entry_in(0, true, wgpu::ShaderStages::FRAGMENT)],
+                    )
+                });
+                let mut groups = vec![&gpu_map.layout, &shade_group];
+                groups.extend(prism_layout.as_ref());
+                let layout = pipeline_layout(ctx, "raster", &groups);
                 let (vertex, fragment, buffers): (_, _, &[_]) = match shape {
                     Shape::Box { .. } => ("vs_main", "fs_main", &[]),
                     Shape::Mesh(_) => ("vs_mesh", "fs_mesh", &[SHELL_VERTEX_LAYOUT]),
@@ -329,12 +327,8 @@ impl Renderer {
                     bytemuck::cast_slice(&shells.prisms),
                     wgpu::BufferUsages::STORAGE,
                 );
-                let group = bind_group(
-                    ctx,
-                    "curved prisms",
-                    &prism_layout,
-                    &[prisms.as_entire_binding()],
-                );
+                let layout = prism_layout.as_ref().expect("built for a curved mesh");
+                let group = bind_group(ctx, "curved prisms", layout, &[prisms.as_entire_binding()]);
                 mesh(
                     bytemuck::cast_slice(&shells.vertices),
                     shells.vertices.len(),
