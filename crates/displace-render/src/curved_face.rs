@@ -295,8 +295,10 @@ impl CurvedFace {
                 Some(c) => Some(c.normal),
                 None => Some(-d),
             };
-            let n = wall.unwrap_or_else(|| self.surface_normal(&la, ca));
-            return Some(self.hit(o, d, ta, &la, ca, n, wall.is_some(), *iterations));
+            return Some(match wall {
+                Some(n) => self.hit(o, d, ta, &la, ca, n, true, *iterations),
+                None => self.surface_hit(o, d, ta, &la, ca, *iterations),
+            });
         }
         let (_, cb, _) = self
             .probe(o, d, tb, la.lambda)
@@ -314,16 +316,14 @@ impl CurvedFace {
                 return Some(Found::Blocked);
             }
             let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
-            let n = self.surface_normal(&loc, c);
-            return Some(self.hit(o, d, tb, &loc, c, n, false, *iterations));
+            return Some(self.surface_hit(o, d, tb, &loc, c, *iterations));
         };
         if query == Query::Any {
             return Some(Found::Blocked);
         }
         let t = self.refine(o, d, (ta, tb), t, span, la.lambda);
         let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
-        let n = self.surface_normal(&loc, c);
-        Some(self.hit(o, d, t, &loc, c, n, false, *iterations))
+        Some(self.surface_hit(o, d, t, &loc, c, *iterations))
     }
 
     /// The first chord hit on the curve from `a` to `b` (ray parameters
@@ -463,6 +463,13 @@ impl CurvedFace {
         let n_map = DVec3::new(-gx as f64 / self.aspect.x, -gy as f64 / self.aspect.y, 1.0);
         let j = self.shell.jacobian(clamp_bary(loc.b), loc.w, self.to_bary);
         normal_to_world(&j, n_map)
+    }
+
+    /// The hit on the surface at `t` along the ray, at shell coordinates
+    /// `loc` and map point `c`, with the height field's normal there.
+    fn surface_hit(&self, o: DVec3, d: DVec3, t: f64, loc: &Located, c: DVec3, it: u32) -> Found {
+        let n = self.surface_normal(loc, c);
+        self.hit(o, d, t, loc, c, n, false, it)
     }
 
     /// The hit at `t` along the ray, at shell coordinates `loc` and map
