@@ -3,7 +3,8 @@
 //! description of them ([`SceneMesh`]: what a rasteriser draws, pbrt-v4's
 //! `TriangleMesh` of its `BasicScene`), and the CPU's primitives are made
 //! from that list by one path ([`add`]): a flat triangle with its vertex
-//! attributes, or the prism over it when displaced.
+//! attributes, or the prism over it when displaced (the shell along its
+//! vertex normals when they curve, [`crate::mesh_shells`]).
 //!
 //! A lone triangle is not read as a one-triangle mesh: its keys are checked
 //! one by one (`vertices[i]`, `uvs`), a zero-area one is refused rather
