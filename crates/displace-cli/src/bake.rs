@@ -191,6 +191,34 @@ pub fn check_distinct_outputs(outputs: &[(&str, &Path)]) -> Result<()> {
     Ok(())
 }
 
+/// Refuses an output that names one of the command's inputs (the same
+/// file, through whatever path: a link or `./` counts): the output is
+/// written under a temporary name and renamed over the path at the end, so
+/// the input would be replaced by what was made from it. Generated inputs
+/// (`gen:...`, `builtin:...`) and inputs that do not exist yet name no
+/// file.
+pub fn check_not_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let identity = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    for (out_name, out) in outputs {
+        let out_id = identity(out);
+        for (in_name, input) in inputs {
+            let same = match (out_id, identity(input)) {
+                (Some(a), Some(b)) => a == b,
+                _ => absolute(out) == absolute(input),
+            };
+            if same {
+                bail!(
+                    "{out_name} {} is also an input ({in_name}): writing it would replace the file it is made from; choose another output path",
+                    out.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// How a checked bake holds its map: whole in memory (`trace`), or
 /// streamed to a file with `slab` slices in flight and `held` bytes per
 /// voxel kept to the end (`bake`).
@@ -297,6 +325,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     outputs.extend(args.normals.as_deref().map(|n| ("--normals", n)));
     outputs.extend(args.cone.as_deref().map(|c| ("--cone", c)));
     check_distinct_outputs(&outputs)?;
+    check_not_inputs(&outputs, &[("height map", Path::new(&args.height))])?;
     // A slice per thread: every core busy, and the least memory for that.
     let slab = rayon::current_num_threads();
     let held = if kind == MapFile::Ktx2 && format == Format::R16F {

@@ -25,13 +25,13 @@
 //! the mesh and move its vertices along the interpolated normals, and the
 //! ground truth of curved displaced meshes.
 
-use crate::bake::{check_output_dir, load_height, parse_extent, HeightArgs};
+use crate::bake::{check_not_inputs, check_output_dir, load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::atomic::write_atomic;
 use displace_core::{Extent, HeightMap, NormalMap};
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Most vertices written (an OBJ of that many is several GB already).
 const MAX_VERTICES: u64 = 1 << 26;
@@ -159,6 +159,7 @@ fn mesh_file(output: &std::path::Path) -> Result<MeshFile> {
 pub fn run(args: ExportMeshArgs) -> Result<()> {
     let kind = mesh_file(&args.output)?;
     if let Some(scene) = &args.scene {
+        check_not_inputs(&[("-o", &args.output)], &[("--scene", scene)])?;
         if args.scale != 1 {
             bail!("--scale sets the height-field grid; with --scene the sub-edges are set by --edge-texels");
         }
@@ -176,6 +177,10 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     if args.scale == 0 {
         bail!("--scale must be at least 1");
     }
+    check_not_inputs(
+        &[("-o", &args.output)],
+        &[("height map", Path::new(&source))],
+    )?;
     check_memory(&source, &args.height_args)?;
     let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let scale = args.scale as u64;

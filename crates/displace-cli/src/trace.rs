@@ -203,6 +203,12 @@ pub fn run(args: TraceArgs) -> Result<()> {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
     };
     crate::bake::check_npy_output(&args.output)?;
+    let mut inputs = vec![
+        ("--rays", args.rays.as_path()),
+        ("--height", Path::new(height_source)),
+    ];
+    inputs.extend(args.map.as_deref().map(|m| ("--map", m)));
+    crate::bake::check_not_inputs(&[("-o", &args.output)], &inputs)?;
     // Counts are refused before the rays are read or a map baked.
     displace_core::check_iterations(args.iterations).context("--iterations")?;
     if args.backend == Backend::Gpu {

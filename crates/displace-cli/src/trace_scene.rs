@@ -117,6 +117,7 @@ fn row(scene: &Scene, hit: &Option<GeometryHit>, len: f32) -> [f32; 8] {
 /// Loads `scene`, traces every ray of `rays` and writes `output`.
 pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool) -> Result<()> {
     crate::bake::check_npy_output(output)?;
+    crate::bake::check_not_inputs(&[("-o", output)], &[("--rays", rays), ("--scene", scene)])?;
     let rays = read_rays_with_length(rays)?;
     let opts = SceneOptions {
         cache_dir: if cache {
@@ -129,6 +130,12 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     let start = Instant::now();
     let scene =
         Scene::load(scene, &opts).with_context(|| format!("loading scene {}", scene.display()))?;
+    let read: Vec<(&str, &Path)> = scene
+        .sources()
+        .iter()
+        .map(|p| ("a file the scene reads", p.as_path()))
+        .collect();
+    crate::bake::check_not_inputs(&[("-o", output)], &read)?;
     println!(
         "loaded the scene in {:.3} s (displacement maps {:.1} MB)",
         start.elapsed().as_secs_f64(),

@@ -266,6 +266,26 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     write_displaced(d, "height_size = [40000, 40000]");
     let msg = refused("8G", &["render", "-q", "s.toml"]);
     assert!(msg.contains("shapes[0].displacement"), "{msg}");
+    // An image too big on its own is named as the image, in a scene with
+    // no bake at all as in one whose small bake comes after it.
+    let big_image = |scene: &str| {
+        replaced(
+            scene,
+            "width = 8\nheight = 8",
+            "width = 16384\nheight = 16384",
+        )
+    };
+    std::fs::write(d.join("s.toml"), big_image(SCENE)).unwrap();
+    let msg = refused("1G", &["render", "-q", "s.toml"]);
+    assert!(msg.contains("16384x16384 image"), "{msg}");
+    write_displaced(d, "height_size = [8, 8], map_size = [8, 8, 2]");
+    let small_bake = std::fs::read_to_string(d.join("s.toml")).unwrap();
+    std::fs::write(d.join("s.toml"), big_image(&small_bake)).unwrap();
+    let msg = refused("100M", &["render", "-q", "s.toml"]);
+    assert!(
+        msg.contains("16384x16384 image") && !msg.contains("shapes[0]"),
+        "{msg}"
+    );
     // Nonsense in the variable is named.
     let o = cmd(d)
         .args(small)
@@ -732,5 +752,49 @@ fn a_full_disk_leaves_nothing_behind() {
         let (o, left) = on_small_disk(d, need + need / 4 + 16 * page, &args);
         assert!(o.status.success(), "{}", stderr(&o));
         assert_eq!(left, outputs);
+    }
+}
+
+/// An output that names one of the command's inputs is refused before any
+/// work, and the input is left byte for byte as it was: the height map of
+/// `bake` (as `-o`'s normal map), the rays of `trace`, a texture of a
+/// rendered scene (also through another spelling of its path), the tiles
+/// of `merge`. Each was replaced by what was made from it.
+#[test]
+fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    image::GrayImage::from_fn(16, 16, |x, y| image::Luma([(x * 16 + y) as u8]))
+        .save(d.join("h.png"))
+        .unwrap();
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 100, 50]))
+        .save(d.join("wood.png"))
+        .unwrap();
+    write_rays(&d.join("rays.npy"), &[[0.5, 0.5, 1.0, 0.0, 0.0, -1.0]]);
+    let scene = replaced(
+        SCENE,
+        "color = [0.5, 0.5, 0.5]",
+        "color = [0.5, 0.5, 0.5]\ntexture = \"wood.png\"",
+    );
+    std::fs::write(d.join("s.toml"), scene).unwrap();
+    let tile = run(
+        &["render", "-q", "s.toml", "--tile", "0/1", "-o", "t0.exr"],
+        d,
+    );
+    assert!(tile.status.success(), "{}", stderr(&tile));
+    let bytes = |name: &str| std::fs::read(d.join(name)).unwrap();
+    let bake = "bake h.png --size 16x16x4 -o m.npy --normals";
+    let trace = "trace --height gen:studded --size 16x16x4 --extent 1,1,0.1 --rays rays.npy";
+    for (command, input) in [
+        (format!("{bake} h.png"), "h.png"),
+        (format!("{bake} ./h.png"), "h.png"),
+        (format!("{trace} -o rays.npy"), "rays.npy"),
+        ("render -q s.toml -o wood.png".into(), "wood.png"),
+        ("render -q s.toml -o ./wood.png".into(), "wood.png"),
+        ("merge t0.exr -o t0.exr".into(), "t0.exr"),
+    ] {
+        let before = bytes(input);
+        refuses(d, &words(&command), &["is also an input"], &[]);
+        assert_eq!(bytes(input), before, "{command}");
     }
 }

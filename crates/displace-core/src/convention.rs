@@ -164,6 +164,15 @@ pub const TRACE_BAND_FACTOR: f32 = 1.5;
 /// [`crate::DistanceMap::check_size`] accepts several times over.
 pub const MAX_TRACE_ITERATIONS: u32 = 1 << 16;
 
+/// Most height-map cells a displaced face may span along either axis (its
+/// `tiles` times the height map's texels). The exact walk steps cells in
+/// single precision (a ray parameter advanced a cell at a time, as
+/// Amanatides and Woo's grid traversal does): past 2^24 cells from the ray's
+/// origin a step no longer moves it, and well before that the stretches
+/// drift. 2^20 cells (a 4096-texel map repeated 256 times) keeps four bits
+/// under a cell.
+pub const MAX_CELL_SPAN: f64 = (1u64 << 20) as f64;
+
 /// Largest allocation one bake, map or image may ask for. Requests above it
 /// are refused before any memory is touched.
 pub const MAX_ALLOCATION_BYTES: u128 = 8 << 30;

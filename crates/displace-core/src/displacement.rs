@@ -1,7 +1,7 @@
 //! The bake (height map -> normal map + conservative distance map) and the
 //! baked [`DisplacementMap`] that renderers trace.
 
-use crate::convention::{texel_centre, texel_lerp, Extent, MAX_TRACE_ITERATIONS};
+use crate::convention::{texel_centre, texel_lerp, Extent, MAX_CELL_SPAN, MAX_TRACE_ITERATIONS};
 use crate::distance_map::DistanceMap;
 use crate::edt::{transform_2d_with, SliceScratch};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
@@ -153,6 +153,14 @@ impl DisplacementMap {
                 "a clamped map covers exactly one tile; bake with repeat addressing to tile it"
                     .into(),
             ));
+        }
+        let texels = [self.height.width(), self.height.height()];
+        let span = [0, 1].map(|a| f64::from(opts.tiles[a]) * texels[a] as f64);
+        if span.iter().any(|&c| c > MAX_CELL_SPAN) {
+            return Err(Error::InvalidTrace(format!(
+                "{:?} tiles of a {}x{} height map span {:.0} x {:.0} height cells, more than the tracer's limit of {MAX_CELL_SPAN} a side (it steps cells in single precision); use fewer tiles or a smaller height map",
+                opts.tiles, texels[0], texels[1], span[0], span[1]
+            )));
         }
         Ok(())
     }

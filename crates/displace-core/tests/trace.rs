@@ -238,3 +238,25 @@ fn a_coarse_map_traces_the_full_resolution_surface() {
         assert!(hits >= 100, "kind {kind}: only {hits} of 200 rays hit");
     }
 }
+
+/// A repeating map tiled over more height cells than the walk's single
+/// precision steps is refused by the map's check, which every scene face
+/// and `trace` command passes through (a walk 2^24 cells from its ray's
+/// origin no longer moves a cell at a time: such a displaced mesh hung the
+/// renderer), and the limit itself is accepted.
+#[test]
+fn tiles_spanning_more_cells_than_the_walk_counts_are_refused() {
+    let n = 64;
+    let heights = common_ref::random_height(0, n, n, 3, Address::Repeat);
+    let map = bake_map(&heights, [16, 16, 4], [1.0, 1.0, 0.05]);
+    let tiled = |x: f32, y: f32| TraceOptions {
+        tiles: [x, y],
+        ..TraceOptions::default()
+    };
+    let err = map.check_trace(&tiled(7.0e4, 1.0)).unwrap_err().to_string();
+    assert!(err.contains("4480000 x 64 height cells"), "{err}");
+    // 2^20 cells a side: 16384 tiles of 64 texels.
+    map.check_trace(&tiled(16384.0, 16384.0)).unwrap();
+    assert!(map.check_trace(&tiled(16385.0, 1.0)).is_err());
+    assert!(map.check_trace(&tiled(1.0, 16385.0)).is_err());
+}

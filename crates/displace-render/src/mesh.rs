@@ -51,9 +51,25 @@ pub fn load(path: &Path) -> Result<Mesh> {
     let mut reader = std::io::BufReader::new(file);
     let (models, _materials) =
         tobj::load_obj_buf(&mut reader, &opts, no_materials).map_err(|e| {
-            let located = std::fs::read_to_string(path)
-                .ok()
-                .and_then(|text| locate(&text, &e));
+            let bytes = std::fs::read(path).unwrap_or_default();
+            let text = match std::str::from_utf8(&bytes) {
+                Ok(text) => text,
+                Err(bad) => {
+                    // The parser reads lines as UTF-8 and says only "read
+                    // error" at the first byte that is not: name it.
+                    let (line, column) = line_column(&bytes[..bad.valid_up_to()]);
+                    return Error::Parse {
+                        path: path.to_path_buf(),
+                        line,
+                        column,
+                        message: format!(
+                            "byte 0x{:02X} is not UTF-8 text (an OBJ file is text; save it as UTF-8 or ASCII)",
+                            bytes[bad.valid_up_to()]
+                        ),
+                    };
+                }
+            };
+            let located = locate(text, &e);
             match located {
                 Some((line, column)) => Error::Parse {
                     path: path.to_path_buf(),
@@ -139,6 +155,17 @@ pub fn load(path: &Path) -> Result<Mesh> {
 /// Where in an OBJ file `err` comes from: the 1-based line and column of the
 /// first statement of the kind tobj complains about that does not read
 /// (tobj reports no position). `None` for errors not tied to a statement.
+/// The line and column (1-based, in bytes) just after `before`, the text
+/// before some position of a file.
+fn line_column(before: &[u8]) -> (usize, usize) {
+    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+    let start = before
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |i| i + 1);
+    (line, before.len() - start + 1)
+}
+
 fn locate(text: &str, err: &tobj::LoadError) -> Option<(usize, usize)> {
     use tobj::LoadError as E;
     let keyword = match err {
@@ -347,5 +374,10 @@ mod tests {
         assert!(e.contains("bad.obj:3:"), "{e}");
         let e = load(&dir.path().join("none.obj")).unwrap_err().to_string();
         assert!(e.contains("none.obj") && e.contains("No such file"), "{e}");
+        // A byte that is not UTF-8 (a Latin-1 comment), named where it is.
+        let latin1 = dir.path().join("latin1.obj");
+        std::fs::write(&latin1, b"v 0 0 0\n# caf\xe9\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let e = load(&latin1).unwrap_err().to_string();
+        assert!(e.contains("latin1.obj:2:6") && e.contains("0xE9"), "{e}");
     }
 }

@@ -99,14 +99,32 @@ impl Texture {
 
     /// Loads `path`; `srgb` decodes the sRGB transfer function (colour maps),
     /// otherwise values are kept as stored (normal maps).
+    ///
+    /// A float image (EXR, HDR) can hold what no texture means: a texel
+    /// that is not finite is refused, and so is a negative one in a colour
+    /// map (a reflectance is at least 0), naming the file and the texel,
+    /// rather than rendered into NaN or negative pixels.
     pub fn load(path: &Path, srgb: bool) -> Result<Self> {
         let rgb = read_rgb32f(path, "texture", Self::BYTES_PER_TEXEL, None)?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
-        let data = rgb
-            .pixels()
-            .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
-            .collect();
+        let mut data = Vec::with_capacity(w * h);
+        for (i, p) in rgb.pixels().enumerate() {
+            let c = Vec3::new(p[0], p[1], p[2]);
+            if !c.is_finite() || (srgb && c.min_element() < 0.0) {
+                let want = if srgb { "finite and >= 0" } else { "finite" };
+                return Err(image_err(
+                    path,
+                    format!(
+                        "texel ({}, {}) is {:?}: a texture's values must be {want}",
+                        i % w,
+                        i / w,
+                        c.to_array()
+                    ),
+                ));
+            }
+            data.push(c.map(decode));
+        }
         Ok(Self {
             width: w,
             height: h,

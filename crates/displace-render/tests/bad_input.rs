@@ -7,7 +7,8 @@ mod common;
 
 use common::scene_toml::SceneToml;
 use common::*;
-use displace_render::scene::{MAX_DEPTH, MAX_SHADOW_SAMPLES, MAX_SPP};
+use displace_render::scene::{Scene, MAX_DEPTH, MAX_SHADOW_SAMPLES, MAX_SPP};
+use std::path::Path;
 
 /// A lit sphere, 4 x 4 pixels at 1 spp.
 fn sphere() -> SceneToml {
@@ -157,4 +158,129 @@ fn unknown_names_are_not_sizes() {
         e.contains("address") && e.contains("mirror") && !e.contains("invalid size"),
         "{e}"
     );
+}
+
+/// A displaced face tiled over more height cells than the tracer's single
+/// precision walks ([`displace_core::convention::MAX_CELL_SPAN`]) is refused
+/// when the scene loads, naming the face: a plane mesh whose texture
+/// coordinates spanned 70000 tiles of a 256-texel map rendered forever.
+/// The same through a quad's `tiles`; the limit itself loads.
+#[test]
+fn faces_tiled_past_the_walks_precision_are_refused() {
+    let face = |shape: &str, tiles: u32| {
+        with(
+            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+            &format!(
+                "{shape}\ndisplacement = {{ height = \"gen:noise\", height_size = [256, 256], depth = 0.05, \
+                 map_size = [8, 8, 2], address = \"repeat\", tiles = [{tiles}, {tiles}] }}"
+            ),
+        )
+    };
+    let plane = "type = \"mesh\"\npath = \"builtin:plane\"";
+    let quad = "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]";
+    for shape in [plane, quad] {
+        let e = scene_err(&face(shape, 70000));
+        assert!(
+            e.contains("shapes[0]") && e.contains("17920000 x 17920000 height cells"),
+            "{e}"
+        );
+        // 4096 tiles of 256 texels: 2^20 cells a side, the limit.
+        scene(&face(shape, 4096));
+        assert!(scene_err(&face(shape, 4097)).contains("height cells"));
+    }
+}
+
+/// Float textures (EXR) with values no texture means are refused naming
+/// the key, the file and the texel: NaN in a colour map or a normal map,
+/// a negative reflectance in a colour map (each was rendered into NaN or
+/// negative pixels). The same files' finite, non-negative twins load.
+#[test]
+fn float_textures_with_nan_or_negative_texels_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path();
+    let exr = |name: &str, bad: [f32; 3]| {
+        let mut img = image::Rgb32FImage::from_pixel(4, 2, image::Rgb([0.5; 3]));
+        img.put_pixel(3, 1, image::Rgb(bad));
+        image::DynamicImage::ImageRgb32F(img)
+            .save(base.join(name))
+            .unwrap();
+    };
+    exr("nan.exr", [0.5, f32::NAN, 0.5]);
+    exr("neg.exr", [-1.0, 0.5, 0.5]);
+    exr("ok.exr", [1.0, 0.0, 0.25]);
+    let load = |text: &str| {
+        Scene::from_toml(text, Path::new("test.toml"), base, &opts()).map_err(|e| e.to_string())
+    };
+    let material = |file: &str| {
+        with(
+            "color = [0.5, 0.5, 0.5]",
+            &format!("color = [0.5, 0.5, 0.5]\ntexture = \"{file}\""),
+        )
+    };
+    let normals = |file: &str| {
+        with(
+            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+            &format!(
+                "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
+                 displacement = {{ height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 4], \
+                 depth = 0.1, normal_map = \"{file}\" }}"
+            ),
+        )
+    };
+    for (text, key, file) in [
+        (material("nan.exr"), "materials.m.texture", "nan.exr"),
+        (material("neg.exr"), "materials.m.texture", "neg.exr"),
+        (
+            normals("nan.exr"),
+            "shapes[0].displacement.normal_map",
+            "nan.exr",
+        ),
+    ] {
+        let Err(e) = load(&text) else {
+            panic!("{file} under {key} was accepted")
+        };
+        assert!(
+            e.contains(key) && e.contains(file) && e.contains("texel (3, 1)"),
+            "{e}"
+        );
+    }
+    load(&material("ok.exr")).unwrap();
+    // A normal map's values are directions, not reflectances: a negative
+    // one is what a signed map stores.
+    load(&normals("neg.exr")).unwrap();
+}
+
+/// An OBJ mesh whose every face has no area (repeated or collinear
+/// vertices) is refused naming the file and the shape: it used to load as
+/// no primitives and render nothing. One face with an area among them
+/// loads.
+#[test]
+fn meshes_without_a_face_of_any_area_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path();
+    let mesh = |name: &str, text: &str| std::fs::write(base.join(name), text).unwrap();
+    mesh("point.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n");
+    mesh("line.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 3 2 1\n");
+    mesh(
+        "one.obj",
+        "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n",
+    );
+    let text = |file: &str| {
+        with(
+            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+            &format!("type = \"mesh\"\npath = \"{file}\""),
+        )
+    };
+    let load = |t: &str| Scene::from_toml(t, Path::new("test.toml"), base, &opts());
+    for file in ["point.obj", "line.obj"] {
+        let Err(e) = load(&text(file)) else {
+            panic!("{file} was accepted")
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains(file) && e.contains("shapes[0]") && e.contains("has an area"),
+            "{e}"
+        );
+    }
+    assert!(load(&text("one.obj")).is_ok());
 }

@@ -603,7 +603,15 @@ fn walk_from<const ANY: bool>(
         if tb >= t1 {
             return Walk::Miss { cells };
         }
+        let (tx, ty) = (at.tx, at.ty);
         at.advance(g, tb);
+        if at.tx == tx && at.ty == ty {
+            // A step of one cell no longer moves the ray's parameter (more
+            // cells from its origin than single precision counts; scenes
+            // are held far below that, `MAX_CELL_SPAN`): the rest cannot be
+            // walked, and looping here would never end.
+            return Walk::Miss { cells };
+        }
     }
 }
 

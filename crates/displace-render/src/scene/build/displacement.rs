@@ -234,9 +234,18 @@ impl DispBuild {
                 s
             }
         };
+        self.check_trace(cx, &trace, what)?;
         let local =
             uv.map(|c| (c - shift).clamp(Vec2::ZERO, Vec2::new(trace.tiles[0], trace.tiles[1])));
         Ok((trace, shift, local))
+    }
+
+    /// The map's own checks of `trace` (the cells its tiles span), under
+    /// the scene key `what`.
+    pub(super) fn check_trace(&self, cx: &Ctx, trace: &TraceOptions, what: &str) -> Result<()> {
+        self.map
+            .check_trace(trace)
+            .map_err(|e| cx.err(format!("{what}.displacement: {e}")))
     }
 
     /// The curved face over mesh triangle `t`, whose unit vertex normals

@@ -147,6 +147,7 @@ fn displaced_quad(
     let tiles = Vec2::from_array(d.tiles);
     let tile = Vec2::new(q.edge_u.length(), q.edge_v.length()) / tiles.max(Vec2::splat(1e-30));
     let b = DispBuild::new(cx, d, tile, what)?;
+    b.check_trace(cx, &b.trace, what)?;
     let (origin, dpdv) = if d.flip_v {
         (q.origin + q.edge_v, -q.edge_v / tiles.y)
     } else {

@@ -125,7 +125,10 @@ pub(super) fn mesh(
         )));
     }
     let (file, mut mesh) = match path.strip_prefix(builtin_mesh::PREFIX) {
-        Some(name) => (PathBuf::from(path), builtin_mesh::generate(name)?),
+        Some(name) => (
+            PathBuf::from(path),
+            builtin_mesh::generate(name).map_err(|e| cx.err(format!("{what}.path: {e}")))?,
+        ),
         None => {
             let file = cx.base.join(path);
             let mesh = crate::mesh::load(&file)?;
@@ -180,7 +183,19 @@ pub(super) fn mesh(
                 )
             })
         })
-        .collect();
+        .collect::<Vec<_>>();
+    if triangles.is_empty() {
+        // Every face was a point or a line (two indices, repeated or
+        // collinear vertices, coordinates that overflow when placed): a
+        // mesh that would render as nothing, silently.
+        return Err(Error::Mesh {
+            path: file,
+            message: format!(
+                "{what}: none of its {} faces has an area once placed (repeated or collinear vertices?): nothing to render",
+                mesh.triangles.len()
+            ),
+        });
+    }
     Ok(Placed {
         triangles,
         displacement: builder,
