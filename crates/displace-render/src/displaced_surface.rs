@@ -149,13 +149,9 @@ impl<'a> DisplacedSurface<'a> {
     /// (0-based), wound as its mesh triangle is.
     pub fn each_triangle(&self) -> impl Iterator<Item = [u64; 3]> + '_ {
         let per = self.vertices_per_triangle();
-        let local = lattice_triangles(self.n);
-        (0..self.triangles.len() as u64).flat_map(move |k| {
-            local
-                .clone()
-                .into_iter()
-                .map(move |t| t.map(|i| i + k * per))
-        })
+        let n = self.n;
+        (0..self.triangles.len() as u64)
+            .flat_map(move |k| lattice_triangles(n).map(move |t| t.map(|i| i + k * per)))
     }
 
     /// Lattice point `(i, j)` of a triangle: barycentric weights `i / n`
@@ -261,19 +257,18 @@ fn lattice_index(i: u32, j: u32, n: u32) -> u64 {
 }
 
 /// The `n^2` sub-triangles of one lattice, counter-clockwise in `(i, j)`
-/// as the mesh triangle is in its corners 0, 1, 2.
-fn lattice_triangles(n: u32) -> Vec<[u64; 3]> {
-    let mut out = Vec::with_capacity(n as usize * n as usize);
-    for j in 0..n {
-        for i in 0..n - j {
+/// as the mesh triangle is in its corners 0, 1, 2: made as they are
+/// written, since a fine lattice (a few thousand cuts along an edge) holds
+/// more triangles than memory would.
+fn lattice_triangles(n: u32) -> impl Iterator<Item = [u64; 3]> + Clone {
+    (0..n).flat_map(move |j| {
+        (0..n - j).flat_map(move |i| {
             let at = |i, j| lattice_index(i, j, n);
-            out.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
-            if i + j + 1 < n {
-                out.push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
-            }
-        }
-    }
-    out
+            let up = [at(i, j), at(i + 1, j), at(i, j + 1)];
+            let down = (i + j + 1 < n).then(|| [at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+            std::iter::once(up).chain(down)
+        })
+    })
 }
 
 #[cfg(test)]
@@ -296,7 +291,7 @@ mod tests {
     #[test]
     fn the_lattice_has_n_squared_triangles_over_its_points() {
         for n in 1..7 {
-            let tris = lattice_triangles(n);
+            let tris: Vec<[u64; 3]> = lattice_triangles(n).collect();
             assert_eq!(tris.len() as u32, n * n);
             let points = ((n + 1) * (n + 2) / 2) as u64;
             assert_eq!(lattice_index(0, n, n), points - 1);
