@@ -162,6 +162,32 @@ fn bad_animations_and_frames_are_refused_by_name() {
             &[],
             "speed",
         ),
+        // A key half way that puts the camera on the point it looks at:
+        // found before frame 0 is written, and named by its frame.
+        (
+            &ANIMATION.replace(
+                "position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0]",
+                "position = [0.1, 0.2, 0], look_at = [0.1, 0.2, 0]",
+            ),
+            &["--frames", "0..6"],
+            "animation frame 2: the camera's position and look_at",
+        ),
+        (
+            &ANIMATION.replace(
+                "position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0]",
+                "position = [0.1, 0.2, 0], look_at = [0.1, 0.2, 0]",
+            ),
+            &["--frame", "2"],
+            "animation frame 2",
+        ),
+        (
+            &ANIMATION.replace(
+                "{ frame = 2, position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0] }",
+                "{ frame = 2 }",
+            ),
+            &[],
+            "animation.camera[1] (frame 2) sets neither position nor look_at",
+        ),
     ];
     for (anim, args, expect) in cases {
         let text = if anim.contains("[image]") {

@@ -166,6 +166,20 @@ impl Animation {
                 ))
             }
         };
+        if let Some((k, key)) = a
+            .camera
+            .iter()
+            .enumerate()
+            .find(|(_, key)| key.position.is_none() && key.look_at.is_none())
+        {
+            return Err(err(
+                name,
+                format!(
+                    "animation.camera[{k}] (frame {}) sets neither position nor look_at",
+                    key.frame
+                ),
+            ));
+        }
         let keys = |f: fn(&super::spec::CameraKeySpec) -> Option<V3>| {
             a.camera
                 .iter()
@@ -210,6 +224,43 @@ impl Animation {
     }
 }
 
+/// Where the camera stands and looks at `frame`: the animated paths, else
+/// the scene's `[camera]`.
+fn camera_at(spec: &SceneSpec, anim: &Animation, frame: u32) -> (V3, V3) {
+    (
+        anim.camera_position
+            .as_ref()
+            .map_or(spec.camera.position, |p| p.at(frame)),
+        anim.camera_look_at
+            .as_ref()
+            .map_or(spec.camera.look_at, |p| p.at(frame)),
+    )
+}
+
+/// Refuses a frame whose camera the paths put on the point it looks at
+/// (the camera would look nowhere), naming the frame: checked for every
+/// frame before `--frames` renders any, so a bad key half way through an
+/// animation fails before the first frame is written rather than after.
+fn check_cameras(
+    spec: &SceneSpec,
+    anim: &Animation,
+    frames: std::ops::Range<u32>,
+    name: &Path,
+) -> Result<()> {
+    for f in frames {
+        let (position, look_at) = camera_at(spec, anim, f);
+        if position == look_at {
+            return Err(err(
+                name,
+                format!(
+                    "animation frame {f}: the camera's position and look_at are both {position:?} (from animation.camera's keys and [camera]): the camera looks nowhere"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The scene at `frame`: the camera and the animated light moved where
 /// the paths put them. A frame for a scene without `[animation]`, or past
 /// its last frame, is refused; an animated scene without a frame is frame 0.
@@ -234,12 +285,8 @@ pub fn at_frame(mut spec: SceneSpec, frame: Option<u32>, name: &Path) -> Result<
             ),
         ));
     }
-    if let Some(p) = &anim.camera_position {
-        spec.camera.position = p.at(f);
-    }
-    if let Some(p) = &anim.camera_look_at {
-        spec.camera.look_at = p.at(f);
-    }
+    check_cameras(&spec, &anim, f..f + 1, name)?;
+    (spec.camera.position, spec.camera.look_at) = camera_at(&spec, &anim, f);
     if let Some((i, p)) = &anim.light {
         match &mut spec.lights[*i] {
             LightSpec::Point { position, .. } => *position = p.at(f),
@@ -252,10 +299,12 @@ pub fn at_frame(mut spec: SceneSpec, frame: Option<u32>, name: &Path) -> Result<
 /// The frame count of the parsed scene's animation, if it has one, checked
 /// (`--frames` is held to it before any frame is rendered).
 pub fn frame_count(spec: &SceneSpec, name: &Path) -> Result<Option<u32>> {
-    spec.animation
-        .as_ref()
-        .map(|a| Animation::new(a, spec.lights.len(), name).map(|a| a.frames))
-        .transpose()
+    let Some(a) = &spec.animation else {
+        return Ok(None);
+    };
+    let anim = Animation::new(a, spec.lights.len(), name)?;
+    check_cameras(spec, &anim, 0..anim.frames, name)?;
+    Ok(Some(anim.frames))
 }
 
 #[cfg(test)]
