@@ -123,6 +123,9 @@ pub fn parse_map_size(s: &str) -> Result<[usize; 3]> {
 /// Loads `source`, with generated maps at `--height-size` or `default_size`.
 pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) -> Result<HeightMap> {
     let size = match &args.height_size {
+        Some(s) if !source.starts_with(displace_core::generators::PREFIX) => bail!(
+            "--height-size {s} sets the size of a generated height map (gen:...); `{source}` has its own size"
+        ),
         Some(s) => {
             let size = parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?;
             HeightMap::check_size(size[0], size[1])

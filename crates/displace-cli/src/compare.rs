@@ -294,8 +294,10 @@ pub fn run(args: CompareArgs) -> Result<()> {
     if sources.is_empty() {
         bail!("--only-given with no --height: nothing to compare");
     }
+    // The generators' size is passed to `load_height` as its default; a
+    // file keeps its own.
     let height_args = HeightArgs {
-        height_size: Some(format!("{}x{}", size[0], size[1])),
+        height_size: None,
         channel: None,
         address: Address::Clamp,
     };

@@ -104,6 +104,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .iter()
         .map(|a| a.trim().parse())
         .collect::<Result<_, _>>()?;
+    if let Some(k) = (1..aovs.len()).find(|&k| aovs[..k].contains(&aovs[k])) {
+        bail!(
+            "--aov {} is asked for twice: each AOV is written once, beside the image",
+            aovs[k].name()
+        );
+    }
     let method = parse_flag(args.method.as_deref(), "--method")?;
     let integrator = parse_flag(args.integrator.as_deref(), "--integrator")?;
     let sampler = parse_flag(args.sampler.as_deref(), "--sampler")?;

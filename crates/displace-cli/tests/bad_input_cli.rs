@@ -798,3 +798,36 @@ fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
         assert_eq!(bytes(input), before, "{command}");
     }
 }
+
+/// Options that would be silently ignored or repeated are refused, naming
+/// the option: `--height-size` with a height-map file (it sizes generated
+/// maps only; the file kept its own size), an AOV asked for twice (listed
+/// and written twice over one file).
+#[test]
+fn ignored_or_repeated_options_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    image::GrayImage::from_pixel(16, 16, image::Luma([128]))
+        .save(d.join("h.png"))
+        .unwrap();
+    refuses(
+        d,
+        &words("bake h.png --height-size 64x64 --size 16x16x4 -o m.npy"),
+        &["--height-size 64x64", "h.png", "has its own size"],
+        &[],
+    );
+    let o = run(
+        &words("bake gen:noise --height-size 64x64 --size 16x16x4 -o m.npy"),
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(d.join("m.npy")).unwrap();
+    for aovs in ["--aov depth,normal,depth", "--aov depth --aov depth"] {
+        refuses(
+            d,
+            &words(&format!("render --size 8x8 --spp 1 -q -o r.exr {aovs}")),
+            &["--aov depth is asked for twice"],
+            &[],
+        );
+    }
+}
