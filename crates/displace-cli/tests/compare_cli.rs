@@ -181,3 +181,19 @@ fn outputs_land_together_or_not_at_all() {
         .collect();
     assert_eq!(left, ["grid.png"], "{err}");
 }
+
+/// `--out` naming a file (or a path under one) is refused before the work,
+/// saying it is a file; the file is left as it was.
+#[test]
+fn an_output_that_is_a_file_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("taken"), b"keep me").unwrap();
+    for out in ["taken", "taken/sub"] {
+        let o = displace(&["compare", "--quick", "--out", out], d);
+        let msg = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "--out {out} succeeded");
+        assert!(msg.contains("taken is a file, not a directory"), "{msg}");
+        assert_eq!(std::fs::read(d.join("taken")).unwrap(), b"keep me");
+    }
+}

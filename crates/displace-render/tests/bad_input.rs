@@ -284,3 +284,36 @@ fn meshes_without_a_face_of_any_area_are_refused() {
     }
     assert!(load(&text("one.obj")).is_ok());
 }
+
+/// A displaced OBJ mesh whose triangles are too large (coordinates of
+/// 1e17, inside the coordinate limit) or too small to measure in single
+/// precision is refused saying so: the overflow was reported as a NaN
+/// extent, and a 1e-30 triangle as degenerate texture coordinates only.
+#[test]
+fn displaced_meshes_too_large_or_small_to_measure_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path();
+    for (name, s) in [("big.obj", 1e17f32), ("tiny.obj", 1e-30), ("ok.obj", 1.0)] {
+        let obj = format!("v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+        std::fs::write(base.join(name), obj).unwrap();
+        let text = with(
+            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+            &format!(
+                "type = \"mesh\"\npath = \"{name}\"\n\
+                 displacement = {{ height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 2], depth = 0.1 }}"
+            ),
+        );
+        let loaded = Scene::from_toml(&text, Path::new("test.toml"), base, &opts());
+        match (name, loaded) {
+            ("ok.obj", r) => assert!(r.is_ok(), "{:?}", r.err().map(|e| e.to_string())),
+            (_, Ok(_)) => panic!("{name} was accepted"),
+            (_, Err(e)) => {
+                let e = e.to_string();
+                assert!(
+                    e.contains("shapes[0]") && e.contains("too large or too small"),
+                    "{e}"
+                );
+            }
+        }
+    }
+}

@@ -157,7 +157,7 @@ pub(super) fn mesh(
         }
         let extent = mesh_extent(&mesh.triangles, &xf).ok_or_else(|| {
             cx.err(format!(
-                "{what}: the mesh's texture coordinates are degenerate"
+                "{what}: the mesh's texture coordinates are degenerate, or its triangles too large or too small to measure in single precision (scale it nearer to 1)"
             ))
         })?;
         builder = Some(DispBuild::new(cx, d, extent, what)?);
@@ -271,5 +271,8 @@ fn mesh_extent(tris: &[MeshTriangle], xf: &dyn Fn(Vec3) -> Vec3) -> Option<Vec2>
             weight += a;
         }
     }
-    (weight > 0.0).then(|| sum / weight)
+    // Coordinates near the limit overflow the areas' products (1e17 squared
+    // twice): no extent rather than an infinite or NaN one.
+    let extent = sum / weight;
+    (weight > 0.0 && weight.is_finite() && extent.is_finite()).then_some(extent)
 }
