@@ -222,6 +222,23 @@ pub fn check_not_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> 
     Ok(())
 }
 
+/// [`check_not_inputs`] for a command that writes `output` from a loaded
+/// scene: every file the scene read (height maps, textures, meshes), and
+/// the scene file itself where given.
+pub fn check_not_scene_inputs(
+    output: &Path,
+    scene: &displace_render::Scene,
+    scene_file: Option<&Path>,
+) -> Result<()> {
+    let mut read: Vec<(&str, &Path)> = scene
+        .sources()
+        .iter()
+        .map(|p| ("a file the scene reads", p.as_path()))
+        .collect();
+    read.extend(scene_file.map(|p| ("scene", p)));
+    check_not_inputs(&[("-o", output)], &read)
+}
+
 /// How a checked bake holds its map: whole in memory (`trace`), or
 /// streamed to a file with `slab` slices in flight and `held` bytes per
 /// voxel kept to the end (`bake`).

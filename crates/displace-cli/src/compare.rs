@@ -253,20 +253,15 @@ struct OutputDir {
 
 impl OutputDir {
     fn create(dir: &Path) -> Result<Self> {
-        if let Some(not_dir) = dir
-            .ancestors()
-            .filter(|a| !a.as_os_str().is_empty())
-            .find(|a| a.exists() && !a.is_dir())
-        {
+        let ancestors = || dir.ancestors().filter(|a| !a.as_os_str().is_empty());
+        if let Some(not_dir) = ancestors().find(|a| a.exists() && !a.is_dir()) {
             bail!(
                 "--out {}: {} is a file, not a directory (compare writes its CSVs, plots and grid into a directory)",
                 dir.display(),
                 not_dir.display()
             );
         }
-        let created: Vec<PathBuf> = dir
-            .ancestors()
-            .filter(|a| !a.as_os_str().is_empty())
+        let created: Vec<PathBuf> = ancestors()
             .take_while(|a| !a.exists())
             .map(Path::to_path_buf)
             .collect();

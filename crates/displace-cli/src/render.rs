@@ -190,13 +190,7 @@ fn render_one(
         None => Scene::default_scene(&opts),
     })?;
     let setup = start.elapsed();
-    let mut read: Vec<(&str, &std::path::Path)> = scene
-        .sources()
-        .iter()
-        .map(|p| ("a file the scene reads", p.as_path()))
-        .collect();
-    read.extend(args.scene.as_deref().map(|p| ("scene", p)));
-    crate::bake::check_not_inputs(&[("-o", output)], &read)?;
+    crate::bake::check_not_scene_inputs(output, &scene, args.scene.as_deref())?;
     let stats = scene.cache_stats();
     for w in scene.warnings() {
         eprintln!("warning: {w}");

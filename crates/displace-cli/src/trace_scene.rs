@@ -130,12 +130,7 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     let start = Instant::now();
     let scene =
         Scene::load(scene, &opts).with_context(|| format!("loading scene {}", scene.display()))?;
-    let read: Vec<(&str, &Path)> = scene
-        .sources()
-        .iter()
-        .map(|p| ("a file the scene reads", p.as_path()))
-        .collect();
-    crate::bake::check_not_inputs(&[("-o", output)], &read)?;
+    crate::bake::check_not_scene_inputs(output, &scene, None)?;
     println!(
         "loaded the scene in {:.3} s (displacement maps {:.1} MB)",
         start.elapsed().as_secs_f64(),

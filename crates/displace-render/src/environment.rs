@@ -13,7 +13,7 @@
 //! the image's centre column looks along -x.
 
 use crate::distribution::Distribution2D;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 use std::path::Path;
@@ -72,24 +72,9 @@ impl EnvironmentMap {
             Self::BYTES_PER_TEXEL,
             Some(Self::FORMAT),
         )?;
-        let err = |message: String| Error::Image {
-            path: path.to_path_buf(),
-            message,
-        };
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-        let mut texels = Vec::with_capacity(w * h);
-        for (i, p) in rgb.pixels().enumerate() {
-            let c = Vec3::new(p[0], p[1], p[2]);
-            if !c.is_finite() || c.min_element() < 0.0 {
-                return Err(err(format!(
-                    "texel ({}, {}) is {:?}: radiance must be finite and >= 0",
-                    i % w,
-                    i / w,
-                    c.to_array()
-                )));
-            }
-            texels.push(c);
-        }
+        let texels = crate::texture::checked_texels(path, &rgb, true, "radiance")
+            .collect::<Result<Vec<_>>>()?;
         Ok(Self::from_texels(w, h, texels))
     }
 

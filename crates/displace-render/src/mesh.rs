@@ -57,7 +57,8 @@ pub fn load(path: &Path) -> Result<Mesh> {
                 Err(bad) => {
                     // The parser reads lines as UTF-8 and says only "read
                     // error" at the first byte that is not: name it.
-                    let (line, column) = line_column(&bytes[..bad.valid_up_to()]);
+                    let good = std::str::from_utf8(&bytes[..bad.valid_up_to()]).unwrap_or_default();
+                    let (line, column) = crate::scene::line_column(good, good.len());
                     return Error::Parse {
                         path: path.to_path_buf(),
                         line,
@@ -155,17 +156,6 @@ pub fn load(path: &Path) -> Result<Mesh> {
 /// Where in an OBJ file `err` comes from: the 1-based line and column of the
 /// first statement of the kind tobj complains about that does not read
 /// (tobj reports no position). `None` for errors not tied to a statement.
-/// The line and column (1-based, in bytes) just after `before`, the text
-/// before some position of a file.
-fn line_column(before: &[u8]) -> (usize, usize) {
-    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
-    let start = before
-        .iter()
-        .rposition(|&b| b == b'\n')
-        .map_or(0, |i| i + 1);
-    (line, before.len() - start + 1)
-}
-
 fn locate(text: &str, err: &tobj::LoadError) -> Option<(usize, usize)> {
     use tobj::LoadError as E;
     let keyword = match err {

@@ -86,6 +86,37 @@ pub(crate) fn read_rgb32f(
     Ok(rgb)
 }
 
+/// The texels of a decoded float image, each refused (naming the file and
+/// the texel) unless finite and, with `non_negative`, at least 0: a float
+/// image (EXR) can hold what no texture or radiance means. `what` names
+/// the values in the message. Shared by textures and environment maps.
+pub(crate) fn checked_texels<'a>(
+    path: &'a Path,
+    rgb: &'a image::Rgb32FImage,
+    non_negative: bool,
+    what: &'a str,
+) -> impl Iterator<Item = Result<Vec3>> + 'a {
+    let w = rgb.width() as usize;
+    rgb.pixels().enumerate().map(move |(i, p)| {
+        let c = Vec3::new(p[0], p[1], p[2]);
+        if c.is_finite() && !(non_negative && c.min_element() < 0.0) {
+            return Ok(c);
+        }
+        let want = if non_negative {
+            "finite and >= 0"
+        } else {
+            "finite"
+        };
+        let message = format!(
+            "texel ({}, {}) is {:?}: {what} must be {want}",
+            i % w,
+            i / w,
+            c.to_array()
+        );
+        Err(image_err(path, message))
+    })
+}
+
 impl Texture {
     /// Bytes a texture holds per texel while it loads: the decoded float
     /// image and the texels kept (a `Vec3` each).
@@ -108,23 +139,9 @@ impl Texture {
         let rgb = read_rgb32f(path, "texture", Self::BYTES_PER_TEXEL, None)?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
-        let mut data = Vec::with_capacity(w * h);
-        for (i, p) in rgb.pixels().enumerate() {
-            let c = Vec3::new(p[0], p[1], p[2]);
-            if !c.is_finite() || (srgb && c.min_element() < 0.0) {
-                let want = if srgb { "finite and >= 0" } else { "finite" };
-                return Err(image_err(
-                    path,
-                    format!(
-                        "texel ({}, {}) is {:?}: a texture's values must be {want}",
-                        i % w,
-                        i / w,
-                        c.to_array()
-                    ),
-                ));
-            }
-            data.push(c.map(decode));
-        }
+        let data = checked_texels(path, &rgb, srgb, "a texture's values")
+            .map(|c| c.map(|c| c.map(decode)))
+            .collect::<Result<Vec<_>>>()?;
         Ok(Self {
             width: w,
             height: h,

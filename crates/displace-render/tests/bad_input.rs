@@ -10,13 +10,22 @@ use common::*;
 use displace_render::scene::{Scene, MAX_DEPTH, MAX_SHADOW_SAMPLES, MAX_SPP};
 use std::path::Path;
 
+/// The sphere's `[[shapes]]` entry in [`sphere`].
+const SPHERE: &str = "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1";
+
 /// A lit sphere, 4 x 4 pixels at 1 spp.
 fn sphere() -> SceneToml {
     SceneToml::new(4, 4, 1)
         .camera("[0, 0, -4]", 40.0)
         .lambert("[0.5, 0.5, 0.5]")
         .point_light("[0, 3, -3]", "[10, 10, 10]")
-        .shape("type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1")
+        .shape(SPHERE)
+}
+
+/// The sphere scene with its sphere replaced by the shape `shape` (the
+/// lines of a `[[shapes]]` entry after its header).
+fn with_shape(shape: &str) -> String {
+    with(SPHERE, shape)
 }
 
 /// The sphere scene with `from` replaced by `to`.
@@ -75,9 +84,7 @@ fn counts_are_bounded_and_say_their_bound() {
     let e = scene_err(&with("spp = 1", "spp = 1\nmax_depth = 5000"));
     assert!(e.contains("image.max_depth"), "{e}");
     let displaced = |iterations: u64| {
-        with(
-            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
-            &format!(
+        with_shape(&format!(
                 "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
                  displacement = {{ height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 4], \
                  depth = 0.1, method = \"sphere-fixed\", iterations = {iterations} }}"
@@ -135,8 +142,7 @@ fn texture_errors_name_the_key() {
         e.contains("materials.m.texture") && e.contains("no/such/wood.png"),
         "{e}"
     );
-    let e = scene_err(&with(
-        "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+    let e = scene_err(&with_shape(
         "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
          displacement = { height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 4], \
          depth = 0.1, normal_map = \"none.png\" }",
@@ -149,8 +155,7 @@ fn texture_errors_name_the_key() {
 
 #[test]
 fn unknown_names_are_not_sizes() {
-    let e = scene_err(&with(
-        "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+    let e = scene_err(&with_shape(
         "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
          displacement = { height = \"gen:gaussian\", depth = 0.1, address = \"mirror\" }",
     ));
@@ -168,9 +173,7 @@ fn unknown_names_are_not_sizes() {
 #[test]
 fn faces_tiled_past_the_walks_precision_are_refused() {
     let face = |shape: &str, tiles: u32| {
-        with(
-            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
-            &format!(
+        with_shape(&format!(
                 "{shape}\ndisplacement = {{ height = \"gen:noise\", height_size = [256, 256], depth = 0.05, \
                  map_size = [8, 8, 2], address = \"repeat\", tiles = [{tiles}, {tiles}] }}"
             ),
@@ -218,9 +221,7 @@ fn float_textures_with_nan_or_negative_texels_are_refused() {
         )
     };
     let normals = |file: &str| {
-        with(
-            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
-            &format!(
+        with_shape(&format!(
                 "type = \"quad\"\norigin = [-1, -1, 0]\nedge_u = [2, 0, 0]\nedge_v = [0, 2, 0]\n\
                  displacement = {{ height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 4], \
                  depth = 0.1, normal_map = \"{file}\" }}"
@@ -265,12 +266,7 @@ fn meshes_without_a_face_of_any_area_are_refused() {
         "one.obj",
         "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n",
     );
-    let text = |file: &str| {
-        with(
-            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
-            &format!("type = \"mesh\"\npath = \"{file}\""),
-        )
-    };
+    let text = |file: &str| with_shape(&format!("type = \"mesh\"\npath = \"{file}\""));
     let load = |t: &str| Scene::from_toml(t, Path::new("test.toml"), base, &opts());
     for file in ["point.obj", "line.obj"] {
         let Err(e) = load(&text(file)) else {
@@ -296,9 +292,7 @@ fn displaced_meshes_too_large_or_small_to_measure_are_refused() {
     for (name, s) in [("big.obj", 1e17f32), ("tiny.obj", 1e-30), ("ok.obj", 1.0)] {
         let obj = format!("v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
         std::fs::write(base.join(name), obj).unwrap();
-        let text = with(
-            "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
-            &format!(
+        let text = with_shape(&format!(
                 "type = \"mesh\"\npath = \"{name}\"\n\
                  displacement = {{ height = \"gen:gaussian\", height_size = [8, 8], map_size = [8, 8, 2], depth = 0.1 }}"
             ),

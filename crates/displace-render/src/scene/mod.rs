@@ -246,7 +246,7 @@ fn parse(text: &str, name: &Path) -> Result<spec::SceneSpec> {
 }
 
 /// 1-based line and column (in characters) of byte offset `at`.
-fn line_column(text: &str, at: usize) -> (usize, usize) {
+pub(crate) fn line_column(text: &str, at: usize) -> (usize, usize) {
     let at = at.min(text.len());
     let before = &text[..at];
     let line = before.matches('\n').count() + 1;
