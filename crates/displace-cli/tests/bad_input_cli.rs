@@ -757,9 +757,10 @@ fn a_full_disk_leaves_nothing_behind() {
 
 /// An output that names one of the command's inputs is refused before any
 /// work, and the input is left byte for byte as it was: the height map of
-/// `bake` (as `-o`'s normal map), the rays of `trace`, a texture of a
-/// rendered scene (also through another spelling of its path), the tiles
-/// of `merge`. Each was replaced by what was made from it.
+/// `bake` (as `-o`'s normal map), the rays of `trace` (one face or a
+/// scene), a texture of a rendered scene (also through another spelling of
+/// its path), the tiles of `merge`, the mesh a scene exported by
+/// `export-mesh --scene` reads. Each was replaced by what was made from it.
 #[test]
 fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
     let dir = tempfile::tempdir().unwrap();
@@ -777,6 +778,17 @@ fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
         "color = [0.5, 0.5, 0.5]\ntexture = \"wood.png\"",
     );
     std::fs::write(d.join("s.toml"), scene).unwrap();
+    std::fs::write(
+        d.join("q.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    let meshed = replaced(
+        SCENE,
+        "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1",
+        "type = \"mesh\"\npath = \"q.obj\"",
+    );
+    std::fs::write(d.join("m.toml"), meshed).unwrap();
     let tile = run(
         &["render", "-q", "s.toml", "--tile", "0/1", "-o", "t0.exr"],
         d,
@@ -792,6 +804,11 @@ fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
         ("render -q s.toml -o wood.png".into(), "wood.png"),
         ("render -q s.toml -o ./wood.png".into(), "wood.png"),
         ("merge t0.exr -o t0.exr".into(), "t0.exr"),
+        ("export-mesh --scene m.toml -o q.obj".into(), "q.obj"),
+        (
+            "trace --scene m.toml --rays rays.npy -o rays.npy".into(),
+            "rays.npy",
+        ),
     ] {
         let before = bytes(input);
         refuses(d, &words(&command), &["is also an input"], &[]);
