@@ -34,10 +34,12 @@
 //! `BSDF::Sample_f` does (section 14.1.6).
 //!
 //! Shading and geometric normals (pbrt-v3 section 9.1, Veach 1997 section
-//! 5.3): both are turned to the side the light arrives from, a direction
-//! counts as reflected only when it lies above the **geometric** surface as
-//! well as above the shading normal (no light from under a bump leaks
-//! through its interpolated normal), and the cosine is the shading one.
+//! 5.3): the geometric normal is turned to the viewer's side of the
+//! surface, and the shading normal to the viewer's side of its own plane
+//! ([`viewer_side`]); a direction counts as reflected only when it lies on
+//! the viewer's side of both (no light from under a bump leaks through its
+//! interpolated normal, and none from behind the shading plane reaches a
+//! viewer in front of it), and the cosine is the shading one.
 
 use crate::geometry::{basis, reflect};
 use crate::material::Material;
@@ -55,6 +57,25 @@ pub fn blinn_phong_norm(n: f32) -> f32 {
 /// Beckmann-Phong correspondence, as the Whitted integrator uses it).
 pub fn glossy_exponent(roughness: f32) -> f32 {
     (2.0 / (roughness * roughness) - 2.0).max(0.0)
+}
+
+/// The shading normal `ns` turned to the side of its plane that `wo` (the
+/// unit direction to the viewer) lies on.
+///
+/// Why: reflection happens in the shading frame, so the viewer and the
+/// light must lie on one side of the shading plane (pbrt-v4 section 9.1.2,
+/// `SameHemisphere`; Mitsuba 3's `twosided` adapter decides the side by
+/// the shading frame too). Turning `ns` by the geometric side alone lit a
+/// viewer at a grazing angle below a steeply interpolated normal (the far
+/// edge of a bump's top, its normal tilted away) from lights behind that
+/// plane, a rim of light neither renderer shows.
+#[inline]
+pub fn viewer_side(ns: Vec3, wo: Vec3) -> Vec3 {
+    if ns.dot(wo) < 0.0 {
+        -ns
+    } else {
+        ns
+    }
 }
 
 /// The scattering function at one hit, in world space.
@@ -94,9 +115,11 @@ pub struct BsdfSample {
 
 impl Bsdf {
     /// The material `mat` at a hit with the given albedo (colour times
-    /// textures), normals `ng`, `ns` turned towards the viewer and `wo` the
-    /// unit direction to the viewer.
+    /// textures), geometric normal `ng` turned towards the viewer, shading
+    /// normal `ns` (turned here by [`viewer_side`]) and `wo` the unit
+    /// direction to the viewer.
     pub fn new(mat: &Material, albedo: Vec3, ng: Vec3, ns: Vec3, wo: Vec3) -> Self {
+        let ns = viewer_side(ns, wo);
         let specular = if mat.shininess > 0.0 {
             mat.specular
         } else {
@@ -125,6 +148,12 @@ impl Bsdf {
             r: reflect(-wo, ns),
             p,
         }
+    }
+
+    /// The shading normal on the viewer's side of its plane: the normal
+    /// whose cosine light sampling must use to agree with [`Bsdf::f`].
+    pub fn shading_normal(&self) -> Vec3 {
+        self.ns
     }
 
     /// Whether it reflects nothing (the path ends here).
@@ -416,6 +445,39 @@ mod tests {
         for _ in 0..10_000 {
             if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
                 assert!(s.wi.z > 0.0 && ns.dot(s.wi) > 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn nothing_reaches_a_viewer_from_behind_the_shading_plane() {
+        // Shading normal tilted 80 degrees towards +x (the far edge of a
+        // bump's top); the viewer grazes in from -x, above the geometric
+        // surface but behind the shading plane.
+        let t = 80f32.to_radians();
+        let ns = Vec3::new(t.sin(), 0.0, t.cos());
+        let wo = Vec3::new(-0.9, 0.0, 0.1).normalize();
+        assert!(ns.dot(wo) < 0.0 && wo.z > 0.0);
+        let turned = viewer_side(ns, wo);
+        assert_eq!(turned, -ns);
+        assert_eq!(viewer_side(turned, wo), turned);
+        let m = material("lambert");
+        let b = Bsdf::new(&m, m.diffuse, Vec3::Z, ns, wo);
+        assert_eq!(b.shading_normal(), turned);
+        // Straight above: in front of the shading plane as its normal
+        // faces, behind it as the viewer sees it.
+        assert!(ns.dot(Vec3::Z) > 0.0);
+        assert_eq!(b.f(Vec3::Z), Vec3::ZERO);
+        assert_eq!(b.pdf(Vec3::Z), 0.0);
+        // Low on the viewer's side: above both planes as the viewer sees
+        // them, lit with the shading cosine.
+        let wi = Vec3::new(-0.9, 0.0, 0.3).normalize();
+        assert!(turned.dot(wi) > 0.0 && wi.z > 0.0);
+        assert_eq!(b.f(wi), m.diffuse * FRAC_1_PI);
+        let mut rng = Rng::new(3, 4);
+        for _ in 0..10_000 {
+            if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
+                assert!(s.wi.z > 0.0 && turned.dot(s.wi) > 0.0);
             }
         }
     }

@@ -200,7 +200,7 @@ fn trace(scene: &Scene, mut ray: Ray, rng: &mut SampleStream) -> Vec3 {
             break;
         }
         if bsdf.has_non_delta() {
-            l += beta * direct(scene, &hit, &bsdf, ng, ns, p, rng);
+            l += beta * direct(scene, &hit, &bsdf, ng, p, rng);
         }
         rng.set_dimension(dimensions + 2);
         let pick = rng.next_choice(bsdf.chooses_lobe());
@@ -238,13 +238,14 @@ fn direct(
     hit: &Interaction,
     bsdf: &Bsdf,
     ng: Vec3,
-    ns: Vec3,
     p: Vec3,
     rng: &mut SampleStream,
 ) -> Vec3 {
     if scene.emitters.is_empty() {
         return Vec3::ZERO;
     }
+    // The cosine that agrees with `bsdf.f` (see `Bsdf::shading_normal`).
+    let ns = bsdf.shading_normal();
     let pick = rng.next_choice(scene.emitters.len() > 1);
     let u = rng.next_2d();
     let Some(ls) = scene
