@@ -20,11 +20,15 @@ pub enum Error {
     },
     /// A well-formed scene that makes no sense (camera looking nowhere, zero
     /// image size, ...).
-    #[error("{path}: {message}")]
+    #[error("{}{}: {message}", .path.display(), line_column_suffix(*.at))]
     Scene {
         /// The scene file.
         path: PathBuf,
-        /// The key at fault and why.
+        /// Line and column (from 1) of the key's value in the scene file,
+        /// where the file has it (a default that is at fault has none).
+        at: Option<(usize, usize)>,
+        /// The key at fault (first, as a key path such as
+        /// `shapes[2].displacement.depth`) and why.
         message: String,
     },
     /// A file could not be read or written.
@@ -66,3 +70,8 @@ pub enum Error {
 
 /// The renderer's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// `:line:column` where a place is known, else nothing.
+fn line_column_suffix(at: Option<(usize, usize)>) -> String {
+    at.map_or(String::new(), |(line, column)| format!(":{line}:{column}"))
+}

@@ -99,6 +99,39 @@ fn counts_are_bounded_and_say_their_bound() {
     );
 }
 
+/// A value the checks refuse is placed as a parse error is: the scene
+/// file's line and column of the value, then the key (the place is found
+/// in the text here, not assumed).
+#[test]
+fn value_errors_say_the_line_and_column_of_their_key() {
+    for (from, to, key) in [
+        ("radius = 1", "radius = -1", "shapes[0].radius"),
+        ("width = 4", "width = 4294967296", "image.width"),
+        ("[0.5, 0.5, 0.5]", "[0.5, -0.5, 0.5]", ".color"),
+    ] {
+        let text = with(from, to);
+        let (line, value) = text
+            .lines()
+            .enumerate()
+            .find_map(|(n, l)| l.find(to).map(|c| (n + 1, l[..c].chars().count() + 1)))
+            .unwrap();
+        let column = if to.starts_with('[') {
+            value
+        } else {
+            value + to.find('=').unwrap() + 2
+        };
+        let e = scene_err(&text);
+        let at = format!("test.toml:{line}:{column}: ");
+        assert!(
+            e.starts_with(&at) && e.contains(key),
+            "{to}: {e} (want {at}{key})"
+        );
+    }
+    // The 32-bit bound is named, not just "positive".
+    let e = scene_err(&with("width = 4", "width = 4294967296"));
+    assert!(e.contains("4294967295"), "{e}");
+}
+
 /// Two facing mirrors at the deepest bound: every pixel recurses
 /// `MAX_DEPTH` times on a worker thread's stack, in this debug build too.
 #[test]

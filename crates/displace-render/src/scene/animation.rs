@@ -86,6 +86,7 @@ pub struct Animation {
 fn err(name: &Path, message: String) -> Error {
     Error::Scene {
         path: name.to_path_buf(),
+        at: None,
         message,
     }
 }

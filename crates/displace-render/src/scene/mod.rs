@@ -5,6 +5,7 @@ pub mod animation;
 pub mod batch;
 mod build;
 mod content;
+mod locate;
 pub mod spec;
 mod world;
 
@@ -102,7 +103,7 @@ impl Scene {
             Some(p) => (read_text(p)?, p),
             None => (DEFAULT_SCENE.to_string(), Path::new(DEFAULT_SCENE_NAME)),
         };
-        animation::frame_count(&parse(&text, name)?, name)
+        animation::frame_count(&parse(&text, name)?, name).map_err(|e| locate::located(e, &text))
     }
 
     /// The built-in default scene.
@@ -119,8 +120,9 @@ impl Scene {
     /// resolves relative file names.
     pub fn from_toml(text: &str, name: &Path, base: &Path, opts: &SceneOptions) -> Result<Self> {
         let spec = parse(text, name)?;
-        let spec = animation::at_frame(spec, opts.frame, name)?;
-        let mut scene = build::build(spec, name, base, opts)?;
+        let at = |e| locate::located(e, text);
+        let spec = animation::at_frame(spec, opts.frame, name).map_err(at)?;
+        let mut scene = build::build(spec, name, base, opts).map_err(at)?;
         scene.content_hash = content::content_hash(text, &scene.sources, opts)?;
         Ok(scene)
     }

@@ -61,6 +61,7 @@ impl<'a> Ctx<'a> {
     pub(super) fn err(&self, message: impl Into<String>) -> Error {
         Error::Scene {
             path: self.name.to_path_buf(),
+            at: None,
             message: message.into(),
         }
     }
@@ -88,10 +89,15 @@ impl<'a> Ctx<'a> {
     }
 
     pub(super) fn positive(&self, v: i64, what: &str) -> Result<u32> {
-        if v <= 0 || v > u32::MAX as i64 {
+        if v <= 0 {
             return Err(self.err(format!("{what} must be a positive whole number, got {v}")));
         }
-        Ok(v as u32)
+        u32::try_from(v).map_err(|_| {
+            self.err(format!(
+                "{what} = {v} is more than the limit of {} (a 32-bit count)",
+                u32::MAX
+            ))
+        })
     }
 
     /// A whole number in `1..=max`, the bound named in the message.
