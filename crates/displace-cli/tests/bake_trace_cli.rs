@@ -441,8 +441,8 @@ fn bad_inputs_are_refused_cleanly() {
     );
     refuses(
         d,
-        &words("bake height.jpg --size 8x8x4 -o o.ktx2"),
-        &["height.jpg"],
+        &words("bake height.webp --size 8x8x4 -o o.ktx2"),
+        &["height.webp", "unsupported"],
     );
 
     // Extents and sizes.

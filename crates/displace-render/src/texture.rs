@@ -75,10 +75,18 @@ pub(crate) fn read_rgb32f(
     bytes_per_texel: u128,
     format: Option<(image::ImageFormat, &str)>,
 ) -> Result<image::Rgb32FImage> {
+    use image::ImageDecoder;
     image_dimensions(path, kind, bytes_per_texel, format)?;
-    let img = open_image(path)?
-        .decode()
+    let mut decoder = open_image(path)?
+        .into_decoder()
         .map_err(|e| image_err(path, e.to_string()))?;
+    // A photograph is shown as its orientation tag says (none: as stored).
+    let orientation = decoder
+        .orientation()
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut img =
+        image::DynamicImage::from_decoder(decoder).map_err(|e| image_err(path, e.to_string()))?;
+    img.apply_orientation(orientation);
     let rgb = img.to_rgb32f();
     if rgb.width() == 0 || rgb.height() == 0 {
         return Err(image_err(path, "empty image".into()));
@@ -192,6 +200,40 @@ mod tests {
         let t = Texture::from_pixels(2, 1, vec![Vec3::ZERO, Vec3::ONE]);
         assert!((t.sample(Vec2::new(0.25, 0.5)) - Vec3::ZERO).length() < 1e-6);
         assert!((t.sample(Vec2::new(0.5, 0.5)) - Vec3::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn photographs_load_as_their_orientation_shows_them() {
+        use image::ImageEncoder;
+        let dir = tempfile::tempdir().unwrap();
+        // Left half black, right half white, 16x8 as stored.
+        let stored = image::RgbImage::from_fn(16, 8, |x, _| {
+            image::Rgb(if x < 8 { [0, 0, 0] } else { [255, 255, 255] })
+        });
+        // EXIF orientation 6 (shown turned 90 degrees clockwise): a TIFF
+        // directory of one SHORT tag 0x0112.
+        let mut exif = b"II*\0\x08\0\0\0\x01\0\x12\x01\x03\0\x01\0\0\0\x06\0".to_vec();
+        exif.extend_from_slice(&[0; 6]);
+        let p = dir.path().join("photo.jpg");
+        let mut bytes = Vec::new();
+        let mut enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 95);
+        enc.set_exif_metadata(exif).unwrap();
+        enc.write_image(stored.as_raw(), 16, 8, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        std::fs::write(&p, bytes).unwrap();
+        let t = Texture::load(&p, false).unwrap();
+        assert_eq!((t.width, t.height), (8, 16));
+        // Shown turned: the stored left half (black) is now the top.
+        assert!(
+            t.data[2 * 8 + 4].max_element() < 0.05,
+            "{:?}",
+            t.data[2 * 8 + 4]
+        );
+        assert!(
+            t.data[13 * 8 + 4].min_element() > 0.95,
+            "{:?}",
+            t.data[13 * 8 + 4]
+        );
     }
 
     #[test]

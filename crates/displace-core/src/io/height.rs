@@ -1,8 +1,11 @@
-//! Height maps in (from a *source string*: a generator spec or a PNG/EXR
-//! path), and the maps derived from them out (normal maps, 16-bit heights).
+//! Height maps in (from a *source string*: a generator spec or a PNG,
+//! JPEG, TIFF or EXR path), and the maps derived from them out (normal
+//! maps, 16-bit heights).
 //!
-//! Heights are data, not colour: PNG values are used as stored (no sRGB
-//! decoding), normalised by the bit depth, 16-bit kept at full precision.
+//! Heights are data, not colour: PNG, JPEG and TIFF values are used as
+//! stored (no sRGB decoding), normalised by the bit depth, 16-bit kept at
+//! full precision; an image's orientation tag (EXIF, as cameras write
+//! photographs) is applied, so the map is the image as it is shown.
 //! Colour images reduce to one value by Rec. 709 luma weights on the stored
 //! values, unless a channel is chosen. EXR heights must already lie in
 //! `[0, 1]`: the shell depth is given by the extent, not by the data, so an
@@ -73,21 +76,38 @@ impl Default for HeightOptions {
 /// Rec. 709 luma weights.
 const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
 
+/// What [`load`] accepts besides generators and EXR, for messages.
+const FORMATS: &str =
+    "expected gen:NAME, a .png, .jpg/.jpeg or .tif/.tiff (8/16-bit) or an .exr (float) file";
+
+/// The raster format of a height-map file with extension `ext` (lower
+/// case): integer samples, read by the `image` crate's decoders.
+fn raster_format(ext: &str) -> Option<image::ImageFormat> {
+    match ext {
+        "png" => Some(image::ImageFormat::Png),
+        "jpg" | "jpeg" => Some(image::ImageFormat::Jpeg),
+        "tif" | "tiff" => Some(image::ImageFormat::Tiff),
+        _ => None,
+    }
+}
+
 /// Loads the height map `source` names: `gen:NAME?params` (a built-in
-/// generator at `opts.size`), a `.png` (8/16-bit grey or colour) or an
-/// `.exr` (float) file.
+/// generator at `opts.size`), a `.png`, `.jpg` or `.tif` (8/16-bit grey or
+/// colour) or an `.exr` (float) file.
 pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
     if source.starts_with("gen:") {
         return generators::generate(source, opts.size[0], opts.size[1], opts.address);
     }
     let path = Path::new(source);
-    let ext = lower_extension(path);
-    match ext.as_deref() {
-        Some("png") => load_png(path, opts),
-        Some("exr") => load_exr(path, opts),
-        _ => Err(Error::Image {
+    let ext = lower_extension(path).unwrap_or_default();
+    if ext == "exr" {
+        return load_exr(path, opts);
+    }
+    match raster_format(&ext) {
+        Some(format) => load_raster(path, format, opts),
+        None => Err(Error::Image {
             path: path.to_path_buf(),
-            message: "unsupported height map: expected gen:NAME, a .png or an .exr file".into(),
+            message: format!("unsupported height map: {FORMATS}"),
         }),
     }
 }
@@ -100,26 +120,30 @@ pub fn dimensions(source: &str, opts: &HeightOptions) -> Result<[usize; 2]> {
         return Ok(opts.size);
     }
     let path = Path::new(source);
-    let ext = lower_extension(path);
-    match ext.as_deref() {
-        Some("png") => {
+    let ext = lower_extension(path).unwrap_or_default();
+    if ext == "exr" {
+        let size = exr_size(path)?;
+        return Ok([size.width(), size.height()]);
+    }
+    match raster_format(&ext) {
+        Some(format) => {
             use image::ImageDecoder;
-            let (w, h) = png_decoder(path)?.dimensions();
-            Ok([w as usize, h as usize])
-        }
-        Some("exr") => {
-            let size = exr_size(path)?;
-            Ok([size.width(), size.height()])
+            let (decoder, orientation) = raster_decoder(path, format)?;
+            Ok(shown_size(decoder.dimensions(), orientation))
         }
         // `load` names the problem.
-        _ => load(source, opts).map(|h| [h.width(), h.height()]),
+        None => load(source, opts).map(|h| [h.width(), h.height()]),
     }
 }
 
-/// The PNG decoder of a checked, non-empty file, its header read.
-fn png_decoder(
+/// The decoder of a checked, non-empty raster file of `format`, its header
+/// read, and the orientation its metadata asks for (none where it has no
+/// such tag or the tag cannot be read: the image as stored).
+fn raster_decoder(
     path: &Path,
-) -> Result<image::codecs::png::PngDecoder<std::io::BufReader<std::fs::File>>> {
+    format: image::ImageFormat,
+) -> Result<(impl image::ImageDecoder, image::metadata::Orientation)> {
+    use image::ImageDecoder;
     super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
@@ -128,8 +152,35 @@ fn png_decoder(
     if file.metadata().is_ok_and(|m| m.len() == 0) {
         return Err(image_err(path, "the file is empty"));
     }
-    image::codecs::png::PngDecoder::new(std::io::BufReader::new(file))
-        .map_err(|e| image_err(path, format!("cannot read PNG: {e}")))
+    let name = format_name(format);
+    let mut reader = image::ImageReader::with_format(std::io::BufReader::new(file), format);
+    // The map's size is checked against this crate's limits
+    // (`HeightMap::check_size`, the caller's memory estimate) instead.
+    reader.no_limits();
+    let mut decoder = reader
+        .into_decoder()
+        .map_err(|e| image_err(path, format!("cannot read {name}: {e}")))?;
+    let orientation = decoder
+        .orientation()
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    Ok((decoder, orientation))
+}
+
+/// The size of an image of stored size `(w, h)` as `orientation` shows it.
+fn shown_size((w, h): (u32, u32), orientation: image::metadata::Orientation) -> [usize; 2] {
+    use image::metadata::Orientation::*;
+    match orientation {
+        Rotate90 | Rotate270 | Rotate90FlipH | Rotate270FlipH => [h as usize, w as usize],
+        _ => [w as usize, h as usize],
+    }
+}
+
+fn format_name(format: image::ImageFormat) -> &'static str {
+    match format {
+        image::ImageFormat::Jpeg => "JPEG",
+        image::ImageFormat::Tiff => "TIFF",
+        _ => "PNG",
+    }
 }
 
 /// The size of the first layer of a checked EXR file, from its header.
@@ -163,14 +214,18 @@ fn finish(path: &Path, w: usize, h: usize, data: Vec<f32>, address: Address) -> 
     HeightMap::new(w, h, data, address).map_err(|e| image_err(path, e))
 }
 
-fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
+fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) -> Result<HeightMap> {
     use image::{DynamicImage, ImageDecoder};
-    let decoder = png_decoder(path)?;
-    let (w, h) = decoder.dimensions();
-    HeightMap::check_size(w as usize, h as usize).map_err(|e| image_err(path, e))?;
-    let img = DynamicImage::from_decoder(decoder)
-        .map_err(|e| image_err(path, format!("cannot decode PNG: {e}")))?;
-    let (w, h) = (w as usize, h as usize);
+    let name = format_name(format);
+    let (decoder, orientation) = raster_decoder(path, format)?;
+    let [w, h] = shown_size(decoder.dimensions(), orientation);
+    HeightMap::check_size(w, h).map_err(|e| image_err(path, e))?;
+    let mut img = DynamicImage::from_decoder(decoder)
+        .map_err(|e| image_err(path, format!("cannot decode {name}: {e}")))?;
+    // A camera's photograph is stored as the sensor read it and shown as
+    // its orientation tag says; the map is what the user sees.
+    img.apply_orientation(orientation);
+    debug_assert_eq!([img.width() as usize, img.height() as usize], [w, h]);
     // Straight from the decoded samples to one height per texel, in
     // parallel, with no intermediate copy of every channel in `f32`: an
     // 8192x8192 16-bit map costs its samples plus the heights.
@@ -194,7 +249,11 @@ fn load_png(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         other => {
             return Err(image_err(
                 path,
-                format!("unsupported PNG colour type {:?}", other.color()),
+                format!(
+                    "unsupported {name} colour type {:?}: heights are read from 8- or 16-bit \
+                     integer samples (float heights: an EXR in [0, 1])",
+                    other.color()
+                ),
             ))
         }
     }?;
@@ -432,6 +491,90 @@ mod tests {
         assert_ne!(m.texel(0, 0), m.texel(0, 1));
     }
 
+    /// A TIFF directory holding one orientation tag (EXIF's layout, as a
+    /// camera writes it into a JPEG's APP1 segment).
+    fn exif_orientation(value: u16) -> Vec<u8> {
+        let mut e = b"II*\0\x08\0\0\0\x01\0".to_vec();
+        e.extend_from_slice(&0x0112u16.to_le_bytes()); // Orientation
+        e.extend_from_slice(&3u16.to_le_bytes()); // SHORT
+        e.extend_from_slice(&1u32.to_le_bytes()); // one value
+        e.extend_from_slice(&value.to_le_bytes());
+        e.extend_from_slice(&[0, 0, 0, 0, 0, 0]); // padding, no next IFD
+        e
+    }
+
+    #[test]
+    fn photographs_load_as_shown_and_tiffs_keep_16_bits() {
+        use image::ImageEncoder;
+        let dir = tempfile::tempdir().unwrap();
+        // A 16x8 grey ramp along x, smooth enough for JPEG to keep within a
+        // few codes.
+        let ramp = |x: u32, _y: u32| Luma([(x * 16) as u8]);
+        let stored = ImageBuffer::<Luma<u8>, _>::from_fn(16, 8, ramp);
+        let jpeg = |name: &str, orientation: Option<u16>| {
+            let p = dir.path().join(name);
+            let mut bytes = Vec::new();
+            let mut enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 95);
+            if let Some(o) = orientation {
+                enc.set_exif_metadata(exif_orientation(o)).unwrap();
+            }
+            enc.write_image(stored.as_raw(), 16, 8, image::ExtendedColorType::L8)
+                .unwrap();
+            std::fs::write(&p, bytes).unwrap();
+            p
+        };
+        let near = |a: f32, b: f32| (a - b).abs() < 6.0 / 255.0;
+        let plain = load_path(&jpeg("h.jpg", None), &opts()).unwrap();
+        assert_eq!((plain.width(), plain.height()), (16, 8));
+        assert!(
+            near(plain.texel(12, 3), 192.0 / 255.0),
+            "{}",
+            plain.texel(12, 3)
+        );
+        // Orientation 6: shown rotated 90 degrees clockwise, so the stored
+        // rows become columns: the ramp runs down the shown image.
+        let p = jpeg("turned.JPEG", Some(6));
+        let dims = dimensions(p.to_str().unwrap(), &opts()).unwrap();
+        let turned = load_path(&p, &opts()).unwrap();
+        assert_eq!(dims, [8, 16]);
+        assert_eq!((turned.width(), turned.height()), (8, 16));
+        for x in 0..8 {
+            assert!(
+                near(turned.texel(x, 12), 192.0 / 255.0),
+                "{}",
+                turned.texel(x, 12)
+            );
+            assert!(
+                near(turned.texel(x, 2), 32.0 / 255.0),
+                "{}",
+                turned.texel(x, 2)
+            );
+        }
+
+        // 16-bit TIFF: every code kept, as for PNG.
+        let p = dir.path().join("h.tif");
+        let img: ImageBuffer<Luma<u16>, Vec<u16>> =
+            ImageBuffer::from_fn(5, 3, |x, y| Luma([(x * 13_107 + y * 3 + 1) as u16]));
+        img.save(&p).unwrap();
+        let m = load_path(&p, &opts()).unwrap();
+        for (x, y) in [(0, 0), (4, 2), (2, 1)] {
+            assert_eq!(
+                m.texel(x as i64, y as i64),
+                (x * 13_107 + y * 3 + 1) as f32 / 65535.0
+            );
+        }
+        // Float TIFF heights are refused with what to do instead.
+        let p = dir.path().join("f.tiff");
+        image::Rgb32FImage::from_fn(2, 2, |_, _| Rgb([0.5, 0.5, 0.5]))
+            .save(&p)
+            .unwrap();
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("f.tiff") && e.contains("EXR"), "{e}");
+        // Formats without a reader are refused by name.
+        let e = load("h.webp", &opts()).unwrap_err().to_string();
+        assert!(e.contains("h.webp") && e.contains(".jpg"), "{e}");
+    }
+
     #[test]
     fn png8_grey_alpha_and_colour_channels() {
         let dir = tempfile::tempdir().unwrap();
@@ -504,8 +647,8 @@ mod tests {
 
         let e = load("missing.png", &opts()).unwrap_err().to_string();
         assert!(e.contains("missing.png"), "{e}");
-        let e = load("height.jpg", &opts()).unwrap_err().to_string();
-        assert!(e.contains("height.jpg") && e.contains("gen:NAME"), "{e}");
+        let e = load("height.bmp", &opts()).unwrap_err().to_string();
+        assert!(e.contains("height.bmp") && e.contains("gen:NAME"), "{e}");
     }
 
     fn write_exr(p: &Path, w: usize, h: usize, channels: Vec<(&str, Vec<f32>)>) {

@@ -11,7 +11,7 @@
 //! | npy    | [`npy`]  | float32 arrays of any shape (physical units)         |
 //! | KTX2   | [`ktx2`] | distance map + extent, addressing, encoding, bound   |
 //! | DDS    | [`dds`]  | distance map voxels only (extent given by the user)  |
-//! | PNG/EXR| [`height`] | height maps in, normal and height maps out         |
+//! | PNG/JPEG/TIFF/EXR| [`height`] | height maps in, normal and height maps out |
 
 pub mod atomic;
 pub mod dds;

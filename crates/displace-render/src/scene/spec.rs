@@ -378,7 +378,7 @@ fn default_crease_angle() -> f32 {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DisplacementSpec {
-    /// A height file (PNG/EXR, relative to the scene file) or a generator
+    /// A height file (PNG, JPEG, TIFF or EXR, relative to the scene file) or a generator
     /// (`gen:studded?period=8`).
     pub height: String,
     /// Texels of a generated height map.
