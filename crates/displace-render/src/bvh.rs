@@ -32,19 +32,34 @@ struct Item {
     bounds: Aabb,
     centroid: Vec3,
     index: u32,
+    /// What testing the primitive costs, in triangle tests.
+    cost: f32,
 }
 
 impl Bvh {
     /// Builds the hierarchy over `bounds` (primitive `i` has box `bounds[i]`)
-    /// with the binned SAH.
+    /// with the binned SAH, every primitive as costly to test as another.
     pub fn build(bounds: &[Aabb]) -> Self {
+        Self::build_weighted(bounds, &vec![1.0; bounds.len()])
+    }
+
+    /// [`Self::build`] where primitive `i` costs `costs[i]` triangle tests
+    /// to test (the SAH's intersection cost per primitive, pbrt-v4 section
+    /// 7.3.2, which takes it as one for all): a displaced face, whose test
+    /// transforms the ray into its map and clips it to the shell before any
+    /// tracing, is split off into its own box where a leaf of cheap quads
+    /// would otherwise make every ray that enters the leaf pay for it.
+    pub fn build_weighted(bounds: &[Aabb], costs: &[f32]) -> Self {
+        assert_eq!(bounds.len(), costs.len(), "one cost per box");
         let mut items: Vec<Item> = bounds
             .iter()
+            .zip(costs)
             .enumerate()
-            .map(|(i, b)| Item {
+            .map(|(i, (b, &cost))| Item {
                 bounds: *b,
                 centroid: b.centroid(),
                 index: i as u32,
+                cost,
             })
             .collect();
         let mut bvh = Bvh {
@@ -67,7 +82,10 @@ impl Bvh {
             axis: 0,
         });
         let n = items.len();
-        let split = if n <= MAX_LEAF {
+        // A small leaf is kept unless it holds a primitive dearer than a
+        // triangle, which the SAH may split off.
+        let cheap = items.iter().all(|it| it.cost <= 1.0);
+        let split = if n <= 1 || (n <= MAX_LEAF && cheap) {
             None
         } else {
             sah_split(items, &bounds)
@@ -204,29 +222,35 @@ fn sah_split(items: &mut [Item], bounds: &Aabb) -> Option<(usize, usize)> {
         }
         let scale = BINS as f32 / extent[axis];
         let bin_of = |c: Vec3| (((c[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
-        let mut bins = [(Aabb::EMPTY, 0usize); BINS];
+        // Per bin: box, primitive count, summed test cost.
+        let mut bins = [(Aabb::EMPTY, 0usize, 0.0f32); BINS];
         for it in items.iter() {
             let b = &mut bins[bin_of(it.centroid)];
             b.0 = b.0.union(it.bounds);
             b.1 += 1;
+            b.2 += it.cost;
         }
         let mut right_area = [0.0f32; BINS];
         let mut right_count = [0usize; BINS];
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        let mut right_cost = [0.0f32; BINS];
+        let (mut acc, mut cnt, mut sum) = (Aabb::EMPTY, 0, 0.0);
         for k in (1..BINS).rev() {
             acc = acc.union(bins[k].0);
             cnt += bins[k].1;
+            sum += bins[k].2;
             right_area[k] = acc.area();
             right_count[k] = cnt;
+            right_cost[k] = sum;
         }
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        let (mut acc, mut cnt, mut sum) = (Aabb::EMPTY, 0, 0.0);
         for k in 1..BINS {
             acc = acc.union(bins[k - 1].0);
             cnt += bins[k - 1].1;
+            sum += bins[k - 1].2;
             if cnt == 0 || right_count[k] == 0 {
                 continue;
             }
-            let cost = acc.area() * cnt as f32 + right_area[k] * right_count[k] as f32;
+            let cost = acc.area() * sum + right_area[k] * right_cost[k];
             if best.is_none_or(|b| cost < b.0) {
                 best = Some((cost, axis, k));
             }
@@ -235,7 +259,7 @@ fn sah_split(items: &mut [Item], bounds: &Aabb) -> Option<(usize, usize)> {
     let (cost, axis, k) = best?;
     // Traversal step costs about one primitive test (pbrt's 1/8 is for a
     // far cheaper intersection than a displaced face).
-    let leaf_cost = items.len() as f32 * bounds.area();
+    let leaf_cost = items.iter().map(|it| it.cost).sum::<f32>() * bounds.area();
     if items.len() <= 16 && cost + bounds.area() >= leaf_cost {
         return None;
     }
@@ -276,6 +300,47 @@ fn partition(items: &mut [Item], pred: impl Fn(&Item) -> bool) -> usize {
 mod tests {
     use super::*;
     use crate::sampler::Rng;
+
+    /// The leaves holding primitive `i`, and their sizes.
+    fn leaf_sizes_of(bvh: &Bvh, i: u32) -> Vec<u16> {
+        bvh.nodes
+            .iter()
+            .filter(|n| n.count > 0)
+            .filter(|n| {
+                let o = n.offset as usize;
+                bvh.order[o..o + n.count as usize].contains(&i)
+            })
+            .map(|n| n.count)
+            .collect()
+    }
+
+    #[test]
+    fn a_costly_primitive_gets_a_box_of_its_own() {
+        // A Cornell box: five flat walls whose boxes span the room, and a
+        // shallow slab over the floor (a displaced face's shell).
+        let wall = |axis: usize, at: f32| {
+            let (mut min, mut max) = (Vec3::ZERO, Vec3::splat(555.0));
+            min[axis] = at;
+            max[axis] = at;
+            Aabb { min, max }
+        };
+        let boxes = vec![
+            wall(1, 555.0),
+            wall(2, 555.0),
+            wall(0, 555.0),
+            wall(0, 0.0),
+            Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::new(555.0, 40.0, 555.0),
+            },
+        ];
+        // Alike, the five fit one leaf, whose box is the room: every ray in
+        // the room tests all of them.
+        assert_eq!(leaf_sizes_of(&Bvh::build(&boxes), 4), vec![5]);
+        // A face dearer than a wall is split off.
+        let costly = Bvh::build_weighted(&boxes, &[1.0, 1.0, 1.0, 1.0, 2.0]);
+        assert_eq!(leaf_sizes_of(&costly, 4), vec![1]);
+    }
 
     #[test]
     fn finds_the_same_nearest_box_as_brute_force() {

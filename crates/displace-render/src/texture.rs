@@ -80,6 +80,12 @@ pub(crate) fn read_rgb32f(
     let mut decoder = open_image(path)?
         .into_decoder()
         .map_err(|e| image_err(path, e.to_string()))?;
+    // The decoded size within the `image` crate's default allocation limit,
+    // checked before decoding as its `decode` does (a corrupt header can
+    // claim any size).
+    image::Limits::default()
+        .reserve(decoder.total_bytes())
+        .map_err(|e| image_err(path, e.to_string()))?;
     // A photograph is shown as its orientation tag says (none: as stored).
     let orientation = decoder
         .orientation()

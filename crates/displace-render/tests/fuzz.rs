@@ -314,8 +314,25 @@ fn mutated_inputs_never_panic() {
             .collect(),
     };
     displace_render::output::write_image(&exr, &img).unwrap();
+    // A photograph and a 16-bit terrain export: JPEG and TIFF.
+    let jpg = dir.path().join("h.jpg");
+    let tif = dir.path().join("h.tif");
+    let ramp = |x: u32, y: u32| ((x * 29 + y * 7) % 256) as u8;
+    image::RgbImage::from_fn(8, 8, |x, y| image::Rgb([ramp(x, y), ramp(y, x), 90]))
+        .save(&jpg)
+        .unwrap();
+    image::ImageBuffer::<image::Luma<u16>, _>::from_fn(8, 8, |x, y| {
+        image::Luma([u16::from(ramp(x, y)) * 257])
+    })
+    .save(&tif)
+    .unwrap();
     let opts = height::HeightOptions::default();
-    for (parser, seed, file, name) in [("png", 6, &png, "h.png"), ("exr", 7, &exr, "h.exr")] {
+    for (parser, seed, file, name) in [
+        ("png", 6, &png, "h.png"),
+        ("exr", 7, &exr, "h.exr"),
+        ("jpeg", 8, &jpg, "h.jpg"),
+        ("tiff", 9, &tif, "h.tif"),
+    ] {
         let corpus = [std::fs::read(file).unwrap()];
         crashes.extend(fuzz(parser, seed, &corpus, name, false, &|_, p| {
             let height = height::load(&p.to_string_lossy(), &opts).is_ok();

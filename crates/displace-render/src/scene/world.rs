@@ -81,6 +81,15 @@ pub enum Shape {
     Curved(Box<CurvedFace>),
 }
 
+/// [`Primitive::test_cost`] of a displaced or curved face, a lower bound:
+/// a ray that misses a displaced face still pays for its transform into
+/// map space and the shell clip (about 100 instructions in callgrind,
+/// where a quad's whole test is about 80), and one that enters the shell
+/// pays for the trace. Anything from 2 to 8 gives the studded Cornell box
+/// the same tree (its floor in a box of its own, 7% fewer instructions for
+/// a path-traced render than with the floor in the walls' leaf).
+const TRACED_TEST_COST: f32 = 2.0;
+
 /// A triangle without per-vertex attributes (flat normal, no texture
 /// coordinates).
 pub const NO_ATTR: u32 = u32::MAX;
@@ -100,6 +109,15 @@ pub struct Primitive {
 }
 
 impl Primitive {
+    /// What testing a ray against the shape costs, in triangle tests, for
+    /// the BVH's surface area heuristic ([`crate::bvh::Bvh::build_weighted`]).
+    pub fn test_cost(&self) -> f32 {
+        match &self.shape {
+            Shape::Displaced(_) | Shape::Curved(_) => TRACED_TEST_COST,
+            _ => 1.0,
+        }
+    }
+
     /// The world box of the shape (a displaced face's whole shell).
     pub fn bounds(&self) -> Aabb {
         match &self.shape {

@@ -52,7 +52,8 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         meshes,
     } = geo;
     let bounds: Vec<Aabb> = prims.iter().map(Primitive::bounds).collect();
-    let bvh = Bvh::build(&bounds);
+    let costs: Vec<f32> = prims.iter().map(Primitive::test_cost).collect();
+    let bvh = Bvh::build_weighted(&bounds, &costs);
     let world = bvh.bounds();
     let diag = if world.is_empty() {
         1.0
