@@ -120,8 +120,8 @@ pub struct StreamedBake {
 
 /// Estimated peak bytes of a streamed bake, the largest of its phases, one
 /// after the other: decoding the heights; the distance map (the heights,
-/// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, what the
-/// writer holds, the column ranges where they are kept and the centres
+/// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, the direct
+/// writer's buffer, what the writer holds, the column ranges where they are kept and the centres
 /// where they are not the height map's); then the normal map and the cone
 /// map, each beside the heights.
 pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
@@ -134,6 +134,7 @@ pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
     let distance = heights
         + slab * STREAM_BYTES_PER_SLAB_VOXEL
         + columns * STREAM_ENCODED_SLICES * b.encoded_bytes_per_voxel
+        + crate::io::direct::DIRECT_BUFFER_BYTES as u128
         + voxels * b.held_bytes_per_voxel
         + if stores_column_ranges(b.map) {
             columns * RANGE_BYTES_PER_COLUMN

@@ -162,6 +162,16 @@ impl AtomicFile {
         &mut self.out
     }
 
+    /// The same file opened again for direct writes from its start
+    /// ([`super::direct`]), while nothing has gone through
+    /// [`Self::writer`]; `None` where the file system refuses direct I/O.
+    pub fn direct_append(&self) -> Option<super::direct::DirectAppend> {
+        if !self.out.buffer().is_empty() {
+            return None;
+        }
+        super::direct::DirectAppend::open(self.tmp.0.as_deref()?)
+    }
+
     /// Flushes and fsyncs the file, then renames it into place (or stages
     /// it in the open [`Batch`]).
     pub fn commit(self) -> Result<()> {

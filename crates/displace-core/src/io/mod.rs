@@ -15,6 +15,7 @@
 
 pub mod atomic;
 pub mod dds;
+pub mod direct;
 pub mod height;
 pub mod ktx2;
 pub mod npy;

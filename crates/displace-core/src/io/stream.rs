@@ -312,9 +312,29 @@ impl Background {
         let (tx, rx) = sync_channel::<Vec<u8>>(0);
         let (back, spare) = sync_channel::<Vec<u8>>(2);
         let thread = std::thread::spawn(move || {
+            // Past the page cache where the file system allows it
+            // (`super::direct`: a fifth of a bake's CPU time was the copy
+            // into it), else through it; the same bytes either way.
+            let mut direct = file.direct_append();
             for bytes in rx {
-                file.writer().write_all(&bytes)?;
+                match direct.as_mut().map(|d| d.append(&bytes)) {
+                    Some(Ok(())) => {}
+                    Some(Err(e)) => {
+                        let d = direct.take().expect("matched Some");
+                        if !d.untouched() {
+                            return Err(e);
+                        }
+                        // Refused at the first write: write it all the
+                        // ordinary way.
+                        file.writer().write_all(d.held())?;
+                        file.writer().write_all(&bytes)?;
+                    }
+                    None => file.writer().write_all(&bytes)?,
+                }
                 let _ = back.try_send(bytes);
+            }
+            if let Some(d) = direct {
+                d.finish()?;
             }
             Ok(file)
         });
