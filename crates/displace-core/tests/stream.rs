@@ -22,6 +22,22 @@ fn streamed(
     let mut stream = MapStream::create(path, format, opts.size, opts.extent).unwrap();
     bake_streamed(height, opts, slab, &mut stream).unwrap();
     stream.finish().unwrap();
+    // Past the page cache (O_DIRECT where the file system takes it, as for
+    // large maps): the same bytes.
+    let direct = path.with_extension(format!(
+        "direct.{}",
+        path.extension().unwrap().to_str().unwrap()
+    ));
+    let mut stream =
+        MapStream::create_writing(&direct, format, opts.size, opts.extent, true).unwrap();
+    bake_streamed(height, opts, slab, &mut stream).unwrap();
+    stream.finish().unwrap();
+    assert_eq!(
+        std::fs::read(&direct).unwrap(),
+        std::fs::read(path).unwrap(),
+        "{}",
+        direct.display()
+    );
 }
 
 #[test]
