@@ -46,6 +46,17 @@ pub enum Error {
         /// The estimate against the limit, in words.
         message: String,
     },
+    /// An output larger than the free space of the file system it goes to,
+    /// found before any work ([`crate::io::atomic::check_free_space`]).
+    #[error("{}: the output needs {needed} bytes ({:.2} GiB) but its file system has {free} bytes ({:.2} GiB) free", .path.display(), *.needed as f64 / GIB, *.free as f64 / GIB)]
+    DiskSpace {
+        /// The output file.
+        path: PathBuf,
+        /// Bytes the output will take.
+        needed: u64,
+        /// Bytes free to an unprivileged writer there.
+        free: u64,
+    },
     /// A `gen:` height-map spec naming no known generator.
     #[error("unknown generator `{0}` (known: flat, gaussian, studded, grating, text, noise)")]
     UnknownGenerator(String),
@@ -107,3 +118,6 @@ pub enum Error {
     #[error("operation cancelled")]
     Cancelled,
 }
+
+/// Bytes in a GiB, for messages.
+const GIB: f64 = (1u64 << 30) as f64;

@@ -245,6 +245,43 @@ fn create_temp(path: &Path) -> std::io::Result<(PathBuf, File)> {
     }
 }
 
+/// Refuses an output of `bytes` at `path` when the file system of its
+/// directory has less free space (to an unprivileged writer): a bake of
+/// gigabytes would otherwise run to the end and fail there, its temporary
+/// file removed and its work lost. Checked before the work starts, as
+/// memory is. A directory whose file system cannot be asked passes (the
+/// write itself will say).
+pub fn check_free_space(path: &Path, bytes: u64) -> Result<()> {
+    let dir = parent_dir(path).unwrap_or(Path::new("."));
+    match free_bytes(dir) {
+        Some(free) if free < bytes => Err(Error::DiskSpace {
+            path: path.to_path_buf(),
+            needed: bytes,
+            free,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Bytes an unprivileged process may still write on the file system of
+/// `dir` (`statvfs`: available blocks times the fragment size).
+fn free_bytes(dir: &Path) -> Option<u64> {
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    let mut st = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+    // SAFETY: `c` is a NUL-terminated path and `st` a buffer of the size
+    // `statvfs` fills; it is read only when the call succeeds.
+    let ok = unsafe { libc::statvfs(c.as_ptr(), st.as_mut_ptr()) } == 0;
+    if !ok {
+        return None;
+    }
+    // SAFETY: filled by the successful call above.
+    let st = unsafe { st.assume_init() };
+    // `fsblkcnt_t` and `c_ulong` are u64 here, narrower elsewhere.
+    #[allow(clippy::unnecessary_cast)]
+    let (blocks, size) = (st.f_bavail as u64, st.f_frsize as u64);
+    Some(blocks.saturating_mul(size))
+}
+
 /// `.NAME.PID.N.tmp`, `NAME` shortened to keep the whole within
 /// [`NAME_MAX`] bytes (the PID and counter keep it unique).
 fn temp_name(name: &[u8], pid: u32, n: u64) -> std::ffi::OsString {
@@ -313,6 +350,34 @@ impl Drop for RemoveOnDrop {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn outputs_larger_than_the_free_space_are_refused_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("m.ktx2");
+        let free = free_bytes(dir.path()).expect("statvfs of a temporary directory");
+        assert!(free > 0);
+        check_free_space(&out, 0).unwrap();
+        check_free_space(&out, free / 2).unwrap();
+        let e = check_free_space(&out, free.saturating_mul(2).max(free + 1)).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            matches!(e, Error::DiskSpace { .. }) && msg.contains("m.ktx2") && msg.contains("free"),
+            "{msg}"
+        );
+        // Nothing was created by the check.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        // The streamed writer asks before it creates its temporary file.
+        let e = crate::io::stream::MapStream::create(
+            &out,
+            crate::distance_map::Format::R32F,
+            [u32::MAX as usize, 65_536, 8],
+            crate::Extent::new(1.0, 1.0, 0.1).unwrap(),
+        );
+        assert!(matches!(e, Err(Error::DiskSpace { .. })), "{:?}", e.err());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
     use super::*;
 
     fn entries(dir: &Path) -> Vec<String> {

@@ -35,6 +35,14 @@ const CHUNK: usize = 1 << 16;
 /// 268 MB one was 10-13% faster direct and a 512 MB one 26%.
 const DIRECT_FROM_BYTES: u64 = 64 << 20;
 
+/// The bytes of a `size` map's voxels in `format` (saturating: a size
+/// whose product does not fit is more than any disk).
+fn output_bytes(size: [usize; 3], format: Format) -> u64 {
+    size.iter().fold(format.bytes_per_voxel() as u64, |b, &n| {
+        b.saturating_mul(n as u64)
+    })
+}
+
 /// A distance-map file being written slab by slab.
 pub struct MapStream {
     path: PathBuf,
@@ -61,8 +69,8 @@ impl MapStream {
     /// file type its extension names) and creates its temporary file, all
     /// before any work: a missing or unwritable directory fails here.
     pub fn create(path: &Path, format: Format, size: [usize; 3], extent: Extent) -> Result<Self> {
-        let bytes = size.iter().product::<usize>() as u64 * format.bytes_per_voxel() as u64;
-        Self::create_writing(path, format, size, extent, bytes >= DIRECT_FROM_BYTES)
+        let direct = output_bytes(size, format) >= DIRECT_FROM_BYTES;
+        Self::create_writing(path, format, size, extent, direct)
     }
 
     /// [`Self::create`], choosing whether to write past the page cache
@@ -97,6 +105,9 @@ impl MapStream {
             }
             _ => {}
         }
+        // The voxels' bytes; the header is small enough to ride on any
+        // rounding of the file system's own accounting.
+        super::atomic::check_free_space(path, output_bytes(size, format))?;
         Ok(Self {
             path: path.to_path_buf(),
             out: Background::start(AtomicFile::create(path)?, direct),
