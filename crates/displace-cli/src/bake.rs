@@ -45,7 +45,7 @@ pub struct HeightArgs {
 #[derive(Args, Debug)]
 pub struct BakeArgs {
     /// Height map: gen:NAME[?key=value&...] (flat, gaussian, studded,
-    /// grating, text, noise), a PNG (8/16-bit) or an EXR file
+    /// grating, text, noise), a PNG, JPEG or TIFF (8/16-bit) or an EXR file
     #[arg(value_name = "HEIGHT", default_value = DEFAULT_HEIGHT)]
     pub height: String,
     #[command(flatten)]

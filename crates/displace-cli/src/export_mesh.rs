@@ -48,7 +48,7 @@ const DEFAULT_HEIGHT_SIZE: [usize; 2] = [256, 256];
     mut_arg("address", |a| a.help("Texture addressing of the height map (clamp or repeat)")),
 )]
 pub struct ExportMeshArgs {
-    /// Height map: gen:NAME[?...], a PNG or an EXR file
+    /// Height map: gen:NAME[?...], a PNG, JPEG, TIFF or EXR file
     #[arg(value_name = "HEIGHT", required_unless_present = "scene")]
     pub height: Option<String>,
     #[command(flatten)]

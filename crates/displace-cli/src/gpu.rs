@@ -26,7 +26,7 @@ use std::path::PathBuf;
 /// The displaced face: its height source, bake and proportions.
 #[derive(clap::Args, Debug, Clone)]
 pub struct FaceArgs {
-    /// Height map: `gen:NAME?params`, a PNG or an EXR.
+    /// Height map: `gen:NAME?params`, a PNG, JPEG, TIFF or EXR.
     #[arg(long, default_value = "gen:studded")]
     pub height: String,
     /// Distance-map voxels, WxHxD (generated heights use W x H texels).

@@ -36,7 +36,7 @@ pub struct TraceArgs {
     /// With --scene: do not read or write the on-disk bake cache
     #[arg(long)]
     pub no_cache: bool,
-    /// Height map: gen:NAME[?...], a PNG or an EXR file
+    /// Height map: gen:NAME[?...], a PNG, JPEG, TIFF or EXR file
     #[arg(long, value_name = "HEIGHT", required_unless_present = "scene")]
     pub height: Option<String>,
     #[command(flatten)]

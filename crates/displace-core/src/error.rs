@@ -90,7 +90,7 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
-    /// A height source that is not `gen:NAME`, a PNG or an EXR, or an image
+    /// A height source that is not `gen:NAME`, a PNG, JPEG, TIFF or EXR, or an image
     /// that cannot be decoded or read as heights.
     #[error("{path}: {message}")]
     Image {
