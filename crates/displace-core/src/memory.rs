@@ -121,9 +121,9 @@ pub struct StreamedBake {
 /// Estimated peak bytes of a streamed bake, the largest of its phases, one
 /// after the other: decoding the heights; the distance map (the heights,
 /// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, the direct
-/// writer's buffer, what the writer holds, the column ranges where they are kept and the centres
-/// where they are not the height map's); then the normal map and the cone
-/// map, each beside the heights.
+/// writer's buffer, what the writer holds, the column ranges where they
+/// are kept and the centres where they are not the height map's); then the
+/// normal map and the cone map, each beside the heights.
 pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
     let texels = b.height[0] as u128 * b.height[1] as u128;
     let columns = b.map[0] as u128 * b.map[1] as u128;

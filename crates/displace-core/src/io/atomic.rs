@@ -350,6 +350,7 @@ impl Drop for RemoveOnDrop {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn outputs_larger_than_the_free_space_are_refused_first() {
@@ -377,8 +378,6 @@ mod tests {
         assert!(matches!(e, Err(Error::DiskSpace { .. })), "{:?}", e.err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
-
-    use super::*;
 
     fn entries(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir)

@@ -44,39 +44,23 @@ fn leading_key(message: &str) -> &str {
 /// left to its default), the place of the deepest part that is. `None`
 /// when not even the first part is, or the text is not TOML.
 pub(crate) fn key_location(text: &str, key: &str) -> Option<(usize, usize)> {
-    let root = DeTable::parse(text).ok()?;
-    let mut found: Option<std::ops::Range<usize>> = None;
-    let mut table: Option<&DeTable<'_>> = Some(root.get_ref());
-    let mut value: Option<&DeValue<'_>> = None;
-    for part in key.split('.') {
+    let root = DeValue::Table(DeTable::parse(text).ok()?.into_inner());
+    let mut value = &root;
+    let mut found = None;
+    'path: for part in key.split('.') {
         let (name, indices) = split_indices(part)?;
-        let entry = match (table, value) {
-            (Some(t), _) => t.get(name),
-            (None, Some(v)) => v.get(name),
-            (None, None) => None,
-        };
-        let Some(mut entry) = entry else {
+        let Some(mut entry) = value.get(name) else {
             break;
         };
         found = Some(entry.span());
-        let mut complete = true;
         for i in indices {
-            match entry.get_ref().get(i) {
-                Some(e) => {
-                    entry = e;
-                    found = Some(entry.span());
-                }
-                None => {
-                    complete = false;
-                    break;
-                }
-            }
+            let Some(e) = entry.get_ref().get(i) else {
+                break 'path;
+            };
+            entry = e;
+            found = Some(entry.span());
         }
-        if !complete {
-            break;
-        }
-        table = None;
-        value = Some(entry.get_ref());
+        value = entry.get_ref();
     }
     found.map(|span| line_column(text, span.start))
 }
@@ -136,22 +120,18 @@ mod tests {
 
     #[test]
     fn scene_errors_gain_the_place_of_their_key() {
-        let e = Error::Scene {
+        let unplaced = |message: &str| Error::Scene {
             path: "s.toml".into(),
             at: None,
-            message: "materials.wood.color = [1.0, -1.0, 1.0]: colours cannot be negative".into(),
+            message: message.into(),
         };
+        let negative = "materials.wood.color = [1.0, -1.0, 1.0]: colours cannot be negative";
         assert_eq!(
-            located(e, TEXT).to_string(),
-            "s.toml:6:9: materials.wood.color = [1.0, -1.0, 1.0]: colours cannot be negative"
+            located(unplaced(negative), TEXT).to_string(),
+            format!("s.toml:6:9: {negative}")
         );
-        let unplaced = Error::Scene {
-            path: "s.toml".into(),
-            at: None,
-            message: "no such key anywhere".into(),
-        };
         assert_eq!(
-            located(unplaced, TEXT).to_string(),
+            located(unplaced("no such key anywhere"), TEXT).to_string(),
             "s.toml: no such key anywhere"
         );
     }

@@ -88,25 +88,23 @@ impl<'a> Ctx<'a> {
         Ok(c)
     }
 
+    /// A whole number in `1..=u32::MAX` (a count), the bound named in the
+    /// message as [`Self::bounded`] names its own.
     pub(super) fn positive(&self, v: i64, what: &str) -> Result<u32> {
+        self.bounded(v, u32::MAX.into(), what)
+    }
+
+    /// A whole number in `1..=max` (`max` at most `u32::MAX`), the bound
+    /// named in the message.
+    pub(super) fn bounded(&self, v: i64, max: i64, what: &str) -> Result<u32> {
         if v <= 0 {
             return Err(self.err(format!("{what} must be a positive whole number, got {v}")));
         }
-        u32::try_from(v).map_err(|_| {
-            self.err(format!(
-                "{what} = {v} is more than the limit of {} (a 32-bit count)",
-                u32::MAX
-            ))
-        })
-    }
-
-    /// A whole number in `1..=max`, the bound named in the message.
-    pub(super) fn bounded(&self, v: i64, max: i64, what: &str) -> Result<u32> {
-        let n = self.positive(v, what)?;
+        let max = max.min(u32::MAX.into());
         if v > max {
             return Err(self.err(format!("{what} = {v} is more than the limit of {max}")));
         }
-        Ok(n)
+        Ok(v as u32)
     }
 
     /// Records a file the scene reads, once.
