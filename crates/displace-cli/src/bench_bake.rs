@@ -261,7 +261,9 @@ pub fn run(args: BenchBakeArgs) -> Result<()> {
     );
     println!(
         "envelope kernel: {}; edt.sdf: signed, both sides (as our map); edt.edt and scipy: one side only",
-        if displace_core::edt::vector_kernel() {
+        if displace_core::edt::wide_kernel() {
+            "AVX-512, 16 lines at a time"
+        } else if displace_core::edt::vector_kernel() {
             "AVX2, 8 lines at a time"
         } else {
             "scalar (no AVX2 on this CPU)"

@@ -187,6 +187,28 @@ impl R8Encoder {
     /// in a run where some guess lies too near a code boundary to be sure
     /// of, those values are encoded exactly.
     pub fn encode_into(&self, values: &[f32], codes: &mut [u8]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 is present.
+            unsafe { self.encode_into_avx2(values, codes) };
+            return;
+        }
+        self.encode_runs(values, codes);
+    }
+
+    /// [`Self::encode_runs`] compiled for AVX2: eight guesses an
+    /// instruction rather than four, the same operations and codes.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn encode_into_avx2(&self, values: &[f32], codes: &mut [u8]) {
+        self.encode_runs(values, codes);
+    }
+
+    #[inline(always)]
+    fn encode_runs(&self, values: &[f32], codes: &mut [u8]) {
         const RUN: usize = 32;
         assert_eq!(values.len(), codes.len());
         for (v, c) in values.chunks(RUN).zip(codes.chunks_mut(RUN)) {
@@ -212,6 +234,7 @@ impl R8Encoder {
     /// subtracting 2^23 (exact for values below 2^22) instead of a
     /// saturating cast. A NaN becomes code 0 and is never [`Self::sure`];
     /// adding 2^23 to a code puts it in the low byte of the float's bits.
+    #[inline(always)]
     fn scaled(&self, v: f32) -> (f32, f32) {
         let x = (v - self.min) * self.scale;
         let c = if x > 0.0 { x } else { 0.0 };
@@ -228,6 +251,7 @@ impl R8Encoder {
     /// values of magnitude below 8, span 4) within 6e-5 codes, so away from
     /// the margin the table's comparisons agree with `floor`. Clamped
     /// guesses (below 0, at or above 255) are left to [`Self::encode`].
+    #[inline(always)]
     fn sure(&self, v: f32) -> bool {
         let (c, x) = self.scaled(v);
         let frac = x - c;

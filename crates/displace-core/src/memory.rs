@@ -60,8 +60,11 @@ pub const STREAM_ENCODED_SLICES: u128 = 2;
 /// Bytes per column of the stored footprint ranges alone (low and high).
 pub const RANGE_BYTES_PER_COLUMN: u128 = 8;
 
-/// Bytes per column of the column-centre heights where they cannot be read
-/// from the height map itself.
+/// Bytes per column of the column-centre heights where they are not read
+/// from the height map itself: where they differ from its texels, and where
+/// the column ranges are kept too (then the centres are kept in the order
+/// the transform's second pass reads them, a block of columns at a time,
+/// rather than a row's stride apart).
 pub const CENTRE_BYTES_PER_COLUMN: u128 = 4;
 
 /// Depth from which a streamed bake keeps every column's footprint range
@@ -122,8 +125,8 @@ pub struct StreamedBake {
 /// after the other: decoding the heights; the distance map (the heights,
 /// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, the direct
 /// writer's buffer, what the writer holds, the column ranges where they
-/// are kept and the centres where they are not the height map's); then the
-/// normal map and the cone map, each beside the heights.
+/// are kept and the centres where they are not borrowed from the height
+/// map); then the normal map and the cone map, each beside the heights.
 pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
     let texels = b.height[0] as u128 * b.height[1] as u128;
     let columns = b.map[0] as u128 * b.map[1] as u128;
@@ -141,10 +144,13 @@ pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
         } else {
             0
         }
-        + if centres_are_texels(b.height, b.map) {
+        + if centres_are_texels(b.height, b.map) && !stores_column_ranges(b.map) {
             0
         } else {
-            columns * CENTRE_BYTES_PER_COLUMN
+            // In the transform's block order, the last block padded.
+            (b.map[0].div_ceil(crate::edt::BLOCK) * crate::edt::BLOCK) as u128
+                * b.map[1] as u128
+                * CENTRE_BYTES_PER_COLUMN
         };
     let normals = if b.normals {
         heights + texels * NORMAL_BYTES_PER_TEXEL

@@ -135,7 +135,7 @@ pub fn random_height(kind: u8, w: usize, h: usize, seed: u64, address: Address) 
             let period = 1 + (rng.next_f64() * 3.0) as usize;
             (0..w * h)
                 .map(|k| {
-                    if ((k % w) / period + (k / w) / period) % 2 == 0 {
+                    if ((k % w) / period + (k / w) / period).is_multiple_of(2) {
                         1.0
                     } else {
                         0.0

@@ -85,44 +85,113 @@ pub fn transform_lanes(
     }
 }
 
+/// Lines per group of the 2D transform: sixteen, one per lane of an
+/// AVX-512 register where the CPU has one, else two groups of eight.
+pub const WIDE: usize = 16;
+
+/// Whether [`transform_wide`] runs sixteen lanes in one register (AVX-512F)
+/// on this CPU; otherwise it runs [`transform_lanes`] on each half.
+pub fn wide_kernel() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// [`transform_lanes`] on sixteen interleaved lines (sample `t` of lane `b`
+/// at `data[t * stride + b]`): the same values lane for lane. Sixteen lanes
+/// in one register halve the instructions per line, and the latency of the
+/// gathers that walk each lane's stack is paid once for twice the lines.
+pub fn transform_wide(
+    data: &mut [f32],
+    stride: usize,
+    n: usize,
+    spacing: f32,
+    periodic: bool,
+    s: &mut LaneScratch,
+) {
+    assert!(stride >= WIDE && n > 0 && data.len() >= (n - 1) * stride + WIDE);
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: AVX-512F is present and the rows reach sixteen lanes (above).
+    if wide_kernel() && n <= MAX_LEN && unsafe { avx512::all_finite(data, stride, n) } {
+        // SAFETY: as above, and every value is finite.
+        unsafe { avx512::envelope(data, stride, n, spacing, periodic, s) };
+        return;
+    }
+    transform_lanes(data, stride, n, spacing, periodic, s);
+    transform_lanes(&mut data[LANES..], stride, n, spacing, periodic, s);
+}
+
 /// Whether the eight lanes hold finite values only (the kernel's domain).
 #[cfg(target_arch = "x86_64")]
 fn all_finite(data: &[f32], stride: usize, n: usize) -> bool {
-    (0..n).all(|t| data[t * stride..][..LANES].iter().all(|x| x.is_finite()))
+    // No early exit, so that the test vectorises.
+    (0..n).fold(true, |ok, t| {
+        data[t * stride..][..LANES]
+            .iter()
+            .fold(ok, |ok, x| ok & (x.abs() < f32::INFINITY))
+    })
 }
 
-/// Interleaves `rows` rows of `w` samples (`group[b * w + x]`, `rows <= 8`)
-/// into `block[x * 8 + b]`, as [`transform_lanes`] takes them; lanes past
-/// `rows` repeat the first row.
-pub fn interleave(group: &[f32], rows: usize, w: usize, block: &mut [f32]) {
-    assert!((1..=LANES).contains(&rows) && group.len() >= rows * w && block.len() >= w * LANES);
-    let done = if rows == LANES {
-        // Tile t: rows at group[b * w + 8 t], written to block[64 t + 8 k].
-        transposed(group, [w, LANES], block, [LANES, LANES * LANES], w)
+/// Interleaves `rows` rows of `w` samples (`group[b * w + x]`,
+/// `rows <= width`, `width` 8 or 16) into `block[x * width + b]`, as
+/// [`transform_lanes`] (width 8) and [`transform_wide`] (16) take them;
+/// lanes past `rows` repeat the first row.
+pub fn interleave(group: &[f32], rows: usize, w: usize, width: usize, block: &mut [f32]) {
+    assert!(width.is_multiple_of(LANES) && (1..=width).contains(&rows));
+    assert!(group.len() >= rows * w && block.len() >= w * width);
+    let done = if rows == width {
+        // Eight rows at a time; tile t of half h: rows at
+        // group[(8 h + b) * w + 8 t], written to block[8 h + width (8 t + k)].
+        let mut done = w;
+        for h in 0..width / LANES {
+            done = done.min(transposed(
+                &group[h * LANES * w..],
+                [w, LANES],
+                &mut block[h * LANES..],
+                [width, LANES * width],
+                w,
+            ));
+        }
+        done
     } else {
         0
     };
-    for b in 0..LANES {
+    for b in 0..width {
         let row = &group[if b < rows { b } else { 0 } * w..][..w];
         for x in done..w {
-            block[x * LANES + b] = row[x];
+            block[x * width + b] = row[x];
         }
     }
 }
 
-/// The inverse of [`interleave`]: `group[b * w + x] = block[x * 8 + b]` for
-/// the first `rows` lanes.
-pub fn deinterleave(block: &[f32], rows: usize, w: usize, group: &mut [f32]) {
-    assert!((1..=LANES).contains(&rows) && group.len() >= rows * w && block.len() >= w * LANES);
-    let done = if rows == LANES {
-        // Tile t: eight samples at block[64 t + 8 b], to group[k * w + 8 t].
-        transposed(block, [LANES, LANES * LANES], group, [w, LANES], w)
+/// The inverse of [`interleave`]: `group[b * w + x] = block[x * width + b]`
+/// for the first `rows` lanes.
+pub fn deinterleave(block: &[f32], rows: usize, w: usize, width: usize, group: &mut [f32]) {
+    assert!(width.is_multiple_of(LANES) && (1..=width).contains(&rows));
+    assert!(group.len() >= rows * w && block.len() >= w * width);
+    let done = if rows == width {
+        let mut done = w;
+        for h in 0..width / LANES {
+            done = done.min(transposed(
+                &block[h * LANES..],
+                [width, LANES * width],
+                &mut group[h * LANES * w..],
+                [w, LANES],
+                w,
+            ));
+        }
+        done
     } else {
         0
     };
     for (b, row) in group.chunks_exact_mut(w).take(rows).enumerate() {
         for x in done..w {
-            row[x] = block[x * LANES + b];
+            row[x] = block[x * width + b];
         }
     }
 }
@@ -328,6 +397,158 @@ mod avx2 {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::{LaneScratch, WIDE};
+    use std::arch::x86_64::*;
+
+    /// Whether the sixteen lanes of `n` rows hold finite values only.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F; `data.len() >= (n - 1) * stride + 16`.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn all_finite(data: &[f32], stride: usize, n: usize) -> bool {
+        let inf = _mm512_set1_ps(f32::INFINITY);
+        let p = data.as_ptr();
+        let mut finite: __mmask16 = 0xffff;
+        for t in 0..n {
+            let v = _mm512_abs_ps(_mm512_loadu_ps(p.add(t * stride)));
+            finite &= _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v, inf);
+        }
+        finite == 0xffff
+    }
+
+    /// [`super::avx2::envelope`] on sixteen lanes: the same operations
+    /// lane for lane, with the lane masks in mask registers.
+    ///
+    /// # Safety
+    /// The CPU has AVX-512F; every value is finite; `n <= MAX_LEN`;
+    /// `data.len() >= (n - 1) * stride + 16`.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn envelope(
+        data: &mut [f32],
+        stride: usize,
+        n: usize,
+        spacing: f32,
+        periodic: bool,
+        s: &mut LaneScratch,
+    ) {
+        let m = if periodic { n / 2 } else { 0 };
+        let len = n + 2 * m;
+        s.f.resize((len + 1) * WIDE, 0.0);
+        s.z.resize((len + 1) * WIDE, 0.0);
+        s.prev.resize((len + 1) * WIDE, 0);
+        let (fs, zs, ps) = (s.f.as_mut_ptr(), s.z.as_mut_ptr(), s.prev.as_mut_ptr());
+        let base = data.as_mut_ptr();
+        let inv = _mm512_set1_ps(1.0 / (spacing * spacing));
+        let two = _mm512_set1_ps(2.0);
+        let half = _mm512_set1_ps(0.5);
+        let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+
+        let mut src = if m > 0 { n - m } else { 0 };
+        let load = |src: usize| _mm512_loadu_ps(base.add(src * stride));
+
+        // Element `(site + 1) * 16 + lane`; group 0 is the sentinel.
+        let ninf = _mm512_set1_ps(f32::NEG_INFINITY);
+        _mm512_storeu_ps(fs, _mm512_setzero_ps());
+        _mm512_storeu_ps(zs, ninf);
+        _mm512_storeu_si512(ps as *mut __m512i, lane);
+        let site = |e: __m512i| {
+            _mm512_cvtepi32_ps(_mm512_sub_epi32(
+                _mm512_srli_epi32::<4>(e),
+                _mm512_set1_epi32(1),
+            ))
+        };
+        let element = |q: usize| _mm512_add_epi32(_mm512_set1_epi32(((q + 1) * WIDE) as i32), lane);
+
+        let f0 = load(src);
+        _mm512_storeu_ps(fs.add(WIDE), f0);
+        _mm512_storeu_ps(zs.add(WIDE), ninf);
+        _mm512_storeu_si512(ps.add(WIDE) as *mut __m512i, lane);
+        let (mut t_e, mut t_p, mut t_f, mut t_z) = (element(0), _mm512_setzero_ps(), f0, ninf);
+        let (mut b_e, mut b_p, mut b_f, mut b_z) = (lane, site(lane), _mm512_setzero_ps(), ninf);
+        let mut b_prev = lane;
+
+        // Moves the lanes of `mask` down their stack by one parabola. The
+        // new parabola below is fetched with gathers, except in the lanes
+        // where it is the one at group `at / 16` (`at` a multiple of 16):
+        // those load it from that group directly, at an address that does
+        // not wait on the gather before it.
+        macro_rules! follow {
+            ($mask:expr, $at:expr) => {{
+                let mask: __mmask16 = $mask;
+                t_e = _mm512_mask_blend_epi32(mask, t_e, b_e);
+                t_p = _mm512_mask_blend_ps(mask, t_p, b_p);
+                t_f = _mm512_mask_blend_ps(mask, t_f, b_f);
+                t_z = _mm512_mask_blend_ps(mask, t_z, b_z);
+                b_e = _mm512_mask_blend_epi32(mask, b_e, b_prev);
+                b_p = site(b_e);
+                let at: usize = $at;
+                let near = _mm512_add_epi32(_mm512_set1_epi32(at as i32), lane);
+                let hit = _mm512_mask_cmpeq_epi32_mask(mask, b_e, near);
+                b_f = _mm512_mask_loadu_ps(b_f, hit, fs.add(at));
+                b_z = _mm512_mask_loadu_ps(b_z, hit, zs.add(at));
+                b_prev = _mm512_mask_loadu_epi32(b_prev, hit, ps.add(at));
+                let miss = mask & !hit;
+                if miss != 0 {
+                    b_f = _mm512_mask_i32gather_ps::<4>(b_f, miss, b_e, fs);
+                    b_z = _mm512_mask_i32gather_ps::<4>(b_z, miss, b_e, zs);
+                    b_prev = _mm512_mask_i32gather_epi32::<4>(b_prev, miss, b_e, ps);
+                }
+            }};
+        }
+
+        for q in 1..len {
+            src += 1;
+            if src == n {
+                src = 0;
+            }
+            let qf = _mm512_set1_ps(q as f32);
+            let fq = load(src);
+            let gq = _mm512_mul_ps(fq, inv);
+            let at = (q + 1) * WIDE;
+            _mm512_storeu_ps(fs.add(at), fq);
+            let (num, d2) = loop {
+                let d2 = _mm512_mul_ps(two, _mm512_sub_ps(qf, t_p));
+                let t_g = _mm512_mul_ps(t_f, inv);
+                let num = _mm512_add_ps(
+                    _mm512_sub_ps(gq, t_g),
+                    _mm512_mul_ps(_mm512_mul_ps(half, d2), _mm512_add_ps(qf, t_p)),
+                );
+                let pop = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(num, _mm512_mul_ps(t_z, d2));
+                if pop == 0 {
+                    break (num, d2);
+                }
+                // The parabola below a popped one is most often the site
+                // before it: guess the site two below `q` for the first pop.
+                follow!(pop, q.saturating_sub(2) * WIDE);
+            };
+            let z = _mm512_div_ps(num, d2);
+            _mm512_storeu_ps(zs.add(at), z);
+            _mm512_storeu_si512(ps.add(at) as *mut __m512i, t_e);
+            b_prev = b_e;
+            (b_e, b_p, b_f, b_z) = (t_e, t_p, t_f, t_z);
+            (t_e, t_p, t_f, t_z) = (element(q), qf, fq, z);
+        }
+        let sp = _mm512_set1_ps(spacing);
+        for x in (m..m + n).rev() {
+            let xf = _mm512_set1_ps(x as f32);
+            loop {
+                let back = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(t_z, xf);
+                if back == 0 {
+                    break;
+                }
+                // Where every site is on the envelope (smooth lines), the
+                // parabola below the one that covers `x` is at `x - 1`.
+                follow!(back, x * WIDE);
+            }
+            let d = _mm512_mul_ps(sp, _mm512_sub_ps(xf, t_p));
+            let out = _mm512_add_ps(_mm512_mul_ps(d, d), t_f);
+            _mm512_storeu_ps(base.add((x - m) * stride), out);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -374,26 +595,84 @@ mod tests {
         }
     }
 
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Sixteen lanes give the eight-lane kernel's values to the bit,
+        /// lane for lane, on smooth lines (every site on the envelope: the
+        /// read-back loads the parabola below directly) and on lines with
+        /// repeated levels (pops deep into the stack: gathers), in any
+        /// mix across the lanes.
+        #[test]
+        fn wide_lanes_match_eight_lanes_bit_for_bit(
+            n in 1usize..90,
+            spacing in 0.05f32..3.0,
+            periodic: bool,
+            pad in 0usize..3,
+            seed in any::<u64>(),
+            levels in 1u32..12,
+            smooth_lanes in any::<u16>(),
+        ) {
+            let mut state = seed | 1;
+            let mut next = || { state ^= state << 13; state ^= state >> 7; state ^= state << 17; state };
+            let stride = WIDE + pad;
+            let mut data = vec![0.0f32; n * stride];
+            for b in 0..WIDE {
+                let smooth = smooth_lanes >> b & 1 == 1;
+                let (a, f) = ((next() % 1000) as f32 / 1000.0, (next() % 100) as f32 / 400.0);
+                for t in 0..n {
+                    data[t * stride + b] = if smooth {
+                        let x = a + (t as f32 * f).sin();
+                        x * x
+                    } else {
+                        (next() % u64::from(levels)) as f32 * 0.37
+                    };
+                }
+            }
+            let mut wide = data.clone();
+            transform_wide(&mut wide, stride, n, spacing, periodic, &mut LaneScratch::default());
+            let mut eight = data.clone();
+            let mut s = LaneScratch::default();
+            transform_lanes(&mut eight, stride, n, spacing, periodic, &mut s);
+            transform_lanes(&mut eight[LANES..], stride, n, spacing, periodic, &mut s);
+            for (i, (a, b)) in wide.iter().zip(&eight).enumerate() {
+                prop_assert_eq!(a.to_bits(), b.to_bits(), "element {} of {}x{}", i, n, stride);
+            }
+            // And the scalar envelope's, up to the rounding of a tie (on a
+            // CPU without AVX-512 both sides above run the same kernel).
+            for b in 0..WIDE {
+                let mut want: Vec<f32> = (0..n).map(|t| data[t * stride + b]).collect();
+                transform_line(&mut want, spacing, periodic, &mut LineScratch::default());
+                for t in 0..n {
+                    let (g, w) = (wide[t * stride + b], want[t]);
+                    prop_assert!((g - w).abs() <= 1e-5 * (1.0 + w), "lane {b} sample {t}: {g} vs {w}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn interleaving_round_trips() {
-        for w in [1, 7, 8, 9, 16, 37] {
-            for rows in 1..=LANES {
-                let group: Vec<f32> = (0..rows * w).map(|i| i as f32).collect();
-                let mut block = vec![-1.0; w * LANES];
-                interleave(&group, rows, w, &mut block);
-                for x in 0..w {
-                    for b in 0..LANES {
-                        let from = if b < rows { b } else { 0 };
-                        assert_eq!(
-                            block[x * LANES + b],
-                            group[from * w + x],
-                            "{w} {rows} {x} {b}"
-                        );
+        for width in [LANES, WIDE] {
+            for w in [1, 7, 8, 9, 16, 37] {
+                for rows in 1..=width {
+                    let group: Vec<f32> = (0..rows * w).map(|i| i as f32).collect();
+                    let mut block = vec![-1.0; w * width];
+                    interleave(&group, rows, w, width, &mut block);
+                    for x in 0..w {
+                        for b in 0..width {
+                            let from = if b < rows { b } else { 0 };
+                            assert_eq!(
+                                block[x * width + b],
+                                group[from * w + x],
+                                "{width} {w} {rows} {x} {b}"
+                            );
+                        }
                     }
+                    let mut back = vec![-1.0; rows * w];
+                    deinterleave(&block, rows, w, width, &mut back);
+                    assert_eq!(back, group, "{width} {w} {rows}");
                 }
-                let mut back = vec![-1.0; rows * w];
-                deinterleave(&block, rows, w, &mut back);
-                assert_eq!(back, group, "{w} {rows}");
             }
         }
     }

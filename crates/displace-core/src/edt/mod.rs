@@ -29,7 +29,10 @@
 
 mod lanes;
 
-pub use lanes::{deinterleave, interleave, transform_lanes, vector_kernel, LaneScratch, LANES};
+pub use lanes::{
+    deinterleave, interleave, transform_lanes, transform_wide, vector_kernel, wide_kernel,
+    LaneScratch, LANES, WIDE,
+};
 use std::mem::take;
 
 /// Scratch space for the 1D transforms, reused across lines so that no line
@@ -141,7 +144,7 @@ fn envelope(line: &mut [f32], spacing: f32, s: &mut LineScratch) {
 #[derive(Default)]
 pub struct SliceScratch {
     lanes: LaneScratch,
-    /// Eight interleaved rows, or `BLOCK` interleaved columns.
+    /// Sixteen interleaved rows, or `BLOCK` interleaved columns.
     block: Vec<f32>,
 }
 
@@ -155,22 +158,28 @@ pub fn transform_2d(
     periodic: [bool; 2],
     s: &mut SliceScratch,
 ) {
-    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, _| {});
+    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, _, _| {});
 }
 
 /// [`transform_2d`] with the producer and consumer of the slice fused in:
 /// `fill(j, row)` writes row `j`'s input just before that row is transformed,
-/// while it is in cache, and `finish(start, run)` maps, in place, each run of
-/// results as the second pass stores it (`start` is the flat index of the
-/// run's first value), so neither needs a pass of its own over the slice.
+/// while it is in cache, and `finish(j, i0, run)` maps, in place, each run
+/// of results as the second pass stores it (`run` holds the
+/// values of row `j` from column `i0`, a multiple of [`BLOCK`]), so neither
+/// needs a pass of its own over the slice.
 ///
-/// Both passes run eight lines at a time through [`transform_lanes`]: rows are
-/// interleaved into a block eight at a time, columns are copied a block of
-/// 32 at a time (a row of the block is two cache lines) and
-/// transformed as four groups of eight. A group short of eight lines (the
-/// last rows or columns of a slice whose size is not a multiple of eight) is
-/// padded with copies of its first line, whose results are dropped.
+/// Both passes run sixteen lines at a time through [`transform_wide`]: rows
+/// are interleaved into a block sixteen at a time, columns are copied a
+/// block of 32 at a time (a row of the block is two cache lines) and
+/// transformed as two groups of sixteen. A group short of sixteen lines (the
+/// last rows or columns of a slice whose size is not a multiple of sixteen)
+/// is padded with copies of its first line, whose results are dropped.
+///
+/// Always inlined, so that a caller compiled for a wider instruction set
+/// (the bake's slices, for AVX2) compiles `fill`, `finish` and the copies
+/// for it too.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 pub fn transform_2d_with(
     g: &mut [f32],
     w: usize,
@@ -179,43 +188,51 @@ pub fn transform_2d_with(
     periodic: [bool; 2],
     s: &mut SliceScratch,
     mut fill: impl FnMut(usize, &mut [f32]),
-    mut finish: impl FnMut(usize, &mut [f32]),
+    mut finish: impl FnMut(usize, usize, &mut [f32]),
 ) {
     debug_assert_eq!(g.len(), w * h);
     if w == 0 || h == 0 {
         return;
     }
     let mut block = take(&mut s.block);
-    block.resize(w.max(h) * BLOCK, 0.0);
-    for j0 in (0..h).step_by(LANES) {
-        let rows = LANES.min(h - j0);
+    block.resize((w * WIDE).max(h * BLOCK), 0.0);
+    for j0 in (0..h).step_by(WIDE) {
+        let rows = WIDE.min(h - j0);
         let group = &mut g[j0 * w..(j0 + rows) * w];
         for (b, row) in group.chunks_exact_mut(w).enumerate() {
             fill(j0 + b, row);
         }
-        interleave(group, rows, w, &mut block);
-        transform_lanes(
-            &mut block[..w * LANES],
-            LANES,
+        interleave(group, rows, w, WIDE, &mut block);
+        transform_wide(
+            &mut block[..w * WIDE],
+            WIDE,
             w,
             spacing[0],
             periodic[0],
             &mut s.lanes,
         );
-        deinterleave(&block, rows, w, group);
+        deinterleave(&block, rows, w, WIDE, group);
     }
     for i0 in (0..w).step_by(BLOCK) {
         let nb = BLOCK.min(w - i0);
-        let groups = nb.div_ceil(LANES);
-        for (j, row) in g.chunks_exact(w).enumerate() {
-            let run = &row[i0..i0 + nb];
-            let dst = &mut block[j * BLOCK..][..groups * LANES];
-            dst[..nb].copy_from_slice(run);
-            dst[nb..].fill(run[0]);
+        let groups = nb.div_ceil(WIDE);
+        if nb == BLOCK {
+            // A whole block: copies of a known length, inlined.
+            for (row, dst) in g.chunks_exact(w).zip(block.chunks_exact_mut(BLOCK)) {
+                let run: &[f32; BLOCK] = row[i0..i0 + BLOCK].try_into().unwrap();
+                dst.copy_from_slice(run);
+            }
+        } else {
+            for (j, row) in g.chunks_exact(w).enumerate() {
+                let run = &row[i0..i0 + nb];
+                let dst = &mut block[j * BLOCK..][..groups * WIDE];
+                dst[..nb].copy_from_slice(run);
+                dst[nb..].fill(run[0]);
+            }
         }
         for c in 0..groups {
-            transform_lanes(
-                &mut block[c * LANES..h * BLOCK],
+            transform_wide(
+                &mut block[c * WIDE..h * BLOCK],
                 BLOCK,
                 h,
                 spacing[1],
@@ -223,18 +240,31 @@ pub fn transform_2d_with(
                 &mut s.lanes,
             );
         }
-        for (j, row) in g.chunks_exact_mut(w).enumerate() {
-            let run = &mut row[i0..i0 + nb];
-            run.copy_from_slice(&block[j * BLOCK..][..nb]);
-            finish(j * w + i0, run);
+        if nb == BLOCK {
+            for (j, (row, src)) in g
+                .chunks_exact_mut(w)
+                .zip(block.chunks_exact(BLOCK))
+                .enumerate()
+            {
+                let run: &mut [f32; BLOCK] = (&mut row[i0..i0 + BLOCK]).try_into().unwrap();
+                run.copy_from_slice(src);
+                finish(j, i0, run);
+            }
+        } else {
+            for (j, row) in g.chunks_exact_mut(w).enumerate() {
+                let run = &mut row[i0..i0 + nb];
+                run.copy_from_slice(&block[j * BLOCK..][..nb]);
+                finish(j, i0, run);
+            }
         }
     }
     s.block = block;
 }
 
-/// Columns transformed together: 32 `f32` are two 64-byte cache lines of a
-/// row, and a block of 1024-sample lines (128 KiB) stays in L2.
-const BLOCK: usize = 32;
+/// Columns the second pass transforms together: 32 `f32` are two 64-byte
+/// cache lines of a row, and a block of 2048-sample lines (256 KiB) stays in
+/// L2.
+pub const BLOCK: usize = 32;
 
 /// Classic binary EDT of a 3D volume (`[k][j][i]`, `size = [w, h, d]`):
 /// for every voxel, the Euclidean distance (physical units, `spacing` per

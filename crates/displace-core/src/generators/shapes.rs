@@ -44,7 +44,7 @@ pub(super) fn studded(query: Option<&str>, grid: Grid) -> Result<HeightMap> {
     let low = p.number("low", 0.0, 0.0, 1.0)? as f32;
     let high = p.number("high", 1.0, 0.0, 1.0)? as f32;
     grid.map(grid.fill(|i, j| {
-        if (i / period + j / period) % 2 == 0 {
+        if (i / period + j / period).is_multiple_of(2) {
             high
         } else {
             low

@@ -19,7 +19,7 @@ pub fn checker_mips(size: u32, cells: u32) -> Vec<Vec<u8>> {
     let mut level: Vec<u8> = (0..size * size)
         .flat_map(|k| {
             let (x, y) = (k % size, k / size);
-            if ((x / cell) + (y / cell)) % 2 == 0 {
+            if ((x / cell) + (y / cell)).is_multiple_of(2) {
                 [225, 200, 160, 255]
             } else {
                 [150, 90, 60, 255]
