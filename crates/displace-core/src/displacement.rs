@@ -410,18 +410,31 @@ macro_rules! slice_body {
                 squared(row, lo, hi);
             }
         };
-        let mut low = f32::INFINITY;
-        let finish = |j: usize, i0: usize, run: &mut [f32]| {
-            let hcs = centres.run(w, h, j, i0, run.len());
-            for (v, &hc) in run.iter_mut().zip(hcs) {
+        // Eight running minima, folded once per slice.
+        let mut low = [f32::INFINITY; 8];
+        let finish = |j: usize, i0: usize, results: &[f32], out: &mut [f32]| {
+            let hcs = centres.run(w, h, j, i0, out.len());
+            for ((o, &v), &hc) in out.iter_mut().zip(results).zip(hcs) {
                 let dist = v.sqrt();
                 // Both sides computed, one kept: a select, not a branch
-                // that mispredicts along the surface.
-                let below = -(dist + r_xy).min(hc - z);
+                // that mispredicts along the surface. Comparisons rather
+                // than `f32::min` (whose NaN rule costs a compare and a
+                // blend): both operands are finite, and where they tie
+                // either is the same value.
+                let (near, depth) = (dist + r_xy, hc - z);
+                let below = -(if depth < near { depth } else { near });
                 let above = dist - r_xy;
-                *v = (if z < hc { below } else { above }) - slack;
+                *o = (if z < hc { below } else { above }) - slack;
             }
-            low = low.min(run_min(run));
+            let chunks = out.chunks_exact(8);
+            for &v in chunks.remainder() {
+                low[0] = if v < low[0] { v } else { low[0] };
+            }
+            for c in chunks {
+                for (l, &v) in low.iter_mut().zip(c) {
+                    *l = if v < *l { v } else { *l };
+                }
+            }
         };
         transform_2d_with(
             $slice,
@@ -430,10 +443,11 @@ macro_rules! slice_body {
             [hx, hy],
             [periodic, periodic],
             $scratch,
+            true,
             fill,
             finish,
         );
-        low
+        low.into_iter().fold(f32::INFINITY, f32::min)
     }};
 }
 impl<'h> BakePlan<'h> {
@@ -567,24 +581,6 @@ impl<'h> BakePlan<'h> {
     ) -> f32 {
         slice_body!(self, k, slice, scratch, source)
     }
-}
-
-/// The lowest of `values`, eight lanes at a time (a fold through
-/// `f32::min` one value after another does not vectorise).
-#[inline(always)]
-fn run_min(values: &[f32]) -> f32 {
-    let mut lanes = [f32::INFINITY; 8];
-    let chunks = values.chunks_exact(8);
-    let tail = chunks.remainder();
-    for c in chunks {
-        for (l, &v) in lanes.iter_mut().zip(c) {
-            *l = l.min(v);
-        }
-    }
-    tail.iter()
-        .chain(&lanes)
-        .copied()
-        .fold(f32::INFINITY, f32::min)
 }
 
 fn is_cancelled(opts: &BakeOptions) -> bool {

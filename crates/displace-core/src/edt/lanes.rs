@@ -114,10 +114,27 @@ pub fn transform_wide(
     periodic: bool,
     s: &mut LaneScratch,
 ) {
+    wide(data, stride, n, spacing, periodic, s, true);
+}
+
+/// [`transform_wide`], checking that every value is finite only when
+/// `check` (the vector kernel's loops end only on finite values; a caller
+/// that knows its values are, a bake's squared distances, skips the pass).
+pub(super) fn wide(
+    data: &mut [f32],
+    stride: usize,
+    n: usize,
+    spacing: f32,
+    periodic: bool,
+    s: &mut LaneScratch,
+    check: bool,
+) {
     assert!(stride >= WIDE && n > 0 && data.len() >= (n - 1) * stride + WIDE);
     #[cfg(target_arch = "x86_64")]
     // SAFETY: AVX-512F is present and the rows reach sixteen lanes (above).
-    if wide_kernel() && n <= MAX_LEN && unsafe { avx512::all_finite(data, stride, n) } {
+    if wide_kernel() && n <= MAX_LEN && (!check || unsafe { avx512::all_finite(data, stride, n) }) {
+        // SAFETY: as above.
+        debug_assert!(unsafe { avx512::all_finite(data, stride, n) });
         // SAFETY: as above, and every value is finite.
         unsafe { avx512::envelope(data, stride, n, spacing, periodic, s) };
         return;
@@ -508,6 +525,10 @@ mod avx512 {
             let gq = _mm512_mul_ps(fq, inv);
             let at = (q + 1) * WIDE;
             _mm512_storeu_ps(fs.add(at), fq);
+            // Where the parabolas below the top are the sites just before
+            // `q` (a smooth line), the one the next pop exposes is at the
+            // group below the last: `guess` follows it down.
+            let mut guess = q.saturating_sub(2) * WIDE;
             let (num, d2) = loop {
                 let d2 = _mm512_mul_ps(two, _mm512_sub_ps(qf, t_p));
                 let t_g = _mm512_mul_ps(t_f, inv);
@@ -519,9 +540,8 @@ mod avx512 {
                 if pop == 0 {
                     break (num, d2);
                 }
-                // The parabola below a popped one is most often the site
-                // before it: guess the site two below `q` for the first pop.
-                follow!(pop, q.saturating_sub(2) * WIDE);
+                follow!(pop, guess);
+                guess = guess.saturating_sub(WIDE);
             };
             let z = _mm512_div_ps(num, d2);
             _mm512_storeu_ps(zs.add(at), z);
@@ -533,14 +553,16 @@ mod avx512 {
         let sp = _mm512_set1_ps(spacing);
         for x in (m..m + n).rev() {
             let xf = _mm512_set1_ps(x as f32);
+            // Where every site is on the envelope (smooth lines), the
+            // parabola below the one that covers `x` is at `x - 1`.
+            let mut guess = x * WIDE;
             loop {
                 let back = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(t_z, xf);
                 if back == 0 {
                     break;
                 }
-                // Where every site is on the envelope (smooth lines), the
-                // parabola below the one that covers `x` is at `x - 1`.
-                follow!(back, x * WIDE);
+                follow!(back, guess);
+                guess = guess.saturating_sub(WIDE);
             }
             let d = _mm512_mul_ps(sp, _mm512_sub_ps(xf, t_p));
             let out = _mm512_add_ps(_mm512_mul_ps(d, d), t_f);

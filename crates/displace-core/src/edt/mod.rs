@@ -158,15 +158,28 @@ pub fn transform_2d(
     periodic: [bool; 2],
     s: &mut SliceScratch,
 ) {
-    transform_2d_with(g, w, h, spacing, periodic, s, |_, _| {}, |_, _, _| {});
+    transform_2d_with(
+        g,
+        w,
+        h,
+        spacing,
+        periodic,
+        s,
+        false,
+        |_, _| {},
+        |_, _, results, out| out.copy_from_slice(results),
+    );
 }
 
 /// [`transform_2d`] with the producer and consumer of the slice fused in:
 /// `fill(j, row)` writes row `j`'s input just before that row is transformed,
-/// while it is in cache, and `finish(j, i0, run)` maps, in place, each run
-/// of results as the second pass stores it (`run` holds the
-/// values of row `j` from column `i0`, a multiple of [`BLOCK`]), so neither
-/// needs a pass of its own over the slice.
+/// while it is in cache, and `finish(j, i0, results, out)` maps each run of
+/// the second pass's results into the slice as it stores them (`out` is row
+/// `j` from column `i0`, a multiple of [`BLOCK`]; the identity is a copy),
+/// so neither needs a pass of its own over the slice. With `finite` the
+/// caller promises that every value `fill` writes is finite (as squared
+/// distances are), and the kernel skips checking it; an infinite value
+/// there would not end.
 ///
 /// Both passes run sixteen lines at a time through [`transform_wide`]: rows
 /// are interleaved into a block sixteen at a time, columns are copied a
@@ -187,8 +200,9 @@ pub fn transform_2d_with(
     spacing: [f32; 2],
     periodic: [bool; 2],
     s: &mut SliceScratch,
+    finite: bool,
     mut fill: impl FnMut(usize, &mut [f32]),
-    mut finish: impl FnMut(usize, usize, &mut [f32]),
+    mut finish: impl FnMut(usize, usize, &[f32], &mut [f32]),
 ) {
     debug_assert_eq!(g.len(), w * h);
     if w == 0 || h == 0 {
@@ -203,13 +217,14 @@ pub fn transform_2d_with(
             fill(j0 + b, row);
         }
         interleave(group, rows, w, WIDE, &mut block);
-        transform_wide(
+        lanes::wide(
             &mut block[..w * WIDE],
             WIDE,
             w,
             spacing[0],
             periodic[0],
             &mut s.lanes,
+            !finite,
         );
         deinterleave(&block, rows, w, WIDE, group);
     }
@@ -231,31 +246,18 @@ pub fn transform_2d_with(
             }
         }
         for c in 0..groups {
-            transform_wide(
+            lanes::wide(
                 &mut block[c * WIDE..h * BLOCK],
                 BLOCK,
                 h,
                 spacing[1],
                 periodic[1],
                 &mut s.lanes,
+                !finite,
             );
         }
-        if nb == BLOCK {
-            for (j, (row, src)) in g
-                .chunks_exact_mut(w)
-                .zip(block.chunks_exact(BLOCK))
-                .enumerate()
-            {
-                let run: &mut [f32; BLOCK] = (&mut row[i0..i0 + BLOCK]).try_into().unwrap();
-                run.copy_from_slice(src);
-                finish(j, i0, run);
-            }
-        } else {
-            for (j, row) in g.chunks_exact_mut(w).enumerate() {
-                let run = &mut row[i0..i0 + nb];
-                run.copy_from_slice(&block[j * BLOCK..][..nb]);
-                finish(j, i0, run);
-            }
+        for (j, row) in g.chunks_exact_mut(w).enumerate() {
+            finish(j, i0, &block[j * BLOCK..][..nb], &mut row[i0..i0 + nb]);
         }
     }
     s.block = block;

@@ -162,6 +162,33 @@ impl AtomicFile {
         &mut self.out
     }
 
+    /// Flushes what is buffered and asks the kernel to start writing the
+    /// file's dirty pages to the device now, without waiting for them
+    /// (Linux's `sync_file_range(SYNC_FILE_RANGE_WRITE)`), so that the
+    /// fsync of [`Self::commit`] finds little left to write: a streamed
+    /// bake calls it after each slice, and its writes overlap the slices
+    /// still being computed (the fsync of a 16 MB map was 7 ms, an eighth
+    /// of its whole bake). Only a hint: where the call is not supported
+    /// the commit writes everything, as before.
+    pub fn start_writeback(&mut self) -> std::io::Result<()> {
+        self.out.flush()?;
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::fd::AsRawFd;
+            // SAFETY: a plain system call on a file descriptor this file
+            // owns; offset 0 and length 0 name the whole file.
+            unsafe {
+                libc::sync_file_range(
+                    self.out.get_ref().as_raw_fd(),
+                    0,
+                    0,
+                    libc::SYNC_FILE_RANGE_WRITE,
+                );
+            }
+        }
+        Ok(())
+    }
+
     /// The same file opened again for direct writes from its start
     /// ([`super::direct`]), while nothing has gone through
     /// [`Self::writer`]; `None` where the file system refuses direct I/O.

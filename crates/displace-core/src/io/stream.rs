@@ -364,7 +364,10 @@ impl Background {
                         file.writer().write_all(d.held())?;
                         file.writer().write_all(&bytes)?;
                     }
-                    None => file.writer().write_all(&bytes)?,
+                    None => {
+                        file.writer().write_all(&bytes)?;
+                        file.start_writeback()?;
+                    }
                 }
                 let _ = back.try_send(bytes);
             }
