@@ -5,7 +5,10 @@
 //! uses) against the scalar transform on the same lines.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use displace_core::edt::{transform_lanes, transform_line, LaneScratch, LineScratch, LANES};
+use displace_core::edt::{
+    interleave, transform_lanes, transform_line, transform_wide, LaneScratch, LineScratch, LANES,
+    WIDE,
+};
 use displace_core::{bake, generators, Address, BakeOptions, Extent};
 use std::hint::black_box;
 
@@ -31,8 +34,8 @@ fn bake_volumes(c: &mut Criterion) {
 /// The 1D transforms of one 512x512 slice's rows as a bake does them: the
 /// squared height distance `(z - h)^2` at mid-depth along every row of a
 /// `noise` (or `studded`) map, 512 different lines so that the branch
-/// predictor cannot learn one line's pops; the kernel takes them as 64
-/// interleaved groups of eight.
+/// predictor cannot learn one line's pops; the kernels take them as 64
+/// interleaved groups of eight or 32 of sixteen.
 fn envelope_lines(c: &mut Criterion) {
     let mut group = c.benchmark_group("envelope");
     let n = 512;
@@ -44,13 +47,17 @@ fn envelope_lines(c: &mut Criterion) {
             .iter()
             .map(|h| (0.5 - h) * (0.5 - h))
             .collect();
-        let mut lanes = vec![0.0f32; n * n];
-        for (r, line) in lines.chunks_exact(n).enumerate() {
-            let (g, b) = (r / LANES, r % LANES);
-            for (x, &v) in line.iter().enumerate() {
-                lanes[g * n * LANES + x * LANES + b] = v;
+        let interleaved = |width: usize| {
+            let mut out = vec![0.0f32; n * n];
+            for (rows, block) in lines
+                .chunks_exact(n * width)
+                .zip(out.chunks_exact_mut(n * width))
+            {
+                interleave(rows, width, n, width, block);
             }
-        }
+            out
+        };
+        let (lanes, wide) = (interleaved(LANES), interleaved(WIDE));
         group.throughput(Throughput::Elements((n * n) as u64));
         let spacing = 10.0 / n as f32;
         group.bench_function(BenchmarkId::new("scalar", name), |b| {
@@ -70,6 +77,17 @@ fn envelope_lines(c: &mut Criterion) {
                 work.copy_from_slice(&lanes);
                 for group in work.chunks_exact_mut(n * LANES) {
                     transform_lanes(black_box(group), LANES, n, spacing, false, &mut s);
+                }
+            })
+        });
+        // Sixteen lanes: one AVX-512 register, or two AVX2 groups.
+        group.bench_function(BenchmarkId::new("wide", name), |b| {
+            let mut s = LaneScratch::default();
+            let mut work = wide.clone();
+            b.iter(|| {
+                work.copy_from_slice(&wide);
+                for group in work.chunks_exact_mut(n * WIDE) {
+                    transform_wide(black_box(group), WIDE, n, spacing, false, &mut s);
                 }
             })
         });

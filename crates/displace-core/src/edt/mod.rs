@@ -10,11 +10,12 @@
 //! measured in physical units.
 //!
 //! [`transform_line`] is the envelope for one line; the 2D transform a bake
-//! runs takes its lines eight at a time through [`transform_lanes`], the same
-//! arithmetic in the lanes of an AVX2 register (1.7x the scalar throughput
-//! on the rows of `studded`, 3x on `noise`, `cargo bench --bench bake --
-//! envelope`: the scalar envelope's time goes to branches it mispredicts),
-//! with the scalar envelope as the fallback on other CPUs.
+//! runs takes its lines sixteen at a time through [`transform_wide`], the
+//! same arithmetic in the lanes of an AVX-512 register, or of two AVX2
+//! registers through [`transform_lanes`] (eight lanes were 1.7x the scalar
+//! throughput on the rows of `studded`, 3x on `noise`, `cargo bench --bench
+//! bake -- envelope`: the scalar envelope's time goes to branches it
+//! mispredicts), with the scalar envelope as the fallback on other CPUs.
 //!
 //! # Precision
 //! The envelope works in `f32` and in sample units: parabola `p` is
