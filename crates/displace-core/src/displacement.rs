@@ -396,7 +396,11 @@ macro_rules! slice_body {
         let z = texel_centre(k, d);
         let squared = |row: &mut [f32], lo: &[f32], hi: &[f32]| {
             for ((g, &lo), &hi) in row.iter_mut().zip(lo).zip(hi) {
-                let dz = (lo - z).max(z - hi).max(0.0);
+                // `max` as compare-selects: the operands are finite (the
+                // heights are), so `f32::max`'s NaN rule would only cost.
+                let (under, over) = (lo - z, z - hi);
+                let dz = if under > over { under } else { over };
+                let dz = if dz > 0.0 { dz } else { 0.0 };
                 *g = dz * dz;
             }
         };
@@ -426,15 +430,18 @@ macro_rules! slice_body {
                 let above = dist - r_xy;
                 *o = (if z < hc { below } else { above }) - slack;
             }
+            // This run's minima in registers, then into the slice's.
+            let mut run = low;
             let chunks = out.chunks_exact(8);
             for &v in chunks.remainder() {
-                low[0] = if v < low[0] { v } else { low[0] };
+                run[0] = if v < run[0] { v } else { run[0] };
             }
             for c in chunks {
-                for (l, &v) in low.iter_mut().zip(c) {
+                for (l, &v) in run.iter_mut().zip(c) {
                     *l = if v < *l { v } else { *l };
                 }
             }
+            low = run;
         };
         transform_2d_with(
             $slice,
