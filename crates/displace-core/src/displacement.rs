@@ -2,7 +2,7 @@
 //! baked [`DisplacementMap`] that renderers trace.
 
 use crate::convention::{texel_centre, texel_lerp, Extent, MAX_CELL_SPAN, MAX_TRACE_ITERATIONS};
-use crate::distance_map::DistanceMap;
+use crate::distance_map::{DistanceMap, R8Encoder};
 use crate::edt::{transform_2d_with, SliceScratch, BLOCK};
 use crate::sphere_trace::{self, MapHit, MapRay, TraceOptions};
 use crate::{Address, Error, HeightMap, NormalMap, Result};
@@ -10,6 +10,8 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
+
+pub(crate) mod coded;
 
 /// Called with `(slices done, slices in all)` as the bake progresses.
 pub type Progress = Arc<dyn Fn(usize, usize) + Send + Sync>;
@@ -272,18 +274,63 @@ pub trait SlabSink {
     fn begin(&mut self, layout: BakeLayout) -> Result<()>;
     /// Called with each slab, in order of depth.
     fn push(&mut self, slab: Slab<'_>) -> Result<()>;
+
+    /// The encoder of the sink's R8 codes, once what it writes no longer
+    /// depends on the values still to come (a KTX2 r8 file's range
+    /// settled, a DDS r8 file's fixed one): the bake then encodes each
+    /// value as it computes it and hands the slabs' codes to
+    /// [`Self::push_codes`] instead of their values to [`Self::push`], so
+    /// that the values never go through memory as `f32` (their write and
+    /// read back were a fifth of an r8 bake). `None`, the default: values.
+    fn encoder(&self) -> Option<R8Encoder> {
+        None
+    }
+
+    /// A buffer for a slab's codes: one the sink has finished with, where
+    /// it keeps them, or a new one.
+    fn code_buffer(&mut self) -> Vec<u8> {
+        Vec::new()
+    }
+
+    /// Called with each slab's codes, in order of depth, once
+    /// [`Self::encoder`] gave an encoder (it is asked before each slab).
+    fn push_codes(&mut self, slab: CodedSlab) -> Result<()> {
+        Err(Error::Invariant(format!(
+            "codes of depth slices from {} were pushed to a sink that offered no encoder",
+            slab.first
+        )))
+    }
+}
+
+/// A slab of a streamed bake as R8 codes ([`SlabSink::push_codes`]).
+#[derive(Debug)]
+pub struct CodedSlab {
+    /// Depth index of the slab's first slice.
+    pub first: usize,
+    /// The codes of the slices' values (`[k][j][i]`), as the sink's
+    /// encoder gives them.
+    pub codes: Vec<u8>,
+    /// The lowest of the slices' values.
+    pub min: f32,
+    /// A lower bound on every value of the slices still to come (as
+    /// [`Slab::rest_lower_bound`]).
+    pub rest_lower_bound: f32,
 }
 
 /// Bakes the distance map of [`bake`] a slab of `slab_slices` depth slices
 /// at a time (each slab's slices in parallel) and hands each slab to `sink`
 /// in order, so that peak memory is the height map, its column ranges and
 /// one slab rather than the whole volume. The values are bit-identical to
-/// [`bake`]'s.
+/// [`bake`]'s. Once the sink offers an encoder ([`SlabSink::encoder`]: an
+/// r8 file whose range is known, usually after the first slab) the rest is
+/// computed as codes, each slice taken by whichever of up to `slab_slices`
+/// threads is free and pushed in order of depth ([`SlabSink::push_codes`]),
+/// with no barrier between slabs.
 pub fn bake_streamed(
     height: &HeightMap,
     opts: &BakeOptions,
     slab_slices: usize,
-    sink: &mut impl SlabSink,
+    sink: &mut (impl SlabSink + Send),
 ) -> Result<()> {
     let plan = BakePlan::new(height, opts, crate::memory::stores_column_ranges(opts.size))?;
     sink.begin(BakeLayout {
@@ -306,6 +353,12 @@ pub fn bake_streamed(
     // The bound promised for the slices still to come, checked on each.
     let mut promised = f32::NEG_INFINITY;
     for first in (0..d).step_by(slab_slices) {
+        if let Some(encoder) = sink.encoder() {
+            // The sink's range is known: codes, a slice at a time.
+            return coded::bake_coded(
+                &plan, first, promised, &encoder, &rest, &mut buf, sink, opts, &done,
+            );
+        }
         let n = slab_slices.min(d - first);
         let values = &mut buf[..w * h * n];
         let mins = &mut mins[..n];
@@ -387,8 +440,9 @@ struct BakePlan<'h> {
 /// The body of [`BakePlan::slice`]: the fill and finish of one depth slice
 /// around its 2D transform.
 macro_rules! slice_body {
-    ($plan:expr, $k:expr, $slice:expr, $scratch:expr, $source:expr) => {{
+    ($plan:expr, $k:expr, $slice:expr, $scratch:expr, $source:expr, $codes:expr) => {{
         let k: usize = $k;
+        let mut codes: Option<(&R8Encoder, &mut [u8])> = $codes;
         let [w, h, d] = $plan.size;
         let [hx, hy, _] = $plan.spacing;
         let periodic = $plan.address == Address::Repeat;
@@ -417,8 +471,14 @@ macro_rules! slice_body {
         // Eight running minima, folded once per slice.
         let mut low = [f32::INFINITY; 8];
         let finish = |j: usize, i0: usize, results: &[f32], out: &mut [f32]| {
-            let hcs = centres.run(w, h, j, i0, out.len());
-            for ((o, &v), &hc) in out.iter_mut().zip(results).zip(hcs) {
+            let n = out.len();
+            // The run's values on the stack, then into the slice or, as
+            // codes, into `codes` (the slice is then only the first pass's
+            // scratch, and the values never go back to memory as `f32`).
+            let mut run_values = [0.0f32; BLOCK];
+            let values = &mut run_values[..n];
+            let hcs = centres.run(w, h, j, i0, n);
+            for ((o, &v), &hc) in values.iter_mut().zip(results).zip(hcs) {
                 let dist = v.sqrt();
                 // Both sides computed, one kept: a select, not a branch
                 // that mispredicts along the surface. Comparisons rather
@@ -432,7 +492,7 @@ macro_rules! slice_body {
             }
             // This run's minima in registers, then into the slice's.
             let mut run = low;
-            let chunks = out.chunks_exact(8);
+            let chunks = values.chunks_exact(8);
             for &v in chunks.remainder() {
                 run[0] = if v < run[0] { v } else { run[0] };
             }
@@ -442,6 +502,12 @@ macro_rules! slice_body {
                 }
             }
             low = run;
+            match codes.as_mut() {
+                Some((encoder, codes)) => {
+                    encoder.encode_runs(values, &mut codes[j * w + i0..][..n])
+                }
+                None => out.copy_from_slice(values),
+            }
         };
         transform_2d_with(
             $slice,
@@ -526,9 +592,30 @@ impl<'h> BakePlan<'h> {
         opts: &BakeOptions,
         done: &AtomicUsize,
     ) -> Result<()> {
+        self.slices_into(first, out, None, mins, opts, done)
+    }
+
+    /// [`Self::slices`], or with `codes` their R8 codes instead: each value
+    /// encoded as it is computed, into `codes` (as many slices as `out`,
+    /// which is then only the transform's scratch).
+    fn slices_into(
+        &self,
+        first: usize,
+        out: &mut [f32],
+        codes: Option<(&R8Encoder, &mut [u8])>,
+        mins: &mut [f32],
+        opts: &BakeOptions,
+        done: &AtomicUsize,
+    ) -> Result<()> {
         let (grid, height, w) = (&self.grid, self.height, self.size[0]);
-        out.par_chunks_mut(self.size[0] * self.size[1])
+        let plane = (self.size[0] * self.size[1]).max(1);
+        let (encoder, code_slices): (_, Vec<&mut [u8]>) = match codes {
+            Some((encoder, codes)) => (Some(encoder), codes.chunks_mut(plane).collect()),
+            None => (None, mins.iter().map(|_| &mut [][..]).collect()),
+        };
+        out.par_chunks_mut(plane)
             .zip(mins.par_iter_mut())
+            .zip(code_slices)
             .enumerate()
             .try_for_each_init(
                 || {
@@ -537,11 +624,12 @@ impl<'h> BakePlan<'h> {
                         RowSource::new(&self.ranges, grid, height, w),
                     )
                 },
-                |(scratch, source), (dk, (slice, slice_min))| {
+                |(scratch, source), (dk, ((slice, slice_min), codes))| {
                     if is_cancelled(opts) {
                         return Err(Error::Cancelled);
                     }
-                    *slice_min = self.slice(first + dk, slice, scratch, source);
+                    let codes = encoder.map(|e| (e, codes));
+                    *slice_min = self.slice(first + dk, slice, codes, scratch, source);
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = &opts.progress {
                         p(n, self.size[2]);
@@ -551,24 +639,26 @@ impl<'h> BakePlan<'h> {
             )
     }
 
-    /// Depth slice `k` into `slice`; returns its lowest value. Compiled for
-    /// AVX2 where the CPU has it: the per-voxel work fused into the
-    /// transform's passes (squared band distances in, roots, signs and
-    /// margins out) runs eight values an instruction instead of four, with
-    /// the same operations and so the same bits.
+    /// Depth slice `k` into `slice` (or, given `codes`, its R8 codes into
+    /// those, `slice` then being scratch); returns its lowest value.
+    /// Compiled for AVX2 where the CPU has it: the per-voxel work fused
+    /// into the transform's passes (squared band distances in, roots, signs
+    /// and margins out) runs eight values an instruction instead of four,
+    /// with the same operations and so the same bits.
     fn slice(
         &self,
         k: usize,
         slice: &mut [f32],
+        codes: Option<(&R8Encoder, &mut [u8])>,
         scratch: &mut SliceScratch,
         source: &mut RowSource,
     ) -> f32 {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 is present.
-            return unsafe { self.slice_avx2(k, slice, scratch, source) };
+            return unsafe { self.slice_avx2(k, slice, codes, scratch, source) };
         }
-        slice_body!(self, k, slice, scratch, source)
+        slice_body!(self, k, slice, scratch, source, codes)
     }
 
     /// [`Self::slice`] compiled for AVX2 (its closures too: a closure
@@ -583,10 +673,11 @@ impl<'h> BakePlan<'h> {
         &self,
         k: usize,
         slice: &mut [f32],
+        codes: Option<(&R8Encoder, &mut [u8])>,
         scratch: &mut SliceScratch,
         source: &mut RowSource,
     ) -> f32 {
-        slice_body!(self, k, slice, scratch, source)
+        slice_body!(self, k, slice, scratch, source, codes)
     }
 }
 

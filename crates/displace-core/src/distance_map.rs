@@ -207,8 +207,11 @@ impl R8Encoder {
         self.encode_runs(values, codes);
     }
 
+    /// [`Self::encode_into`] inlined into its caller, compiled for the
+    /// caller's instruction set: the bake encodes each run of values as it
+    /// computes them, inside its AVX2 slice.
     #[inline(always)]
-    fn encode_runs(&self, values: &[f32], codes: &mut [u8]) {
+    pub(crate) fn encode_runs(&self, values: &[f32], codes: &mut [u8]) {
         const RUN: usize = 32;
         assert_eq!(values.len(), codes.len());
         for (v, c) in values.chunks(RUN).zip(codes.chunks_mut(RUN)) {

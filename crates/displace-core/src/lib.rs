@@ -49,7 +49,8 @@ mod displacement;
 
 pub use convention::{Address, Extent};
 pub use displacement::{
-    bake, bake_streamed, check_iterations, BakeLayout, BakeOptions, DisplacementMap, Slab, SlabSink,
+    bake, bake_streamed, check_iterations, BakeLayout, BakeOptions, CodedSlab, DisplacementMap,
+    Slab, SlabSink,
 };
 pub use distance_map::DistanceMap;
 pub use error::Error;

@@ -53,9 +53,16 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
 /// values (4).
 pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 4;
 
-/// Encoded depth slices a streamed bake holds at once: the one being filled
-/// and the one being written.
-pub const STREAM_ENCODED_SLICES: u128 = 2;
+/// Encoded depth slices a streamed bake of a `map`-voxel distance map holds
+/// at once with `slab_slices` slices computed at once: an r8 file's codes,
+/// which the bake writes as it computes its values ([`crate::SlabSink::encoder`]),
+/// for every slice its threads may have started (their window) and the one
+/// being written; other formats' for the slice being encoded and the one
+/// being written. The larger of the two, whatever the format.
+pub fn stream_encoded_slices(slab_slices: usize, map: [usize; 3]) -> u128 {
+    let started = crate::displacement::coded::window(slab_slices, map[0] * map[1]);
+    (started as u128 + 1).max(2)
+}
 
 /// Bytes per column of the stored footprint ranges alone (low and high).
 pub const RANGE_BYTES_PER_COLUMN: u128 = 8;
@@ -123,7 +130,7 @@ pub struct StreamedBake {
 
 /// Estimated peak bytes of a streamed bake, the largest of its phases, one
 /// after the other: decoding the heights; the distance map (the heights,
-/// the slab's values, [`STREAM_ENCODED_SLICES`] encoded slices, the direct
+/// the slab's values, [`stream_encoded_slices`] encoded slices, the direct
 /// writer's buffer, what the writer holds, the column ranges where they
 /// are kept and the centres where they are not borrowed from the height
 /// map); then the normal map and the cone map, each beside the heights.
@@ -136,7 +143,7 @@ pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
     let load = heights + texels * DECODE_BYTES_PER_TEXEL;
     let distance = heights
         + slab * STREAM_BYTES_PER_SLAB_VOXEL
-        + columns * STREAM_ENCODED_SLICES * b.encoded_bytes_per_voxel
+        + columns * stream_encoded_slices(b.slab_slices, b.map) * b.encoded_bytes_per_voxel
         + crate::io::direct::DIRECT_BUFFER_BYTES as u128
         + voxels * b.held_bytes_per_voxel
         + if stores_column_ranges(b.map) {

@@ -1,6 +1,7 @@
 //! The streamed distance-map writer: a bake hands it slabs of depth slices
-//! ([`crate::bake_streamed`]) and it encodes each in parallel and appends it
-//! to the output file, so that a bake's peak memory is the height map and a
+//! ([`crate::bake_streamed`]) and it encodes each in parallel (or, for r8
+//! once the range is known, takes the codes the bake encoded as it computed
+//! them, [`SlabSink::encoder`]) and appends it to the output file, so that a bake's peak memory is the height map and a
 //! slab or two rather than the volume in `f32` next to its encoding. The file
 //! lives under a temporary name ([`super::atomic::AtomicFile`]) until
 //! [`MapStream::finish`]; an error or an interruption leaves nothing.
@@ -17,8 +18,8 @@
 
 use super::atomic::AtomicFile;
 use super::{dds, ktx2, FormatError, MapFile};
-use crate::distance_map::{f16_round_down, Format, R8Range};
-use crate::{BakeLayout, Error, Extent, Result, Slab, SlabSink};
+use crate::distance_map::{f16_round_down, Format, R8Encoder, R8Range};
+use crate::{BakeLayout, CodedSlab, Error, Extent, Result, Slab, SlabSink};
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -325,14 +326,52 @@ impl SlabSink for MapStream {
             _ => self.encode_and_write(values),
         }
     }
+
+    /// R8 files once their range is known: a KTX2 file's when its header
+    /// is written (the range settled), a DDS file's (fixed) from the start.
+    fn encoder(&self) -> Option<R8Encoder> {
+        match (self.kind, self.format) {
+            (MapFile::Ktx2, Format::R8) if self.header_written => {
+                Some(R8Range::for_min(self.lo).encoder())
+            }
+            (MapFile::Dds, Format::R8) => Some(dds::DDS_R8_RANGE.encoder()),
+            _ => None,
+        }
+    }
+
+    fn code_buffer(&mut self) -> Vec<u8> {
+        self.out.buffer()
+    }
+
+    /// Writes a slab's codes, after checking that its values leave the
+    /// range they were encoded for as it was (the bake checks its own
+    /// promise; this is the file's).
+    fn push_codes(&mut self, slab: CodedSlab) -> Result<()> {
+        let range = R8Range::for_min(self.lo);
+        self.voxels += slab.codes.len();
+        self.lo = self.lo.min(slab.min);
+        match self.kind {
+            MapFile::Dds => dds::check_r8_min(self.lo).map_err(|e| e.at(&self.path))?,
+            _ if R8Range::for_min(self.lo) != range => {
+                return Err(Error::Invariant(format!(
+                    "depth slices from {} reach {}, below the r8 range already written to {}",
+                    slab.first,
+                    slab.min,
+                    self.path.display()
+                )))
+            }
+            _ => {}
+        }
+        self.send(slab.codes)
+    }
 }
 
 /// The file's writer on a thread of its own, so that the next slab is
 /// computed while this one goes to the kernel (a tenth of a bake's time was
 /// the copy into the page cache). Buffers come back for reuse. The hand-over
 /// is a rendezvous: a buffer is given only when the writer is free to take
-/// it, so two exist at most, the one being written and the one being filled
-/// ([`crate::memory::STREAM_ENCODED_SLICES`]); a queued third would cost a
+/// it, so that beside the one being written only those being filled exist
+/// ([`crate::memory::stream_encoded_slices`]); a queued one would cost a
 /// slice of memory and save no time, the writer being faster than the bake.
 struct Background {
     tx: Option<SyncSender<Vec<u8>>>,
