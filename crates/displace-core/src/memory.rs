@@ -53,15 +53,32 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
 /// values (4).
 pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 4;
 
+/// Depth slices of at most this many voxels (2048x2048) count as small in a
+/// streamed bake: its threads may run a slice ahead of each other, and its
+/// writer queues a slice of codes, so that no thread waits for another to
+/// wake (a millisecond on a virtual machine, as long as a 512x512 slice
+/// takes). Beyond it, where a slice of codes is tens of megabytes (64 MB at
+/// 8192x8192) and memory is what such a bake is measured by, neither: a
+/// wake-up is nothing beside the second such a slice takes.
+pub const SMALL_SLICE_VOXELS: usize = 2048 * 2048;
+
+/// Encoded slices the writer of a streamed bake holds with `plane`-voxel
+/// slices: the one being written, and one queued where slices are small
+/// ([`SMALL_SLICE_VOXELS`]).
+pub fn writer_slices(plane: usize) -> usize {
+    1 + usize::from(plane <= SMALL_SLICE_VOXELS)
+}
+
 /// Encoded depth slices a streamed bake of a `map`-voxel distance map holds
 /// at once with `slab_slices` slices computed at once: an r8 file's codes,
 /// which the bake writes as it computes its values ([`crate::SlabSink::encoder`]),
-/// for every slice its threads may have started (their window) and the one
-/// being written; other formats' for the slice being encoded and the one
-/// being written. The larger of the two, whatever the format.
+/// for every slice its threads may have started (their window); other
+/// formats' for the slice being encoded. Then those the writer holds
+/// ([`writer_slices`]). The larger of the two, whatever the format.
 pub fn stream_encoded_slices(slab_slices: usize, map: [usize; 3]) -> u128 {
-    let started = crate::displacement::coded::window(slab_slices, map[0] * map[1]);
-    (started as u128 + 1).max(2)
+    let plane = map[0] * map[1];
+    let started = crate::displacement::coded::window(slab_slices, plane);
+    (started + writer_slices(plane)) as u128
 }
 
 /// Bytes per column of the stored footprint ranges alone (low and high).

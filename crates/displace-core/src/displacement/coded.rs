@@ -102,18 +102,13 @@ pub(super) fn bake_coded<S: SlabSink + Send>(
     }
 }
 
-/// Codes of a 2048x2048 slice: up to this size a thread may run a slice
-/// ahead (4 MB of codes more); beyond it, where each slice of codes is tens
-/// of megabytes (64 MB at 8192x8192) and memory is what the bake is
-/// measured by, the threads keep abreast.
-const LEAD_MAX_PLANE: usize = 2048 * 2048;
-
 /// How many slices past the oldest unfinished one may be started: one per
-/// thread, and one more where slices are small enough
-/// ([`LEAD_MAX_PLANE`]). Codes held: the window and the one being written
-/// ([`crate::memory::stream_encoded_slices`]).
+/// thread, and one more where slices are small
+/// ([`crate::memory::SMALL_SLICE_VOXELS`]), so that a thread may run a
+/// slice ahead of the other. Codes held: the window, and what the writer
+/// holds ([`crate::memory::stream_encoded_slices`]).
 pub(crate) fn window(threads: usize, plane: usize) -> usize {
-    threads.max(1) + usize::from(plane <= LEAD_MAX_PLANE)
+    threads.max(1) + usize::from(plane <= crate::memory::SMALL_SLICE_VOXELS)
 }
 
 impl<'s, S: SlabSink + Send> Pipeline<'_, 's, S> {

@@ -111,7 +111,11 @@ impl MapStream {
         super::atomic::check_free_space(path, output_bytes(size, format))?;
         Ok(Self {
             path: path.to_path_buf(),
-            out: Background::start(AtomicFile::create(path)?, direct),
+            out: Background::start(
+                AtomicFile::create(path)?,
+                direct,
+                crate::memory::writer_slices(size[0].saturating_mul(size[1])) - 1,
+            ),
             kind,
             format,
             size,
@@ -368,11 +372,12 @@ impl SlabSink for MapStream {
 
 /// The file's writer on a thread of its own, so that the next slab is
 /// computed while this one goes to the kernel (a tenth of a bake's time was
-/// the copy into the page cache). Buffers come back for reuse. The hand-over
-/// is a rendezvous: a buffer is given only when the writer is free to take
-/// it, so that beside the one being written only those being filled exist
-/// ([`crate::memory::stream_encoded_slices`]); a queued one would cost a
-/// slice of memory and save no time, the writer being faster than the bake.
+/// the copy into the page cache). Buffers come back for reuse. Beside the
+/// one being written, the writer queues at most `queued` buffers
+/// ([`crate::memory::writer_slices`]): one for small slices, so that a
+/// bake's thread hands its slice over without waiting for the writer to
+/// wake; none for large ones, whose hand-over is a rendezvous, a slice of
+/// memory counting more there than a wake-up.
 struct Background {
     tx: Option<SyncSender<Vec<u8>>>,
     spare: Receiver<Vec<u8>>,
@@ -382,9 +387,9 @@ struct Background {
 impl Background {
     /// The writer thread of `file`, writing past the page cache when
     /// `direct` and the file system allows it.
-    fn start(mut file: AtomicFile, direct: bool) -> Self {
-        let (tx, rx) = sync_channel::<Vec<u8>>(0);
-        let (back, spare) = sync_channel::<Vec<u8>>(2);
+    fn start(mut file: AtomicFile, direct: bool, queued: usize) -> Self {
+        let (tx, rx) = sync_channel::<Vec<u8>>(queued);
+        let (back, spare) = sync_channel::<Vec<u8>>(8);
         let thread = std::thread::spawn(move || {
             // Past the page cache where the file system allows it
             // (`super::direct`: a fifth of a bake's CPU time was the copy
