@@ -322,8 +322,9 @@ pub struct CodedSlab {
 /// in order, so that peak memory is the height map, its column ranges and
 /// one slab rather than the whole volume. The values are bit-identical to
 /// [`bake`]'s. Once the sink offers an encoder ([`SlabSink::encoder`]: an
-/// r8 file whose range is known, usually after the first slab) the rest is
-/// computed as codes, each slice taken by whichever of up to `slab_slices`
+/// r8 file whose range is known, usually after the first slab) and slices
+/// are small ([`crate::memory::SMALL_SLICE_VOXELS`]) the rest is computed
+/// as codes, each slice taken by whichever of up to `slab_slices`
 /// threads is free and pushed in order of depth ([`SlabSink::push_codes`]),
 /// with no barrier between slabs.
 pub fn bake_streamed(
@@ -353,7 +354,9 @@ pub fn bake_streamed(
     // The bound promised for the slices still to come, checked on each.
     let mut promised = f32::NEG_INFINITY;
     for first in (0..d).step_by(slab_slices) {
-        if let Some(encoder) = sink.encoder() {
+        let small = crate::memory::small_slices(w * h);
+        let encoder = if small { sink.encoder() } else { None };
+        if let Some(encoder) = encoder {
             // The sink's range is known: codes, a slice at a time.
             return coded::bake_coded(
                 &plan, first, promised, &encoder, &rest, &mut buf, sink, opts, &done,

@@ -54,31 +54,46 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
 pub const STREAM_BYTES_PER_SLAB_VOXEL: u128 = 4;
 
 /// Depth slices of at most this many voxels (2048x2048) count as small in a
-/// streamed bake: its threads may run a slice ahead of each other, and its
-/// writer queues a slice of codes, so that no thread waits for another to
-/// wake (a millisecond on a virtual machine, as long as a 512x512 slice
-/// takes). Beyond it, where a slice of codes is tens of megabytes (64 MB at
-/// 8192x8192) and memory is what such a bake is measured by, neither: a
-/// wake-up is nothing beside the second such a slice takes.
+/// streamed bake. Only small slices go through the coded pipeline
+/// ([`crate::SlabSink::encoder`]: codes written as the values are computed,
+/// threads taking slices as they are free and a slice ahead of each other,
+/// the writer queueing a slice so that no thread waits for it to wake, a
+/// millisecond on a virtual machine, as long as a 512x512 slice takes).
+/// That is where a slab's barrier and a separate encoding pass cost most
+/// (at 2048x2048x64 the whole command went from 0.80-0.93 s to 0.71-0.86
+/// s, best and median of twelve). Large slices are computed a slab at a
+/// time and encoded after: at 8192x8192 the finish's codes, 32 bytes a row
+/// and a row 8 KB apart, leave each cache line half written until the next
+/// block of columns, and that costs more than the pipeline saves (user time
+/// 68.4 s against 61.8 s); and there a slice of codes is 64 MB, which the
+/// 8K bake's memory cannot spare for a queue.
 pub const SMALL_SLICE_VOXELS: usize = 2048 * 2048;
+
+/// Whether `plane`-voxel slices count as small ([`SMALL_SLICE_VOXELS`]).
+pub fn small_slices(plane: usize) -> bool {
+    plane <= SMALL_SLICE_VOXELS
+}
 
 /// Encoded slices the writer of a streamed bake holds with `plane`-voxel
 /// slices: the one being written, and one queued where slices are small
 /// ([`SMALL_SLICE_VOXELS`]).
 pub fn writer_slices(plane: usize) -> usize {
-    1 + usize::from(plane <= SMALL_SLICE_VOXELS)
+    1 + usize::from(small_slices(plane))
 }
 
 /// Encoded depth slices a streamed bake of a `map`-voxel distance map holds
-/// at once with `slab_slices` slices computed at once: an r8 file's codes,
-/// which the bake writes as it computes its values ([`crate::SlabSink::encoder`]),
-/// for every slice its threads may have started (their window); other
-/// formats' for the slice being encoded. Then those the writer holds
-/// ([`writer_slices`]). The larger of the two, whatever the format.
+/// at once with `slab_slices` slices computed at once: with small slices,
+/// every slice its threads may have started (their window: an r8 file's
+/// codes are written as the values are computed), otherwise the slice being
+/// encoded; then those the writer holds ([`writer_slices`]).
 pub fn stream_encoded_slices(slab_slices: usize, map: [usize; 3]) -> u128 {
     let plane = map[0] * map[1];
-    let started = crate::displacement::coded::window(slab_slices, plane);
-    (started + writer_slices(plane)) as u128
+    let filled = if small_slices(plane) {
+        crate::displacement::coded::window(slab_slices)
+    } else {
+        1
+    };
+    (filled + writer_slices(plane)) as u128
 }
 
 /// Bytes per column of the stored footprint ranges alone (low and high).

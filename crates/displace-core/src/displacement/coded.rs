@@ -76,7 +76,7 @@ pub(super) fn bake_coded<S: SlabSink + Send>(
         opts,
         done,
         next: AtomicUsize::new(first),
-        window: window(slots.len(), plane),
+        window: window(slots.len()),
         order: Mutex::new(Order {
             sink,
             expected: first,
@@ -103,12 +103,11 @@ pub(super) fn bake_coded<S: SlabSink + Send>(
 }
 
 /// How many slices past the oldest unfinished one may be started: one per
-/// thread, and one more where slices are small
-/// ([`crate::memory::SMALL_SLICE_VOXELS`]), so that a thread may run a
-/// slice ahead of the other. Codes held: the window, and what the writer
-/// holds ([`crate::memory::stream_encoded_slices`]).
-pub(crate) fn window(threads: usize, plane: usize) -> usize {
-    threads.max(1) + usize::from(plane <= crate::memory::SMALL_SLICE_VOXELS)
+/// thread and one more, so that a thread may run a slice ahead of the
+/// other. Codes held: the window, and what the writer holds
+/// ([`crate::memory::stream_encoded_slices`]).
+pub(crate) fn window(threads: usize) -> usize {
+    threads.max(1) + 1
 }
 
 impl<'s, S: SlabSink + Send> Pipeline<'_, 's, S> {
