@@ -292,7 +292,7 @@ pub trait SlabSink {
         Vec::new()
     }
 
-    /// Called with each slab's codes, in order of depth, once
+    /// Called with the codes of each slice, in order of depth, once
     /// [`Self::encoder`] gave an encoder (it is asked before each slab).
     fn push_codes(&mut self, slab: CodedSlab) -> Result<()> {
         Err(Error::Invariant(format!(
@@ -302,10 +302,11 @@ pub trait SlabSink {
     }
 }
 
-/// A slab of a streamed bake as R8 codes ([`SlabSink::push_codes`]).
+/// Depth slices of a streamed bake as R8 codes ([`SlabSink::push_codes`];
+/// one slice each, from the bake's pipeline).
 #[derive(Debug)]
 pub struct CodedSlab {
-    /// Depth index of the slab's first slice.
+    /// Depth index of the first slice.
     pub first: usize,
     /// The codes of the slices' values (`[k][j][i]`), as the sink's
     /// encoder gives them.
@@ -595,30 +596,9 @@ impl<'h> BakePlan<'h> {
         opts: &BakeOptions,
         done: &AtomicUsize,
     ) -> Result<()> {
-        self.slices_into(first, out, None, mins, opts, done)
-    }
-
-    /// [`Self::slices`], or with `codes` their R8 codes instead: each value
-    /// encoded as it is computed, into `codes` (as many slices as `out`,
-    /// which is then only the transform's scratch).
-    fn slices_into(
-        &self,
-        first: usize,
-        out: &mut [f32],
-        codes: Option<(&R8Encoder, &mut [u8])>,
-        mins: &mut [f32],
-        opts: &BakeOptions,
-        done: &AtomicUsize,
-    ) -> Result<()> {
         let (grid, height, w) = (&self.grid, self.height, self.size[0]);
-        let plane = (self.size[0] * self.size[1]).max(1);
-        let (encoder, code_slices): (_, Vec<&mut [u8]>) = match codes {
-            Some((encoder, codes)) => (Some(encoder), codes.chunks_mut(plane).collect()),
-            None => (None, mins.iter().map(|_| &mut [][..]).collect()),
-        };
-        out.par_chunks_mut(plane)
+        out.par_chunks_mut(self.size[0] * self.size[1])
             .zip(mins.par_iter_mut())
-            .zip(code_slices)
             .enumerate()
             .try_for_each_init(
                 || {
@@ -627,12 +607,11 @@ impl<'h> BakePlan<'h> {
                         RowSource::new(&self.ranges, grid, height, w),
                     )
                 },
-                |(scratch, source), (dk, ((slice, slice_min), codes))| {
+                |(scratch, source), (dk, (slice, slice_min))| {
                     if is_cancelled(opts) {
                         return Err(Error::Cancelled);
                     }
-                    let codes = encoder.map(|e| (e, codes));
-                    *slice_min = self.slice(first + dk, slice, codes, scratch, source);
+                    *slice_min = self.slice(first + dk, slice, None, scratch, source);
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = &opts.progress {
                         p(n, self.size[2]);
