@@ -354,8 +354,8 @@ pub fn bake_streamed(
     let mut mins = vec![0.0f32; slab_slices];
     // The bound promised for the slices still to come, checked on each.
     let mut promised = f32::NEG_INFINITY;
+    let small = crate::memory::small_slices(w * h);
     for first in (0..d).step_by(slab_slices) {
-        let small = crate::memory::small_slices(w * h);
         let encoder = if small { sink.encoder() } else { None };
         if let Some(encoder) = encoder {
             // The sink's range is known: codes, a slice at a time.
@@ -368,22 +368,8 @@ pub fn bake_streamed(
         let mins = &mut mins[..n];
         plan.slices(first, values, mins, opts, &done)?;
         let min = mins.iter().copied().fold(f32::INFINITY, f32::min);
-        if min < promised {
-            return Err(Error::Invariant(format!(
-                "depth slices {first}..{} reach {min}, below the bound {promised} promised for them \
-                 (the values below the surface rise with depth, within {MONOTONE_SLACK})",
-                first + n
-            )));
-        }
-        let next = first + n;
-        let rest_lower_bound = if next < d {
-            // Below the surface, a column's values do not fall from one
-            // slice to the next up (`monotone_bound`); above it they are at
-            // least the static bound's `above` part.
-            rest[next].max(monotone_bound(mins[n - 1], plan.above_bound()))
-        } else {
-            f32::INFINITY
-        };
+        check_promise(first..first + n, min, promised)?;
+        let rest_lower_bound = plan.promise(&rest, first + n, mins[n - 1]);
         sink.push(Slab {
             first,
             values,
@@ -391,6 +377,19 @@ pub fn bake_streamed(
             rest_lower_bound,
         })?;
         promised = rest_lower_bound;
+    }
+    Ok(())
+}
+
+/// Checks the lowest value `min` of depth slices `slices` against the
+/// bound `promised` for them ([`BakePlan::promise`]).
+fn check_promise(slices: std::ops::Range<usize>, min: f32, promised: f32) -> Result<()> {
+    if min < promised {
+        return Err(Error::Invariant(format!(
+            "depth slices {}..{} reach {min}, below the bound {promised} promised for them \
+             (the values below the surface rise with depth, within {MONOTONE_SLACK})",
+            slices.start, slices.end
+        )));
     }
     Ok(())
 }
@@ -578,6 +577,20 @@ impl<'h> BakePlan<'h> {
         let below = -(self.centre_max - z);
         let above = 0.0 - self.r_xy;
         below.min(above) - self.slack
+    }
+
+    /// The bound promised for slices `next..` once the slice below them
+    /// has reached `last_min` (`rest`: suffix minima of
+    /// [`Self::slice_lower_bound`]; `+inf` past the last slice). Below the
+    /// surface, a column's values do not fall from one slice to the next
+    /// up ([`monotone_bound`]); above it they are at least the static
+    /// bound's `above` part.
+    fn promise(&self, rest: &[f32], next: usize, last_min: f32) -> f32 {
+        if next < self.size[2] {
+            rest[next].max(monotone_bound(last_min, self.above_bound()))
+        } else {
+            f32::INFINITY
+        }
     }
 
     /// The least a value above the surface can be: `dist - r_xy - slack`

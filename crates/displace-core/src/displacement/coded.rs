@@ -11,7 +11,7 @@
 //! A thread may run at most one slice ahead of the oldest unfinished one
 //! (the window), so that the codes held stay a few slices.
 
-use super::{is_cancelled, monotone_bound, BakePlan, CodedSlab, RowSource, MONOTONE_SLACK};
+use super::{check_promise, is_cancelled, BakePlan, CodedSlab, RowSource};
 use crate::distance_map::R8Encoder;
 use crate::edt::SliceScratch;
 use crate::{BakeOptions, Error, Result, SlabSink};
@@ -177,21 +177,10 @@ impl<'s, S: SlabSink + Send> Pipeline<'_, 's, S> {
     /// Pushes the parked slices that are next in depth, checking each
     /// against the bound promised for it and promising the next.
     fn hand_over(&self, order: &mut Order<'s, S>) -> Result<()> {
-        let d = self.plan.size[2];
         while let Some((codes, min)) = order.parked.remove(&order.expected) {
             let k = order.expected;
-            if min < order.promised {
-                return Err(Error::Invariant(format!(
-                    "depth slice {k} reaches {min}, below the bound {} promised for it \
-                     (the values below the surface rise with depth, within {MONOTONE_SLACK})",
-                    order.promised
-                )));
-            }
-            let rest_lower_bound = if k + 1 < d {
-                self.rest[k + 1].max(monotone_bound(min, self.plan.above_bound()))
-            } else {
-                f32::INFINITY
-            };
+            check_promise(k..k + 1, min, order.promised)?;
+            let rest_lower_bound = self.plan.promise(self.rest, k + 1, min);
             order.sink.push_codes(CodedSlab {
                 first: k,
                 codes,

@@ -1,8 +1,9 @@
 //! The streamed distance-map writer: a bake hands it slabs of depth slices
 //! ([`crate::bake_streamed`]) and it encodes each in parallel (or, for r8
 //! once the range is known, takes the codes the bake encoded as it computed
-//! them, [`SlabSink::encoder`]) and appends it to the output file, so that a bake's peak memory is the height map and a
-//! slab or two rather than the volume in `f32` next to its encoding. The file
+//! them, [`SlabSink::encoder`]) and appends it to the output file, so that a
+//! bake's peak memory is the height map and a slab or two rather than the
+//! volume in `f32` next to its encoding. The file
 //! lives under a temporary name ([`super::atomic::AtomicFile`]) until
 //! [`MapStream::finish`]; an error or an interruption leaves nothing.
 //!
