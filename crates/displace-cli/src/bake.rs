@@ -9,7 +9,7 @@ use clap::Args;
 use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
 use displace_core::io::atomic::Batch;
-use displace_core::io::height::{self, Channel, HeightOptions};
+use displace_core::io::height::{self, Channel, HeightOptions, HeightRange};
 use displace_core::io::stream::MapStream;
 use displace_core::io::{self as dio, MapFile};
 use displace_core::memory::StreamedBake;
@@ -40,12 +40,36 @@ pub struct HeightArgs {
     /// Texture addressing: a repeating height map bakes a tiling distance map
     #[arg(long, default_value = "clamp", value_parser = parse_address)]
     pub address: Address,
+    /// Which values become heights 0 and 1: `auto` (the map's lowest and
+    /// highest) or LO,HI in the file's values (an elevation model's metres,
+    /// an image's codes) [default: 8/16-bit images by their full scale,
+    /// float data as stored, in [0, 1]]
+    #[arg(long, value_name = "auto|LO,HI", value_parser = parse_height_range, allow_hyphen_values = true)]
+    pub height_range: Option<HeightRange>,
+}
+
+impl HeightArgs {
+    /// The core's options for these arguments, `size` texels for a
+    /// generated map.
+    pub fn options(&self, size: [usize; 2]) -> HeightOptions {
+        HeightOptions {
+            channel: self.channel,
+            size,
+            address: self.address,
+            range: self.height_range.unwrap_or_default(),
+        }
+    }
+}
+
+pub(crate) fn parse_height_range(s: &str) -> Result<HeightRange, String> {
+    s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
     /// Height map: gen:NAME[?key=value&...] (flat, gaussian, studded,
-    /// grating, text, noise), a PNG, JPEG or TIFF (8/16-bit) or an EXR file
+    /// grating, text, noise), a PNG, JPEG, TIFF (8/16-bit images; float or
+    /// signed elevation rasters) or an EXR file
     #[arg(value_name = "HEIGHT", default_value = DEFAULT_HEIGHT)]
     pub height: String,
     #[command(flatten)]
@@ -134,11 +158,7 @@ pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) ->
         }
         None => default_size,
     };
-    let opts = HeightOptions {
-        channel: args.channel,
-        size,
-        address: args.address,
-    };
+    let opts = args.options(size);
     height::load(source, &opts).with_context(|| format!("loading height map `{source}`"))
 }
 
@@ -262,14 +282,10 @@ pub fn check_bake_memory(
     cones: bool,
     holds: BakeHolds,
 ) -> Result<()> {
-    let opts = HeightOptions {
-        channel: args.channel,
-        size: match &args.height_size {
-            Some(s) => parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?,
-            None => [size[0], size[1]],
-        },
-        address: args.address,
-    };
+    let opts = args.options(match &args.height_size {
+        Some(s) => parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?,
+        None => [size[0], size[1]],
+    });
     let [w, h] = height::dimensions(source, &opts)
         .with_context(|| format!("loading height map `{source}`"))?;
     // One buffer too large says so first; then the whole job.

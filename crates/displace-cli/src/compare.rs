@@ -306,12 +306,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
         height_size: None,
         channel: None,
         address: Address::Clamp,
+        height_range: None,
     };
-    let opts = HeightOptions {
-        channel: height_args.channel,
-        size,
-        address: height_args.address,
-    };
+    let opts = height_args.options(size);
     check_memory(&args, &plan, &sources, &opts)?;
     let out_dir = OutputDir::create(&args.out)?;
     // Read every map first: a bad file fails before minutes of work.

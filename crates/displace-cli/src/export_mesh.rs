@@ -234,11 +234,7 @@ fn check_memory(source: &str, a: &HeightArgs) -> Result<()> {
             .with_context(|| format!("--height-size {s}"))?,
         None => DEFAULT_HEIGHT_SIZE,
     };
-    let opts = displace_core::io::height::HeightOptions {
-        channel: a.channel,
-        size,
-        address: a.address,
-    };
+    let opts = a.options(size);
     let [w, h] = displace_core::io::height::dimensions(source, &opts)
         .with_context(|| format!("loading height map `{source}`"))?;
     displace_core::memory::check(

@@ -12,7 +12,7 @@ use crate::bake::parse_extent;
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::Batch;
-use displace_core::io::height::{load, HeightOptions};
+use displace_core::io::height::{load, HeightOptions, HeightRange};
 use displace_core::{
     bake, Address, BakeOptions, DisplacementMap, DistanceMap, Extent, MapRay, Method, TraceOptions,
 };
@@ -38,6 +38,9 @@ pub struct FaceArgs {
     /// clamp or repeat.
     #[arg(long, default_value = "clamp")]
     pub address: Address,
+    /// Which values become heights 0 and 1: `auto` or LO,HI (as `bake`).
+    #[arg(long, value_name = "auto|LO,HI", value_parser = crate::bake::parse_height_range, allow_hyphen_values = true)]
+    pub height_range: Option<HeightRange>,
 }
 
 /// With SCENE, the CPU renderer's scene file: each displaced parallelogram,
@@ -145,6 +148,7 @@ fn bake_face(face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
         &HeightOptions {
             size: [size[0], size[1]],
             address: face.address,
+            range: face.height_range.unwrap_or_default(),
             ..HeightOptions::default()
         },
     )

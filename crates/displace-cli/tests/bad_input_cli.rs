@@ -848,3 +848,67 @@ fn ignored_or_repeated_options_are_refused() {
         );
     }
 }
+
+/// Writes a one-band 32-bit float TIFF, as GDAL writes a DEM.
+fn write_float_tiff(path: &Path, [w, h]: [u32; 2], values: &[f32]) {
+    let file = std::fs::File::create(path).unwrap();
+    tiff::encoder::TiffEncoder::new(file)
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::Gray32Float>(w, h, values)
+        .unwrap();
+}
+
+/// An elevation model in metres is refused as heights (they must lie in
+/// [0, 1]) with the option that maps it, and nothing is written; with
+/// `--height-range auto` it bakes, byte for byte, the map of the same
+/// heights normalised beforehand.
+#[test]
+fn an_elevation_model_bakes_through_its_height_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (24u32, 20u32);
+    let dem: Vec<f32> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f32, (k / w) as f32);
+            1200.0 + 300.0 * (x * 0.4).sin() * (y * 0.3).cos() + 7.0 * y
+        })
+        .collect();
+    write_float_tiff(&d.join("dem.tif"), [w, h], &dem);
+    refuses(
+        d,
+        &words("bake dem.tif --size 24x20x8 -o m.npy"),
+        &["dem.tif", "[0, 1]", "--height-range auto"],
+        &[],
+    );
+    let (lo, hi) = dem
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let unit: Vec<f32> = dem
+        .iter()
+        .map(|&v| ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32)
+        .collect();
+    write_float_tiff(&d.join("unit.tif"), [w, h], &unit);
+    for (args, out) in [
+        (
+            "bake dem.tif --height-range auto --size 24x20x8 -o a.npy",
+            "a.npy",
+        ),
+        ("bake unit.tif --size 24x20x8 -o b.npy", "b.npy"),
+    ] {
+        let o = run(&words(args), d);
+        assert!(o.status.success(), "{args}: {}", stderr(&o));
+        assert!(d.join(out).is_file());
+    }
+    assert_eq!(
+        std::fs::read(d.join("a.npy")).unwrap(),
+        std::fs::read(d.join("b.npy")).unwrap()
+    );
+    refuses(
+        d,
+        &words("bake dem.tif --height-range 1300,2000 --size 24x20x8 -o c.npy"),
+        &["dem.tif", "outside the height range 1300,2000"],
+        &[],
+    );
+}

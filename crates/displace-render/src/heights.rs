@@ -2,14 +2,20 @@
 //! relative to the scene file, loaded by [`displace_core::io::height`].
 
 use crate::error::Result;
-use displace_core::io::height::{self, HeightOptions};
+use displace_core::io::height::{self, HeightOptions, HeightRange};
 use displace_core::{Address, HeightMap};
 use std::path::Path;
 
 /// Loads `source` for a face: a generator spec at `size` texels, or a file
-/// relative to `base` (its own size).
-pub fn load(source: &str, size: [usize; 2], address: Address, base: &Path) -> Result<HeightMap> {
-    let (source, opts) = resolve(source, size, address, base);
+/// relative to `base` (its own size), its values mapped by `range`.
+pub fn load(
+    source: &str,
+    size: [usize; 2],
+    address: Address,
+    range: HeightRange,
+    base: &Path,
+) -> Result<HeightMap> {
+    let (source, opts) = resolve(source, size, address, range, base);
     Ok(height::load(&source, &opts)?)
 }
 
@@ -18,9 +24,10 @@ pub fn dimensions(
     source: &str,
     size: [usize; 2],
     address: Address,
+    range: HeightRange,
     base: &Path,
 ) -> Result<[usize; 2]> {
-    let (source, opts) = resolve(source, size, address, base);
+    let (source, opts) = resolve(source, size, address, range, base);
     Ok(height::dimensions(&source, &opts)?)
 }
 
@@ -30,11 +37,13 @@ fn resolve(
     source: &str,
     size: [usize; 2],
     address: Address,
+    range: HeightRange,
     base: &Path,
 ) -> (String, HeightOptions) {
     let opts = HeightOptions {
         size,
         address,
+        range,
         ..HeightOptions::default()
     };
     if source.starts_with("gen:") {

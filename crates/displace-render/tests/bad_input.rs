@@ -344,3 +344,84 @@ fn displaced_meshes_too_large_or_small_to_measure_are_refused() {
         }
     }
 }
+
+/// A displaced face whose height file is an elevation model (32-bit float
+/// metres, as GDAL writes one): refused as stored (heights lie in [0, 1]),
+/// naming the key and the file; with `height_range = "auto"`, or the
+/// model's own extremes as `[lo, hi]`, it renders exactly as the same
+/// heights normalised beforehand; a range that is not one is refused at its
+/// line and column.
+#[test]
+fn elevation_models_render_through_their_height_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path();
+    let (w, h) = (16u32, 16u32);
+    let dem: Vec<f32> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f32, (k / w) as f32);
+            850.0 + 40.0 * (x * 0.7).sin() + 25.0 * (y * 0.5).cos()
+        })
+        .collect();
+    let (lo, hi) = dem
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let unit: Vec<f32> = dem
+        .iter()
+        .map(|&v| ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32)
+        .collect();
+    let write = |name: &str, values: &[f32]| {
+        let file = std::fs::File::create(base.join(name)).unwrap();
+        tiff::encoder::TiffEncoder::new(file)
+            .unwrap()
+            .write_image::<tiff::encoder::colortype::Gray32Float>(w, h, values)
+            .unwrap();
+    };
+    write("dem.tif", &dem);
+    write("unit.tif", &unit);
+    let text = |height: &str, range: &str| {
+        SceneToml::new(12, 12, 1)
+            .camera("[0.3, 2.5, -1.5]", 50.0)
+            .lambert("[0.6, 0.6, 0.6]")
+            .point_light("[1, 3, -1]", "[12, 12, 12]")
+            .quad(0.0)
+            .displaced(&format!(
+                "height = \"{height}\"\ndepth = 0.3\nmap_size = [16, 16, 8]{range}"
+            ))
+            .text()
+            .to_string()
+    };
+    let load = |text: &str| Scene::from_toml(text, Path::new("test.toml"), base, &opts());
+    let e = load(&text("dem.tif", "")).err().unwrap().to_string();
+    assert!(
+        e.contains("shapes[0].displacement.height")
+            && e.contains("dem.tif")
+            && e.contains("[0, 1]"),
+        "{e}"
+    );
+    let want = image(&load(&text("unit.tif", "")).unwrap()).pixels;
+    for range in [
+        "\nheight_range = \"auto\"",
+        &format!("\nheight_range = [{lo}, {hi}]"),
+    ] {
+        let got = image(&load(&text("dem.tif", range)).unwrap()).pixels;
+        assert_eq!(got, want, "{range}");
+    }
+    // The flat-lit render is not one colour: the heights reached it.
+    assert!(want.iter().any(|p| *p != want[0]));
+    for bad in ["\"nope\"", "[5, 1]"] {
+        let t = text("dem.tif", &format!("\nheight_range = {bad}"));
+        let line = t
+            .lines()
+            .position(|l| l.starts_with("height_range"))
+            .unwrap()
+            + 1;
+        let e = load(&t).err().unwrap().to_string();
+        assert!(
+            e.starts_with(&format!("test.toml:{line}:16: "))
+                && e.contains("shapes[0].displacement.height_range"),
+            "{e}"
+        );
+    }
+}

@@ -7,9 +7,12 @@
 //! full precision; an image's orientation tag (EXIF, as cameras write
 //! photographs) is applied, so the map is the image as it is shown.
 //! Colour images reduce to one value by Rec. 709 luma weights on the stored
-//! values, unless a channel is chosen. EXR heights must already lie in
-//! `[0, 1]`: the shell depth is given by the extent, not by the data, so an
-//! out-of-range map is refused rather than silently rescaled.
+//! values, unless a channel is chosen. Float heights (EXR, and TIFF
+//! rasters of floats or signed or 32-bit integers, as elevation models are
+//! stored: [`super::data_tiff`]) must already lie in `[0, 1]`: the shell
+//! depth is given by the extent, not by the data, so an out-of-range map is
+//! refused rather than silently rescaled, unless a [`HeightRange`] says
+//! which values are the shell's bottom and top.
 
 use crate::{generators, Address, Error, HeightMap, NormalMap, Result};
 use std::path::Path;
@@ -52,8 +55,53 @@ impl Channel {
     }
 }
 
+/// Which of a map's values become the heights `0` and `1` (the bottom and
+/// top of the displacement shell, whose depth the extent sets).
+///
+/// Why: a height map is a fraction of the shell's depth (Donnelly, GPU
+/// Gems 2 section 8.3: the surface lies in the unit-depth slab of the
+/// distance map), but measured terrain is stored in metres, an elevation
+/// model spanning 212.5 to 3406.0; a photograph used as relief may use a
+/// fraction of its codes. The range is the one place that maps them, and
+/// is explicit, so that no file is rescaled behind the user's back.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum HeightRange {
+    /// As stored: an 8- or 16-bit image's codes over their full scale
+    /// (255 or 65535); float and other data rasters must already lie in
+    /// `[0, 1]`.
+    #[default]
+    AsStored,
+    /// The map's own lowest value to 0 and highest to 1 (a flat map is all
+    /// 0).
+    Auto,
+    /// `lo` to 0 and `hi` to 1, in the file's values (an integer image's
+    /// codes, a DEM's metres); a value outside is refused.
+    Span(f32, f32),
+}
+
+impl std::str::FromStr for HeightRange {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(Self::Auto);
+        }
+        let bad = || {
+            Error::InvalidHeightMap(format!(
+                "height range `{s}`: expected auto or LO,HI (finite, LO < HI)"
+            ))
+        };
+        let (lo, hi) = s.split_once(',').ok_or_else(bad)?;
+        let lo: f32 = lo.trim().parse().map_err(|_| bad())?;
+        let hi: f32 = hi.trim().parse().map_err(|_| bad())?;
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(bad());
+        }
+        Ok(Self::Span(lo, hi))
+    }
+}
+
 /// How to turn a source string into a height map.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HeightOptions {
     /// Channel of a colour image; `None`: luminance (or the only channel).
     pub channel: Option<Channel>,
@@ -61,6 +109,8 @@ pub struct HeightOptions {
     pub size: [usize; 2],
     /// Addressing of the loaded map: whether the surface repeats.
     pub address: Address,
+    /// Which values become heights 0 and 1.
+    pub range: HeightRange,
 }
 
 impl Default for HeightOptions {
@@ -69,6 +119,7 @@ impl Default for HeightOptions {
             channel: None,
             size: [256, 256],
             address: Address::Clamp,
+            range: HeightRange::AsStored,
         }
     }
 }
@@ -77,8 +128,7 @@ impl Default for HeightOptions {
 const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
 
 /// What [`load`] accepts besides generators and EXR, for messages.
-const FORMATS: &str =
-    "expected gen:NAME, a .png, .jpg/.jpeg or .tif/.tiff (8/16-bit) or an .exr (float) file";
+const FORMATS: &str = "expected gen:NAME, a .png, .jpg/.jpeg, .tif/.tiff or .exr file";
 
 /// The raster format of a height-map file with extension `ext` (lower
 /// case): integer samples, read by the `image` crate's decoders.
@@ -93,15 +143,28 @@ fn raster_format(ext: &str) -> Option<image::ImageFormat> {
 
 /// Loads the height map `source` names: `gen:NAME?params` (a built-in
 /// generator at `opts.size`), a `.png`, `.jpg` or `.tif` (8/16-bit grey or
-/// colour) or an `.exr` (float) file.
+/// colour), a `.tif` data raster (one band of float or signed samples) or
+/// an `.exr` (float) file, its values mapped as `opts.range` says.
 pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
     if source.starts_with("gen:") {
-        return generators::generate(source, opts.size[0], opts.size[1], opts.address);
+        let map = generators::generate(source, opts.size[0], opts.size[1], opts.address)?;
+        return match opts.range {
+            HeightRange::AsStored => Ok(map),
+            range => {
+                let (w, h) = (map.width(), map.height());
+                let mut data = map.data().to_vec();
+                apply_range(Path::new(source), &mut data, w, range)?;
+                HeightMap::new(w, h, data, opts.address)
+            }
+        };
     }
     let path = Path::new(source);
     let ext = lower_extension(path).unwrap_or_default();
     if ext == "exr" {
         return load_exr(path, opts);
+    }
+    if matches!(ext.as_str(), "tif" | "tiff") && !super::data_tiff::layout(path)?.is_image() {
+        return load_data_tiff(path, opts);
     }
     match raster_format(&ext) {
         Some(format) => load_raster(path, format, opts),
@@ -124,6 +187,12 @@ pub fn dimensions(source: &str, opts: &HeightOptions) -> Result<[usize; 2]> {
     if ext == "exr" {
         let size = exr_size(path)?;
         return Ok([size.width(), size.height()]);
+    }
+    if matches!(ext.as_str(), "tif" | "tiff") {
+        let layout = super::data_tiff::layout(path)?;
+        if !layout.is_image() {
+            return Ok(layout.shown());
+        }
     }
     match raster_format(&ext) {
         Some(format) => {
@@ -228,24 +297,20 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
     debug_assert_eq!([img.width() as usize, img.height() as usize], [w, h]);
     // Straight from the decoded samples to one height per texel, in
     // parallel, with no intermediate copy of every channel in `f32`: an
-    // 8192x8192 16-bit map costs its samples plus the heights.
-    let data = match img {
-        DynamicImage::ImageLuma8(b) => heights(path, &b.into_raw(), 1, true, opts.channel, 255.0),
-        DynamicImage::ImageLumaA8(b) => heights(path, &b.into_raw(), 2, true, opts.channel, 255.0),
-        DynamicImage::ImageRgb8(b) => heights(path, &b.into_raw(), 3, false, opts.channel, 255.0),
-        DynamicImage::ImageRgba8(b) => heights(path, &b.into_raw(), 4, false, opts.channel, 255.0),
-        DynamicImage::ImageLuma16(b) => {
-            heights(path, &b.into_raw(), 1, true, opts.channel, 65535.0)
-        }
-        DynamicImage::ImageLumaA16(b) => {
-            heights(path, &b.into_raw(), 2, true, opts.channel, 65535.0)
-        }
-        DynamicImage::ImageRgb16(b) => {
-            heights(path, &b.into_raw(), 3, false, opts.channel, 65535.0)
-        }
-        DynamicImage::ImageRgba16(b) => {
-            heights(path, &b.into_raw(), 4, false, opts.channel, 65535.0)
-        }
+    // 8192x8192 16-bit map costs its samples plus the heights. Given a
+    // range, the codes themselves, which the range then maps.
+    let coded = opts.range == HeightRange::AsStored;
+    let full = |top: f32| if coded { [top, 1.0] } else { [1.0, top] };
+    let (c8, c16) = (full(255.0), full(65535.0));
+    let mut data = match img {
+        DynamicImage::ImageLuma8(b) => heights(path, &b.into_raw(), 1, true, opts.channel, c8),
+        DynamicImage::ImageLumaA8(b) => heights(path, &b.into_raw(), 2, true, opts.channel, c8),
+        DynamicImage::ImageRgb8(b) => heights(path, &b.into_raw(), 3, false, opts.channel, c8),
+        DynamicImage::ImageRgba8(b) => heights(path, &b.into_raw(), 4, false, opts.channel, c8),
+        DynamicImage::ImageLuma16(b) => heights(path, &b.into_raw(), 1, true, opts.channel, c16),
+        DynamicImage::ImageLumaA16(b) => heights(path, &b.into_raw(), 2, true, opts.channel, c16),
+        DynamicImage::ImageRgb16(b) => heights(path, &b.into_raw(), 3, false, opts.channel, c16),
+        DynamicImage::ImageRgba16(b) => heights(path, &b.into_raw(), 4, false, opts.channel, c16),
         other => {
             return Err(image_err(
                 path,
@@ -257,21 +322,25 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
             ))
         }
     }?;
+    if !coded {
+        apply_range(path, &mut data, w, opts.range)?;
+    }
     finish(path, w, h, data, opts.address)
 }
 
 /// The heights of interleaved integer `samples` (`channels` per texel,
-/// `grey` when the colour channels are one grey value), normalised by
-/// `full` (the largest code): the chosen channel, or the grey value, or the
-/// Rec. 709 luma of the colour channels. Each sample is normalised exactly
-/// as before (`code as f32 / full`), so the heights are unchanged.
+/// `grey` when the colour channels are one grey value), divided by `full`
+/// (the largest code, or 1 to keep codes) and at most `cap` (1, or the
+/// largest code): the chosen channel, or the grey value, or the Rec. 709
+/// luma of the colour channels. Each sample is normalised exactly as
+/// before (`code as f32 / full`), so the heights are unchanged.
 fn heights<T: Copy + Into<f32> + Sync>(
     path: &Path,
     samples: &[T],
     channels: usize,
     grey: bool,
     channel: Option<Channel>,
-    full: f32,
+    [full, cap]: [f32; 2],
 ) -> Result<Vec<f32>> {
     use rayon::prelude::*;
     let has_alpha = channels == 2 || channels == 4;
@@ -292,7 +361,7 @@ fn heights<T: Copy + Into<f32> + Sync>(
         (Some(c), false) => pick(c as usize),
         (None, false) => samples
             .par_chunks_exact(channels)
-            .map(|p| (LUMA[0] * norm(p[0]) + LUMA[1] * norm(p[1]) + LUMA[2] * norm(p[2])).min(1.0))
+            .map(|p| (LUMA[0] * norm(p[0]) + LUMA[1] * norm(p[1]) + LUMA[2] * norm(p[2])).min(cap))
             .collect(),
     })
 }
@@ -388,24 +457,77 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             }
         }
     });
-    if let Some(k) = data.iter().position(|v| !(0.0..=1.0).contains(v)) {
-        let (lo, hi) = data
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
+    apply_range(path, &mut data, w, opts.range)?;
+    finish(path, w, h, data, opts.address)
+}
+
+/// The values of a TIFF data raster ([`super::data_tiff`]) as heights.
+fn load_data_tiff(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
+    if opts.channel.is_some() {
         return Err(image_err(
             path,
-            format!(
-                "texel ({}, {}) is {}: heights must lie in [0, 1] (this map spans {lo} to {hi}); \
-                 normalise it first, e.g. (h - {lo}) / ({hi} - {lo}), and set the depth with --extent",
-                k % w,
-                k / w,
-                data[k]
-            ),
+            "holds one band of values: --channel applies to colour images",
         ));
     }
+    let (mut data, [w, h]) = super::data_tiff::read(path, |[w, h]| {
+        HeightMap::check_size(w, h).map_err(|e| image_err(path, e))
+    })?;
+    apply_range(path, &mut data, w, opts.range)?;
     finish(path, w, h, data, opts.address)
+}
+
+/// Maps `data` (rows of `w`) to heights as `range` says; as stored, the
+/// values must already lie in `[0, 1]` (an integer image's normalised codes
+/// always do), and a value outside is refused, named.
+fn apply_range(path: &Path, data: &mut [f32], w: usize, range: HeightRange) -> Result<()> {
+    use rayon::prelude::*;
+    let span = || {
+        data.par_iter()
+            .fold(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |(a, b), &v| (a.min(v), b.max(v)),
+            )
+            .reduce(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |(a, b), (c, d)| (a.min(c), b.max(d)),
+            )
+    };
+    let (lo, hi) = match range {
+        HeightRange::AsStored => (0.0, 1.0),
+        HeightRange::Auto => span(),
+        HeightRange::Span(lo, hi) => (lo, hi),
+    };
+    if let Some(k) = data.par_iter().position_first(|v| !(lo..=hi).contains(v)) {
+        let (a, b) = span();
+        let texel = format!("texel ({}, {}) is {}", k % w.max(1), k / w.max(1), data[k]);
+        return Err(image_err(
+            path,
+            match range {
+                HeightRange::Span(..) => format!(
+                    "{texel}, outside the height range {lo},{hi} (this map spans {a} to {b})"
+                ),
+                _ => format!(
+                    "{texel}: heights must lie in [0, 1] (this map spans {a} to {b}); map them \
+                     with a height range (--height-range auto, or {a},{b}) or normalise the file \
+                     first, and set the depth with --extent"
+                ),
+            },
+        ));
+    }
+    if range == HeightRange::AsStored {
+        return Ok(());
+    }
+    // In f64, so that a DEM's large offset (metres above the sea) costs no
+    // precision of its relief; v <= hi gives at most 1.
+    let (lo, d) = (f64::from(lo), f64::from(hi) - f64::from(lo));
+    data.par_iter_mut().for_each(|v| {
+        *v = if d > 0.0 {
+            ((f64::from(*v) - lo) / d) as f32
+        } else {
+            0.0
+        }
+    });
+    Ok(())
 }
 
 fn encode_png(
@@ -563,16 +685,171 @@ mod tests {
                 (x * 13_107 + y * 3 + 1) as f32 / 65535.0
             );
         }
-        // Float TIFF heights are refused with what to do instead.
+        // Float TIFFs of several bands are refused: heights are one band.
         let p = dir.path().join("f.tiff");
         image::Rgb32FImage::from_fn(2, 2, |_, _| Rgb([0.5, 0.5, 0.5]))
             .save(&p)
             .unwrap();
         let e = load_path(&p, &opts()).unwrap_err().to_string();
-        assert!(e.contains("f.tiff") && e.contains("EXR"), "{e}");
+        assert!(e.contains("f.tiff") && e.contains("one band"), "{e}");
         // Formats without a reader are refused by name.
         let e = load("h.webp", &opts()).unwrap_err().to_string();
         assert!(e.contains("h.webp") && e.contains(".jpg"), "{e}");
+    }
+
+    /// Writes a one-band TIFF of `C` samples with extra `tags`.
+    fn write_tiff<C: tiff::encoder::colortype::ColorType>(
+        p: &Path,
+        [w, h]: [u32; 2],
+        data: &[C::Inner],
+        tags: &[(tiff::tags::Tag, &str)],
+        orientation: Option<u16>,
+    ) where
+        [C::Inner]: tiff::encoder::TiffValue,
+    {
+        let file = std::fs::File::create(p).unwrap();
+        let mut enc = tiff::encoder::TiffEncoder::new(file).unwrap();
+        let mut img = enc.new_image::<C>(w, h).unwrap();
+        for &(tag, value) in tags {
+            img.encoder().write_tag(tag, value).unwrap();
+        }
+        if let Some(o) = orientation {
+            img.encoder()
+                .write_tag(tiff::tags::Tag::Orientation, o)
+                .unwrap();
+        }
+        img.write_data(data).unwrap();
+    }
+
+    fn range(r: &str) -> HeightOptions {
+        HeightOptions {
+            range: r.parse().unwrap(),
+            ..opts()
+        }
+    }
+
+    /// Elevation rasters (float metres, signed 16-bit) load as measured and
+    /// become heights only through a range: as stored they must lie in
+    /// `[0, 1]`; `auto` maps the map's extremes to 0 and 1, `LO,HI` those
+    /// values, each texel `(v - lo) / (hi - lo)` (checked against the
+    /// formula in `f64` on random maps); out-of-range, non-finite and
+    /// no-data texels are refused, named.
+    #[test]
+    fn elevation_tiffs_load_as_measured_and_map_by_their_range() {
+        use crate::random::SplitMix64;
+        use tiff::encoder::colortype::{Gray32Float, Gray64Float, GrayI16};
+        use tiff::tags::Tag;
+        let dir = tempfile::tempdir().unwrap();
+        let mut rng = SplitMix64::new(7);
+        for case in 0..20 {
+            let w = 2 + (rng.next_u64() % 40) as usize;
+            let h = 2 + (rng.next_u64() % 30) as usize;
+            let base = rng.next_f32() * 5000.0 - 500.0;
+            let relief = rng.next_f32() * 3000.0;
+            let dem: Vec<f32> = (0..w * h).map(|_| base + relief * rng.next_f32()).collect();
+            let p = dir.path().join(format!("dem{case}.tif"));
+            write_tiff::<Gray32Float>(&p, [w as u32, h as u32], &dem, &[], None);
+            assert_eq!(dimensions(p.to_str().unwrap(), &opts()).unwrap(), [w, h]);
+            let (lo, hi) = dem
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let m = load_path(&p, &range("auto")).unwrap();
+            assert_eq!((m.width(), m.height()), (w, h));
+            let want = |v: f32, lo: f32, hi: f32| {
+                if hi > lo {
+                    ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32
+                } else {
+                    0.0
+                }
+            };
+            for (k, &v) in dem.iter().enumerate() {
+                let got = m.texel((k % w) as i64, (k / w) as i64);
+                assert_eq!(got, want(v, lo, hi), "case {case} texel {k}");
+                assert!((0.0..=1.0).contains(&got));
+            }
+            // A wider span maps the same way; one that misses a texel is
+            // refused with that texel and the map's extent.
+            let (a, b) = (lo - 10.0, hi + 10.0);
+            let m = load_path(&p, &range(&format!("{a},{b}"))).unwrap();
+            assert_eq!(m.texel(0, 0), want(dem[0], a, b));
+            if hi > lo {
+                let e = load_path(&p, &range(&format!("{a},{}", (lo + hi) / 2.0)))
+                    .unwrap_err()
+                    .to_string();
+                assert!(e.contains("outside the height range"), "{e}");
+                // As stored, metres are refused with the way to map them.
+                if !(0.0..=1.0).contains(&lo) || !(0.0..=1.0).contains(&hi) {
+                    let e = load_path(&p, &opts()).unwrap_err().to_string();
+                    assert!(
+                        e.contains("[0, 1]") && e.contains("--height-range auto"),
+                        "{e}"
+                    );
+                }
+            }
+        }
+        // Floats already in [0, 1] load as stored, bit for bit.
+        let p = dir.path().join("unit.tif");
+        let unit: Vec<f32> = (0..12).map(|k| k as f32 / 11.0).collect();
+        write_tiff::<Gray32Float>(&p, [4, 3], &unit, &[], None);
+        assert_eq!(load_path(&p, &opts()).unwrap().data(), &unit[..]);
+        // Signed 16-bit (an SRTM tile), below sea level too.
+        let p = dir.path().join("srtm.tif");
+        let srtm: Vec<i16> = vec![-20, 0, 100, 8848, -20, 5];
+        write_tiff::<GrayI16>(&p, [3, 2], &srtm, &[], None);
+        let m = load_path(&p, &range("auto")).unwrap();
+        assert_eq!(m.texel(0, 0), 0.0);
+        assert_eq!(m.texel(0, 1), 1.0);
+        assert_eq!(m.texel(1, 0), want_i16(0, -20, 8848));
+        // The no-data value is refused where it is, with what to do.
+        let p = dir.path().join("holes.tif");
+        let holes: Vec<i16> = vec![3, 4, -32768, 6];
+        write_tiff::<GrayI16>(&p, [2, 2], &holes, &[(Tag::GdalNodata, "-32768")], None);
+        let e = load_path(&p, &range("auto")).unwrap_err().to_string();
+        assert!(
+            e.contains("(0, 1)") && e.contains("no-data") && e.contains("holes.tif"),
+            "{e}"
+        );
+        // Non-finite floats are refused, named.
+        let p = dir.path().join("nan.tif");
+        write_tiff::<Gray32Float>(&p, [2, 2], &[0.5, f32::NAN, 0.5, 0.5], &[], None);
+        let e = load_path(&p, &range("auto")).unwrap_err().to_string();
+        assert!(e.contains("(1, 0)") && e.contains("finite"), "{e}");
+        // 64-bit samples: refused with the conversion to make.
+        let p = dir.path().join("f64.tif");
+        write_tiff::<Gray64Float>(&p, [2, 2], &[0.25, 0.5, 0.5, 0.5], &[], None);
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("64-bit") && e.contains("Float32"), "{e}");
+        // A colour channel of one band is a mistake, said so.
+        let e = load_path(&dir.path().join("unit.tif"), &channel(Channel::G))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--channel"), "{e}");
+        // The orientation tag turns the raster as it is shown: rotated a
+        // quarter turn clockwise (6), the stored first row is the right
+        // column, and the size swaps.
+        let p = dir.path().join("turned.tif");
+        write_tiff::<Gray32Float>(&p, [3, 2], &[0.0, 0.1, 0.2, 0.3, 0.4, 0.5], &[], Some(6));
+        assert_eq!(dimensions(p.to_str().unwrap(), &opts()).unwrap(), [2, 3]);
+        let m = load_path(&p, &opts()).unwrap();
+        assert_eq!(m.data(), &[0.3, 0.0, 0.4, 0.1, 0.5, 0.2]);
+        // An 8-bit image's range is in its codes.
+        let p = dir.path().join("codes.png");
+        ImageBuffer::<Luma<u8>, _>::from_fn(3, 2, |x, _| Luma([(50 + 50 * x) as u8]))
+            .save(&p)
+            .unwrap();
+        let row = [0.0, 0.5, 1.0, 0.0, 0.5, 1.0];
+        assert_eq!(load_path(&p, &range("50,150")).unwrap().data(), &row);
+        assert_eq!(load_path(&p, &range("auto")).unwrap().data(), &row);
+        // Ranges that are not ranges are refused when parsed.
+        for bad in ["", "1", "2,1", "0,nan", "a,b", "0,inf"] {
+            assert!(bad.parse::<HeightRange>().is_err(), "{bad}");
+        }
+    }
+
+    fn want_i16(v: i16, lo: i16, hi: i16) -> f32 {
+        ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32
     }
 
     #[test]

@@ -12,8 +12,10 @@
 //! | KTX2   | [`ktx2`] | distance map + extent, addressing, encoding, bound   |
 //! | DDS    | [`dds`]  | distance map voxels only (extent given by the user)  |
 //! | PNG/JPEG/TIFF/EXR| [`height`] | height maps in, normal and height maps out |
+//! | TIFF data rasters | `data_tiff` | elevation models in (float, signed samples) |
 
 pub mod atomic;
+mod data_tiff;
 pub mod dds;
 pub mod direct;
 pub mod height;

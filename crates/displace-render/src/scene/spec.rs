@@ -374,6 +374,16 @@ fn default_crease_angle() -> f32 {
     crate::vertex_normals::DEFAULT_CREASE_DEGREES
 }
 
+/// `height_range` of a displacement: a name (`"auto"`) or `[lo, hi]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum HeightRangeSpec {
+    /// `"auto"` (or `"lo,hi"`).
+    Named(String),
+    /// `[lo, hi]` in the file's values.
+    Span([f64; 2]),
+}
+
 /// `displacement = { ... }` of a quad, triangle or mesh.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -392,6 +402,11 @@ pub struct DisplacementSpec {
     /// `"clamp"` or `"repeat"` (needed for `tiles` other than 1).
     #[serde(default = "default_address")]
     pub address: String,
+    /// Which of the file's values become heights 0 and 1: `"auto"` (its
+    /// lowest and highest) or `[lo, hi]` (an elevation model's metres);
+    /// absent, as stored (8/16-bit codes by their full scale, floats in
+    /// [0, 1]).
+    pub height_range: Option<HeightRangeSpec>,
     /// Tiles of the map across the face (meshes: multiplies their coordinates).
     #[serde(default = "default_tiles")]
     pub tiles: [f32; 2],

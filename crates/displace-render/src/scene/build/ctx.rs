@@ -21,7 +21,9 @@ use std::sync::Arc;
 pub const MAX_COORDINATE: f32 = 1e18;
 
 /// A height source as loaded: the source, its generated size, addressing.
-pub(super) type HeightKey = (String, [usize; 2], Address);
+/// A loaded height map's source, generated size, addressing and height
+/// range (as its `Debug` text: the range holds floats, which do not hash).
+pub(super) type HeightKey = (String, [usize; 2], Address, String);
 
 /// The state of one scene's build.
 pub(super) struct Ctx<'a> {

@@ -4,7 +4,7 @@
 //! and `dP/dv` from the corners' texture coordinates as pbrt-v4 derives a
 //! triangle's partial derivatives (section 6.5).
 
-use super::super::spec::DisplacementSpec;
+use super::super::spec::{DisplacementSpec, HeightRangeSpec};
 use super::super::world::MeshDisplacement;
 use super::ctx::Ctx;
 use crate::curved_face::CurvedFace;
@@ -16,6 +16,7 @@ use crate::mesh_shells::MeshShells;
 use crate::shapes::Triangle;
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
+use displace_core::io::height::HeightRange;
 use displace_core::{Address, Extent, Method, TraceOptions};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
@@ -97,8 +98,14 @@ impl DispBuild {
                 "{what}.tiles: a clamped map covers one tile; use address = \"repeat\" to tile it"
             )));
         }
+        let range = match &d.height_range {
+            None => Ok(HeightRange::AsStored),
+            Some(HeightRangeSpec::Named(s)) => s.parse(),
+            Some(HeightRangeSpec::Span([lo, hi])) => format!("{lo},{hi}").parse(),
+        }
+        .map_err(|e: displace_core::Error| cx.err(format!("{what}.height_range: {e}")))?;
         let size = [hs[0] as usize, hs[1] as usize];
-        let key = (d.height.clone(), size, address);
+        let key = (d.height.clone(), size, address, format!("{range:?}"));
         let map_size = [ms[0] as usize, ms[1] as usize, ms[2] as usize];
         let core_err = |cx: &Ctx, e: Error| match e {
             Error::Core(c) => cx.err(format!("{what}.height `{}`: {c}", d.height)),
@@ -106,7 +113,7 @@ impl DispBuild {
         };
         if cx.planned.insert((key.clone(), map_size)) {
             // A new bake: its peak on top of what the scene holds already.
-            let texels = crate::heights::dimensions(&d.height, size, address, cx.base)
+            let texels = crate::heights::dimensions(&d.height, size, address, range, cx.base)
                 .map_err(|e| core_err(cx, e))?;
             cx.reserve(
                 &format!(
@@ -120,7 +127,7 @@ impl DispBuild {
             Some(h) => h.clone(),
             None => {
                 let h = Arc::new(
-                    crate::heights::load(&d.height, size, address, cx.base)
+                    crate::heights::load(&d.height, size, address, range, cx.base)
                         .map_err(|e| core_err(cx, e))?,
                 );
                 if !d.height.starts_with("gen:") {
