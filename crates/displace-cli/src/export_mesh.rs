@@ -181,18 +181,18 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         &[("-o", &args.output)],
         &[("height map", Path::new(&source))],
     )?;
-    check_memory(&source, &args.height_args)?;
-    let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
+    let [w, h] = check_memory(&source, &args.height_args)?;
     let scale = args.scale as u64;
-    let count = (height.width() as u64 * scale + 2) * (height.height() as u64 * scale + 2);
+    let (nu, nv) = (w as u64 * scale + 2, h as u64 * scale + 2);
+    let count = nu * nv;
     if count > MAX_VERTICES {
         bail!(
-            "{}x{} texels at --scale {} is {count} vertices; at most {MAX_VERTICES} are written",
-            height.width(),
-            height.height(),
+            "{w}x{h} texels at --scale {} is {count} vertices; at most {MAX_VERTICES} are written",
             args.scale
         );
     }
+    displace_core::io::atomic::check_free_space(&args.output, least_bytes(kind, nu, nv))?;
+    let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let normals = NormalMap::from_height(&height, extent);
     let grid = Grid {
         us: axis(height.width(), args.scale as usize),
@@ -220,6 +220,26 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     Ok(())
 }
 
+/// The fewest bytes a mesh of `nu x nv` vertices takes in `kind`: a PLY
+/// exactly (its header aside: 32 bytes a vertex, 13 a triangle); an OBJ at
+/// least its shortest lines (`v 0 0 0`, `vt 0 0`, `vn 0 0 0`, and faces
+/// whose indices have at least the digits of a tenth of the count, as nine
+/// in ten do). A lower bound, so that a refusal is sure: the free space is
+/// checked against it before the map is loaded.
+fn least_bytes(kind: MeshFile, nu: u64, nv: u64) -> u64 {
+    let vertices = nu * nv;
+    let triangles = 2 * (nu - 1) * (nv - 1);
+    match kind {
+        MeshFile::Ply => vertices * 32 + triangles * 13,
+        MeshFile::Obj => {
+            let digits = (vertices / 10).max(1).ilog10() as u64 + 1;
+            // `f a/a/a b/b/b c/c/c`: three triples of three indices.
+            let face = 2 + 3 * (3 * digits + 3);
+            vertices * (8 + 7 + 9) + triangles / 10 * 9 * face
+        }
+    }
+}
+
 /// Bytes the command holds at its peak per height texel: the heights
 /// (`f32`) and the normal map built from them (`Vec3`); the mesh itself is
 /// streamed to the file, vertex by vertex.
@@ -227,8 +247,8 @@ const BYTES_PER_TEXEL: u128 = 4 + 12;
 
 /// Refuses a height map whose heights and normals would not fit in memory
 /// ([`displace_core::memory`]), from the file's header alone, before
-/// anything is decoded.
-fn check_memory(source: &str, a: &HeightArgs) -> Result<()> {
+/// anything is decoded; the map's size.
+fn check_memory(source: &str, a: &HeightArgs) -> Result<[usize; 2]> {
     let size = match &a.height_size {
         Some(s) => displace_core::convention::parse_size::<2>(s)
             .with_context(|| format!("--height-size {s}"))?,
@@ -241,7 +261,7 @@ fn check_memory(source: &str, a: &HeightArgs) -> Result<()> {
         &format!("export-mesh of a {w}x{h} height map"),
         w as u128 * h as u128 * BYTES_PER_TEXEL,
     )?;
-    Ok(())
+    Ok([w, h])
 }
 
 fn write_obj(w: &mut dyn Write, g: &Grid) -> std::io::Result<()> {
@@ -327,5 +347,40 @@ mod tests {
             .each_triangle()
             .flatten()
             .all(|i| (i as usize) < g.vertices()));
+    }
+
+    /// The free-space bound is a lower bound on what is written, exact for
+    /// a PLY's body, close for an OBJ, on maps of many sizes and scales.
+    #[test]
+    fn the_least_bytes_bound_what_is_written() {
+        for (w, hgt, scale) in [(2, 2, 1), (3, 5, 2), (17, 9, 3), (40, 31, 1), (64, 64, 2)] {
+            let data: Vec<f32> = (0..w * hgt).map(|k| (k % 7) as f32 / 7.0).collect();
+            let h = HeightMap::new(w, hgt, data, Address::Clamp).unwrap();
+            let e = Extent::new(1.0, 1.0, 0.1).unwrap();
+            let n = NormalMap::from_height(&h, e);
+            let g = Grid {
+                us: axis(w, scale),
+                vs: axis(hgt, scale),
+                height: &h,
+                normals: &n,
+                extent: e,
+            };
+            let (nu, nv) = ((w * scale + 2) as u64, (hgt * scale + 2) as u64);
+            let (mut ply, mut obj) = (Vec::new(), Vec::new());
+            write_ply(&mut ply, &g).unwrap();
+            write_obj(&mut obj, &g).unwrap();
+            let header = ply.windows(11).position(|b| b == b"end_header\n").unwrap() + 11;
+            assert_eq!(
+                (ply.len() - header) as u64,
+                least_bytes(MeshFile::Ply, nu, nv)
+            );
+            let least = least_bytes(MeshFile::Obj, nu, nv);
+            assert!(least <= obj.len() as u64, "{w}x{hgt}x{scale}");
+            assert!(
+                least * 3 >= obj.len() as u64,
+                "{w}x{hgt}x{scale}: {least} of {}",
+                obj.len()
+            );
+        }
     }
 }

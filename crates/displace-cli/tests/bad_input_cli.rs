@@ -912,3 +912,26 @@ fn an_elevation_model_bakes_through_its_height_range() {
         &[],
     );
 }
+
+/// `export-mesh` of a map whose mesh cannot fit on the output's disk (a
+/// small tmpfs) is refused before the map is loaded, saying what it needs
+/// and what is free, and leaves nothing; the same mesh fits a disk with
+/// room.
+#[test]
+fn a_mesh_larger_than_the_free_disk_is_refused_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 258 x 258 vertices: a 2.1 MB PLY body.
+    let args = words("export-mesh gen:noise --height-size 256x256 --extent 1,1,0.1 -o disk/m.ply");
+    let page = page_size();
+    let (o, left) = on_small_disk(d, 256 * page, &args);
+    failed(
+        &o,
+        &["disk/m.ply", "the output needs", "free"],
+        &["No space left"],
+    );
+    assert!(left.is_empty(), "{left:?}");
+    let (o, left) = on_small_disk(d, 1024 * page, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(left, ["m.ply"]);
+}
