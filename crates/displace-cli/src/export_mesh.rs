@@ -183,14 +183,17 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     )?;
     let [w, h] = check_memory(&source, &args.height_args)?;
     let scale = args.scale as u64;
-    let (nu, nv) = (w as u64 * scale + 2, h as u64 * scale + 2);
-    let count = nu * nv;
-    if count > MAX_VERTICES {
-        bail!(
-            "{w}x{h} texels at --scale {} is {count} vertices; at most {MAX_VERTICES} are written",
-            args.scale
-        );
-    }
+    // Checked: a large --scale times a long side overflows 64 bits.
+    let side = |n: usize| (n as u64).checked_mul(scale).and_then(|m| m.checked_add(2));
+    let count = side(w).zip(side(h)).and_then(|(nu, nv)| nu.checked_mul(nv));
+    let (nu, nv) = match count {
+        Some(count) if count <= MAX_VERTICES => (w as u64 * scale + 2, h as u64 * scale + 2),
+        _ => bail!(
+            "{w}x{h} texels at --scale {} is {} vertices; at most {MAX_VERTICES} are written",
+            args.scale,
+            count.map_or("more than 2^64".to_string(), |c| c.to_string())
+        ),
+    };
     displace_core::io::atomic::check_free_space(&args.output, least_bytes(kind, nu, nv))?;
     let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
     let normals = NormalMap::from_height(&height, extent);

@@ -921,17 +921,16 @@ fn an_elevation_model_bakes_through_its_height_range() {
 fn a_mesh_larger_than_the_free_disk_is_refused_first() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // 258 x 258 vertices: a 2.1 MB PLY body.
+    // 258 x 258 vertices and 2 x 257 x 257 triangles: a 3.8 MB PLY body.
     let args = words("export-mesh gen:noise --height-size 256x256 --extent 1,1,0.1 -o disk/m.ply");
-    let page = page_size();
-    let (o, left) = on_small_disk(d, 256 * page, &args);
+    let (o, left) = on_small_disk(d, 1 << 20, &args);
     failed(
         &o,
         &["disk/m.ply", "the output needs", "free"],
         &["No space left"],
     );
     assert!(left.is_empty(), "{left:?}");
-    let (o, left) = on_small_disk(d, 1024 * page, &args);
+    let (o, left) = on_small_disk(d, 8 << 20, &args);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(left, ["m.ply"]);
 }

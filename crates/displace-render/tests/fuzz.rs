@@ -326,16 +326,49 @@ fn mutated_inputs_never_panic() {
     })
     .save(&tif)
     .unwrap();
+    // Elevation models: one band of float and of signed 16-bit samples,
+    // with a no-data value, read by the `tiff` crate.
+    let ftif = dir.path().join("f.tif");
+    let itif = dir.path().join("i.tif");
+    let dem = |name: &Path, write: &dyn Fn(&mut tiff::encoder::TiffEncoder<std::fs::File>)| {
+        write(&mut tiff::encoder::TiffEncoder::new(std::fs::File::create(name).unwrap()).unwrap())
+    };
+    dem(&ftif, &|enc| {
+        let mut img = enc
+            .new_image::<tiff::encoder::colortype::Gray32Float>(8, 8)
+            .unwrap();
+        img.encoder()
+            .write_tag(tiff::tags::Tag::GdalNodata, "-9999")
+            .unwrap();
+        let values: Vec<f32> = (0..64)
+            .map(|k| f32::from(ramp(k % 8, k / 8)) / 255.0)
+            .collect();
+        img.write_data(&values).unwrap();
+    });
+    dem(&itif, &|enc| {
+        let values: Vec<i16> = (0..64)
+            .map(|k| i16::from(ramp(k % 8, k / 8)) - 100)
+            .collect();
+        enc.write_image::<tiff::encoder::colortype::GrayI16>(8, 8, &values)
+            .unwrap();
+    });
     let opts = height::HeightOptions::default();
+    let auto = height::HeightOptions {
+        range: height::HeightRange::Auto,
+        ..opts
+    };
     for (parser, seed, file, name) in [
         ("png", 6, &png, "h.png"),
         ("exr", 7, &exr, "h.exr"),
         ("jpeg", 8, &jpg, "h.jpg"),
         ("tiff", 9, &tif, "h.tif"),
+        ("float tiff", 10, &ftif, "f.tif"),
+        ("signed tiff", 11, &itif, "i.tif"),
     ] {
         let corpus = [std::fs::read(file).unwrap()];
         crashes.extend(fuzz(parser, seed, &corpus, name, false, &|_, p| {
-            let height = height::load(&p.to_string_lossy(), &opts).is_ok();
+            let path = p.to_string_lossy();
+            let height = height::load(&path, &opts).is_ok() | height::load(&path, &auto).is_ok();
             displace_render::texture::Texture::load(p, true).is_ok() || height
         }));
     }

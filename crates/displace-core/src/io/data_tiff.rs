@@ -18,7 +18,7 @@ use tiff::tags::{SampleFormat, Tag};
 use tiff::ColorType;
 
 /// How a TIFF's samples are stored, from its header.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Layout {
     /// Stored width and height (before any orientation).
     pub stored: [usize; 2],
@@ -28,14 +28,30 @@ pub(super) struct Layout {
     pub format: SampleFormat,
     /// The orientation tag (1: as stored).
     pub orientation: u8,
+    /// GDAL's no-data value (`GDAL_NODATA`), where the file names one.
+    pub nodata: Option<f64>,
 }
 
 impl Layout {
-    /// Whether the `image` crate decodes this file: unsigned samples of 8
-    /// or 16 bits (grey, grey and alpha, RGB, RGBA); everything else is a
-    /// data raster read here.
+    /// Whether the `image` crate decodes this file: unsigned samples of at
+    /// most 16 bits (grey, grey and alpha, RGB, RGBA, palette, 1-bit
+    /// masks); everything else is a data raster read here, and so is a
+    /// one-band 8- or 16-bit elevation model that names a no-data value,
+    /// so that its holes are found.
     pub fn is_image(&self) -> bool {
-        self.format == SampleFormat::Uint && matches!(self.color.bit_depth(), 8 | 16)
+        let bits = self.color.bit_depth();
+        let model = matches!(self.color, ColorType::Gray(8 | 16)) && self.nodata.is_some();
+        self.format == SampleFormat::Uint && bits <= 16 && !model
+    }
+
+    /// The full scale of unsigned 8- and 16-bit samples (whose codes are
+    /// normalised as an image's are), else `None` (values as stored).
+    pub fn full_scale(&self) -> Option<f32> {
+        match (self.format, self.color.bit_depth()) {
+            (SampleFormat::Uint, 8) => Some(255.0),
+            (SampleFormat::Uint, 16) => Some(65535.0),
+            _ => None,
+        }
     }
 
     /// The size as the orientation shows it.
@@ -56,16 +72,15 @@ fn err(path: &Path, what: impl std::fmt::Display) -> Error {
     }
 }
 
+/// The decoder of `path`, its first directory read within the `tiff`
+/// crate's default limits (a tag's values at most 1 MiB): a hostile header
+/// cannot make it allocate what it claims.
 fn open(path: &Path) -> Result<Decoder<BufReader<std::fs::File>>> {
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    // The map's size is checked against this crate's limits
-    // (`HeightMap::check_size`, the caller's memory estimate) instead.
-    Decoder::new(BufReader::new(file))
-        .map(|d| d.with_limits(Limits::unlimited()))
-        .map_err(|e| err(path, format!("cannot read TIFF: {e}")))
+    Decoder::new(BufReader::new(file)).map_err(|e| err(path, format!("cannot read TIFF: {e}")))
 }
 
 fn layout_of(path: &Path, d: &mut Decoder<BufReader<std::fs::File>>) -> Result<Layout> {
@@ -83,11 +98,18 @@ fn layout_of(path: &Path, d: &mut Decoder<BufReader<std::fs::File>>) -> Result<L
         .flatten()
         .filter(|o| (1..=8).contains(o))
         .unwrap_or(1);
+    let nodata = d
+        .find_tag(Tag::GdalNodata)
+        .ok()
+        .flatten()
+        .and_then(|v| v.into_string().ok())
+        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
     Ok(Layout {
         stored: [w as usize, h as usize],
         color,
         format,
         orientation,
+        nodata,
     })
 }
 
@@ -101,12 +123,13 @@ pub(super) fn layout(path: &Path) -> Result<Layout> {
 }
 
 /// The values of a data TIFF (not [`Layout::is_image`]) as stored, one per
-/// texel, row-major as its orientation shows them, and the shown size.
-/// `check_size` is called with the shown size before anything is decoded.
+/// texel, row-major as its orientation shows them, with its layout.
+/// `check_size` is called with the shown size before anything is decoded,
+/// and the decoder may then allocate the samples of that size and no more.
 pub(super) fn read(
     path: &Path,
     check_size: impl FnOnce([usize; 2]) -> Result<()>,
-) -> Result<(Vec<f32>, [usize; 2])> {
+) -> Result<(Vec<f32>, Layout)> {
     let mut d = open(path)?;
     let layout = layout_of(path, &mut d)?;
     let samples = match layout.color {
@@ -132,32 +155,51 @@ pub(super) fn read(
             ),
         ));
     }
+    let bits = layout.color.bit_depth();
+    if bits > 32 {
+        // Refused before decoding: twice the memory the estimate allows.
+        return Err(err(
+            path,
+            format!(
+                "has {bits}-bit samples: convert the heights to 32-bit float first \
+                 (e.g. gdal_translate -ot Float32)"
+            ),
+        ));
+    }
+    if !matches!(bits, 8 | 16 | 32) {
+        return Err(err(
+            path,
+            format!(
+                "has {bits}-bit {:?} samples: heights are read from 8, 16 or 32 bits",
+                layout.format
+            ),
+        ));
+    }
     check_size(layout.shown())?;
-    let nodata = d
-        .find_tag(Tag::GdalNodata)
-        .ok()
-        .flatten()
-        .and_then(|v| v.into_string().ok())
-        .and_then(|s| s.trim().trim_end_matches('\0').parse::<f64>().ok());
+    let [w, h] = layout.stored;
+    // The samples, and what a strip or tile is decoded through, within
+    // the checked size.
+    let bytes = w * h * usize::from(bits / 8);
+    let mut limits = Limits::default();
+    limits.decoding_buffer_size = bytes;
+    limits.intermediate_buffer_size = limits.intermediate_buffer_size.max(bytes);
+    let mut d = d.with_limits(limits);
     let image = d
         .read_image()
         .map_err(|e| err(path, format!("cannot decode TIFF: {e}")))?;
-    let values = to_f32(path, image)?;
-    let [w, h] = layout.stored;
+    let (values, nodata_at) = to_f32(path, image, layout.nodata)?;
     if values.len() != w * h {
         return Err(err(
             path,
             format!("decoded {} samples for {w}x{h} texels", values.len()),
         ));
     }
-    if let Some(k) = values
-        .iter()
-        .position(|v| !v.is_finite() || nodata.is_some_and(|n| f64::from(*v) == n))
-    {
+    let bad = nodata_at.or_else(|| values.iter().position(|v| !v.is_finite()));
+    if let Some(k) = bad {
         let (i, j) = (k % w, k / w);
         return Err(err(
             path,
-            if values[k].is_finite() {
+            if nodata_at.is_some() {
                 format!(
                     "stored texel ({i}, {j}) holds the file's no-data value {} (GDAL_NODATA): \
                      fill the holes first (e.g. gdal_fillnodata.py)",
@@ -171,25 +213,43 @@ pub(super) fn read(
             },
         ));
     }
-    Ok(orient(values, layout))
+    let (values, _) = orient(values, layout);
+    Ok((values, layout))
 }
 
-/// One `f32` per sample; 64-bit samples are refused (they would need
-/// twice the memory the estimate allows for decoding).
-fn to_f32(path: &Path, image: DecodingResult) -> Result<Vec<f32>> {
+/// One `f32` per sample, and the first sample equal to `nodata`, compared
+/// in the sample's own type (an unsigned 32-bit 4294967295 or a float
+/// -9999.99 would not survive a round trip through the other).
+fn to_f32(
+    path: &Path,
+    image: DecodingResult,
+    nodata: Option<f64>,
+) -> Result<(Vec<f32>, Option<usize>)> {
     use rayon::prelude::*;
-    fn each<T: Copy + Send + Sync>(v: Vec<T>, f: impl Fn(T) -> f32 + Sync + Send) -> Vec<f32> {
-        v.par_iter().map(|&x| f(x)).collect()
+    fn each<T: Copy + Send + Sync>(
+        v: Vec<T>,
+        is_nodata: impl Fn(T) -> bool + Sync + Send,
+        f: impl Fn(T) -> f32 + Sync + Send,
+    ) -> (Vec<f32>, Option<usize>) {
+        let at = v.par_iter().position_first(|&x| is_nodata(x));
+        (v.par_iter().map(|&x| f(x)).collect(), at)
     }
+    // Integers: equal as numbers (every one of them is an exact f64).
+    let n = nodata.unwrap_or(f64::NAN);
+    let int = move |x: f64| x == n;
+    let float = move |x: f32| nodata.is_some() && x == n as f32;
     Ok(match image {
-        DecodingResult::F32(v) => v,
-        DecodingResult::F16(v) => each(v, f32::from),
-        DecodingResult::I8(v) => each(v, f32::from),
-        DecodingResult::I16(v) => each(v, f32::from),
-        DecodingResult::I32(v) => each(v, |x| x as f32),
-        DecodingResult::U32(v) => each(v, |x| x as f32),
-        DecodingResult::U8(v) => each(v, f32::from),
-        DecodingResult::U16(v) => each(v, f32::from),
+        DecodingResult::F32(v) => {
+            let at = v.par_iter().position_first(|&x| float(x));
+            (v, at)
+        }
+        DecodingResult::F16(v) => each(v, |x| float(f32::from(x)), f32::from),
+        DecodingResult::I8(v) => each(v, |x| int(f64::from(x)), f32::from),
+        DecodingResult::I16(v) => each(v, |x| int(f64::from(x)), f32::from),
+        DecodingResult::I32(v) => each(v, |x| int(f64::from(x)), |x| x as f32),
+        DecodingResult::U32(v) => each(v, |x| int(f64::from(x)), |x| x as f32),
+        DecodingResult::U8(v) => each(v, |x| int(f64::from(x)), f32::from),
+        DecodingResult::U16(v) => each(v, |x| int(f64::from(x)), f32::from),
         _ => {
             return Err(err(
                 path,
@@ -239,6 +299,7 @@ mod tests {
             color: ColorType::Gray(32),
             format: SampleFormat::IEEEFP,
             orientation,
+            nodata: None,
         }
     }
 

@@ -316,7 +316,7 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
                 path,
                 format!(
                     "unsupported {name} colour type {:?}: heights are read from 8- or 16-bit \
-                     integer samples (float heights: an EXR in [0, 1])",
+                     integer samples (float heights: an EXR, or a one-band float TIFF)",
                     other.color()
                 ),
             ))
@@ -469,9 +469,15 @@ fn load_data_tiff(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             "holds one band of values: --channel applies to colour images",
         ));
     }
-    let (mut data, [w, h]) = super::data_tiff::read(path, |[w, h]| {
+    let (mut data, layout) = super::data_tiff::read(path, |[w, h]| {
         HeightMap::check_size(w, h).map_err(|e| image_err(path, e))
     })?;
+    let [w, h] = layout.shown();
+    // Unsigned 8- and 16-bit codes as stored are normalised as an image's
+    // are (`code / full`); a range maps the codes themselves.
+    if let (HeightRange::AsStored, Some(full)) = (opts.range, layout.full_scale()) {
+        data.iter_mut().for_each(|v| *v /= full);
+    }
     apply_range(path, &mut data, w, opts.range)?;
     finish(path, w, h, data, opts.address)
 }
@@ -816,6 +822,53 @@ mod tests {
         write_tiff::<Gray32Float>(&p, [2, 2], &[0.5, f32::NAN, 0.5, 0.5], &[], None);
         let e = load_path(&p, &range("auto")).unwrap_err().to_string();
         assert!(e.contains("(1, 0)") && e.contains("finite"), "{e}");
+        // An unsigned 16-bit model that names its no-data value is read
+        // here, its codes normalised as an image's are (the same bits as
+        // without the tag), and its holes found; so are the no-data values
+        // an f32 does not hold exactly (UInt32's largest, a float -9999.99).
+        let codes: Vec<u16> = vec![0, 1000, 65535, 30000];
+        let p = dir.path().join("u16.tif");
+        write_tiff::<tiff::encoder::colortype::Gray16>(&p, [2, 2], &codes, &[], None);
+        let plain = load_path(&p, &opts()).unwrap();
+        let p = dir.path().join("u16nd.tif");
+        write_tiff::<tiff::encoder::colortype::Gray16>(
+            &p,
+            [2, 2],
+            &codes,
+            &[(Tag::GdalNodata, "7")],
+            None,
+        );
+        assert_eq!(load_path(&p, &opts()).unwrap().data(), plain.data());
+        let p = dir.path().join("u16hole.tif");
+        write_tiff::<tiff::encoder::colortype::Gray16>(
+            &p,
+            [2, 2],
+            &codes,
+            &[(Tag::GdalNodata, "65535")],
+            None,
+        );
+        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        assert!(e.contains("(0, 1)") && e.contains("no-data"), "{e}");
+        let p = dir.path().join("u32hole.tif");
+        write_tiff::<tiff::encoder::colortype::Gray32>(
+            &p,
+            [2, 2],
+            &[5, 6, 7, u32::MAX],
+            &[(Tag::GdalNodata, "4294967295")],
+            None,
+        );
+        let e = load_path(&p, &range("auto")).unwrap_err().to_string();
+        assert!(e.contains("(1, 1)") && e.contains("no-data"), "{e}");
+        let p = dir.path().join("f32hole.tif");
+        write_tiff::<Gray32Float>(
+            &p,
+            [2, 2],
+            &[5.0, -9999.99, 7.0, 8.0],
+            &[(Tag::GdalNodata, "-9999.99")],
+            None,
+        );
+        let e = load_path(&p, &range("auto")).unwrap_err().to_string();
+        assert!(e.contains("(1, 0)") && e.contains("no-data"), "{e}");
         // 64-bit samples: refused with the conversion to make.
         let p = dir.path().join("f64.tif");
         write_tiff::<Gray64Float>(&p, [2, 2], &[0.25, 0.5, 0.5, 0.5], &[], None);
