@@ -334,7 +334,8 @@ pub fn bake_streamed(
     slab_slices: usize,
     sink: &mut (impl SlabSink + Send),
 ) -> Result<()> {
-    let plan = BakePlan::new(height, opts, crate::memory::stores_column_ranges(opts.size))?;
+    let stored = crate::memory::stores_column_ranges([height.width(), height.height()], opts.size);
+    let plan = BakePlan::new(height, opts, stored)?;
     sink.begin(BakeLayout {
         size: plan.size,
         aspect: plan.aspect,
