@@ -185,9 +185,10 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     let scale = args.scale as u64;
     // Checked: a large --scale times a long side overflows 64 bits.
     let side = |n: usize| (n as u64).checked_mul(scale).and_then(|m| m.checked_add(2));
-    let count = side(w).zip(side(h)).and_then(|(nu, nv)| nu.checked_mul(nv));
-    let (nu, nv) = match count {
-        Some(count) if count <= MAX_VERTICES => (w as u64 * scale + 2, h as u64 * scale + 2),
+    let sides = side(w).zip(side(h));
+    let count = sides.and_then(|(nu, nv)| nu.checked_mul(nv));
+    let (nu, nv) = match (sides, count) {
+        (Some(sides), Some(count)) if count <= MAX_VERTICES => sides,
         _ => bail!(
             "{w}x{h} texels at --scale {} is {} vertices; at most {MAX_VERTICES} are written",
             args.scale,

@@ -10,6 +10,7 @@
 //! file's no-data value (GDAL's `GDAL_NODATA` tag) or a non-finite value is
 //! refused, named, rather than baked as a pit or a spike.
 
+use super::height::image_err as err;
 use crate::{Error, Result};
 use std::io::BufReader;
 use std::path::Path;
@@ -65,17 +66,12 @@ impl Layout {
     }
 }
 
-fn err(path: &Path, what: impl std::fmt::Display) -> Error {
-    Error::Image {
-        path: path.to_path_buf(),
-        message: what.to_string(),
-    }
-}
-
 /// The decoder of `path`, its first directory read within the `tiff`
 /// crate's default limits (a tag's values at most 1 MiB): a hostile header
 /// cannot make it allocate what it claims.
-fn open(path: &Path) -> Result<Decoder<BufReader<std::fs::File>>> {
+type TiffDecoder = Decoder<BufReader<std::fs::File>>;
+
+fn open(path: &Path) -> Result<TiffDecoder> {
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -83,7 +79,7 @@ fn open(path: &Path) -> Result<Decoder<BufReader<std::fs::File>>> {
     Decoder::new(BufReader::new(file)).map_err(|e| err(path, format!("cannot read TIFF: {e}")))
 }
 
-fn layout_of(path: &Path, d: &mut Decoder<BufReader<std::fs::File>>) -> Result<Layout> {
+fn layout_of(path: &Path, d: &mut TiffDecoder) -> Result<Layout> {
     let bad = |e: tiff::TiffError| err(path, format!("cannot read TIFF: {e}"));
     let (w, h) = d.dimensions().map_err(bad)?;
     let color = d.colortype().map_err(bad)?;
@@ -113,25 +109,49 @@ fn layout_of(path: &Path, d: &mut Decoder<BufReader<std::fs::File>>) -> Result<L
     })
 }
 
-/// The layout of a checked TIFF file, from its header alone.
-pub(super) fn layout(path: &Path) -> Result<Layout> {
+/// A checked TIFF file opened, its header read: its layout, and the
+/// decoder that [`read`] goes on with (so that a data raster's file is
+/// opened and its directory parsed once).
+pub(super) struct Probe {
+    /// How its samples are stored.
+    pub layout: Layout,
+    decoder: TiffDecoder,
+}
+
+/// The header of a checked TIFF file.
+pub(super) fn probe(path: &Path) -> Result<Probe> {
     super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
     if std::fs::metadata(path).is_ok_and(|m| m.len() == 0) {
         return Err(err(path, "the file is empty"));
     }
-    layout_of(path, &mut open(path)?)
+    let mut decoder = open(path)?;
+    let layout = layout_of(path, &mut decoder)?;
+    Ok(Probe { layout, decoder })
 }
 
-/// The values of a data TIFF (not [`Layout::is_image`]) as stored, one per
-/// texel, row-major as its orientation shows them, with its layout.
-/// `check_size` is called with the shown size before anything is decoded,
-/// and the decoder may then allocate the samples of that size and no more.
+/// The refusal of samples wider than 32 bits, which would need twice the
+/// memory the estimate allows for decoding.
+fn too_wide(path: &Path, bits: u8) -> Error {
+    err(
+        path,
+        format!(
+            "has {bits}-bit samples: convert the heights to 32-bit float first \
+             (e.g. gdal_translate -ot Float32)"
+        ),
+    )
+}
+
+/// The values of a probed data TIFF (not [`Layout::is_image`]) as stored,
+/// one per texel, row-major as its orientation shows them
+/// ([`Layout::shown`]). `check_size` is called with the shown size before
+/// anything is decoded, and the decoder may then allocate the samples of
+/// that size and no more.
 pub(super) fn read(
     path: &Path,
+    probe: Probe,
     check_size: impl FnOnce([usize; 2]) -> Result<()>,
-) -> Result<(Vec<f32>, Layout)> {
-    let mut d = open(path)?;
-    let layout = layout_of(path, &mut d)?;
+) -> Result<Vec<f32>> {
+    let Probe { layout, decoder } = probe;
     let samples = match layout.color {
         ColorType::Gray(_) => 1,
         ColorType::Multiband { num_samples, .. } => num_samples,
@@ -157,14 +177,7 @@ pub(super) fn read(
     }
     let bits = layout.color.bit_depth();
     if bits > 32 {
-        // Refused before decoding: twice the memory the estimate allows.
-        return Err(err(
-            path,
-            format!(
-                "has {bits}-bit samples: convert the heights to 32-bit float first \
-                 (e.g. gdal_translate -ot Float32)"
-            ),
-        ));
+        return Err(too_wide(path, bits));
     }
     if !matches!(bits, 8 | 16 | 32) {
         return Err(err(
@@ -183,7 +196,7 @@ pub(super) fn read(
     let mut limits = Limits::default();
     limits.decoding_buffer_size = bytes;
     limits.intermediate_buffer_size = limits.intermediate_buffer_size.max(bytes);
-    let mut d = d.with_limits(limits);
+    let mut d = decoder.with_limits(limits);
     let image = d
         .read_image()
         .map_err(|e| err(path, format!("cannot decode TIFF: {e}")))?;
@@ -213,8 +226,7 @@ pub(super) fn read(
             },
         ));
     }
-    let (values, _) = orient(values, layout);
-    Ok((values, layout))
+    Ok(orient(values, layout))
 }
 
 /// One `f32` per sample, and the first sample equal to `nodata`, compared
@@ -237,7 +249,7 @@ fn to_f32(
     // Integers: equal as numbers (every one of them is an exact f64).
     let n = nodata.unwrap_or(f64::NAN);
     let int = move |x: f64| x == n;
-    let float = move |x: f32| nodata.is_some() && x == n as f32;
+    let float = move |x: f32| x == n as f32;
     Ok(match image {
         DecodingResult::F32(v) => {
             let at = v.par_iter().position_first(|&x| float(x));
@@ -250,25 +262,19 @@ fn to_f32(
         DecodingResult::U32(v) => each(v, |x| int(f64::from(x)), |x| x as f32),
         DecodingResult::U8(v) => each(v, |x| int(f64::from(x)), f32::from),
         DecodingResult::U16(v) => each(v, |x| int(f64::from(x)), f32::from),
-        _ => {
-            return Err(err(
-                path,
-                "has 64-bit samples: convert the heights to 32-bit float first \
-                 (e.g. gdal_translate -ot Float32)",
-            ))
-        }
+        // 64-bit samples, refused before decoding by `read`.
+        _ => return Err(too_wide(path, 64)),
     })
 }
 
 /// The stored raster turned as its orientation tag asks (TIFF 6.0's
 /// Orientation, the same eight cases as EXIF's).
-fn orient(values: Vec<f32>, layout: Layout) -> (Vec<f32>, [usize; 2]) {
+fn orient(values: Vec<f32>, layout: Layout) -> Vec<f32> {
     let [w, h] = layout.stored;
-    let shown = layout.shown();
     if layout.orientation == 1 {
-        return (values, shown);
+        return values;
     }
-    let [sw, sh] = shown;
+    let [sw, sh] = layout.shown();
     let mut out = vec![0.0f32; w * h];
     for y in 0..sh {
         for x in 0..sw {
@@ -286,7 +292,7 @@ fn orient(values: Vec<f32>, layout: Layout) -> (Vec<f32>, [usize; 2]) {
             out[y * sw + x] = values[j * w + i];
         }
     }
-    (out, shown)
+    out
 }
 
 #[cfg(test)]
@@ -320,8 +326,8 @@ mod tests {
             (8, [2, 3], [2., 5., 1., 4., 0., 3.]),
         ];
         for (o, size, want) in cases {
-            let (got, shown) = orient(stored.clone(), layout(o));
-            assert_eq!(shown, size, "orientation {o}");
+            let got = orient(stored.clone(), layout(o));
+            assert_eq!(layout(o).shown(), size, "orientation {o}");
             assert_eq!(got, want, "orientation {o}");
         }
     }

@@ -93,8 +93,17 @@ impl std::str::FromStr for HeightRange {
         let (lo, hi) = s.split_once(',').ok_or_else(bad)?;
         let lo: f32 = lo.trim().parse().map_err(|_| bad())?;
         let hi: f32 = hi.trim().parse().map_err(|_| bad())?;
+        Self::span(lo, hi).map_err(|_| bad())
+    }
+}
+
+impl HeightRange {
+    /// `lo` to 0 and `hi` to 1, checked: both finite, `lo < hi`.
+    pub fn span(lo: f32, hi: f32) -> Result<Self> {
         if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-            return Err(bad());
+            return Err(Error::InvalidHeightMap(format!(
+                "height range [{lo}, {hi}]: expected finite LO < HI"
+            )));
         }
         Ok(Self::Span(lo, hi))
     }
@@ -151,10 +160,10 @@ pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
         return match opts.range {
             HeightRange::AsStored => Ok(map),
             range => {
-                let (w, h) = (map.width(), map.height());
+                let (path, [w, h]) = (Path::new(source), [map.width(), map.height()]);
                 let mut data = map.data().to_vec();
-                apply_range(Path::new(source), &mut data, w, range)?;
-                HeightMap::new(w, h, data, opts.address)
+                apply_range(path, &mut data, w, range)?;
+                finish(path, w, h, data, opts.address)
             }
         };
     }
@@ -163,8 +172,11 @@ pub fn load(source: &str, opts: &HeightOptions) -> Result<HeightMap> {
     if ext == "exr" {
         return load_exr(path, opts);
     }
-    if matches!(ext.as_str(), "tif" | "tiff") && !super::data_tiff::layout(path)?.is_image() {
-        return load_data_tiff(path, opts);
+    if matches!(ext.as_str(), "tif" | "tiff") {
+        let probe = super::data_tiff::probe(path)?;
+        if !probe.layout.is_image() {
+            return load_data_tiff(path, probe, opts);
+        }
     }
     match raster_format(&ext) {
         Some(format) => load_raster(path, format, opts),
@@ -189,7 +201,7 @@ pub fn dimensions(source: &str, opts: &HeightOptions) -> Result<[usize; 2]> {
         return Ok([size.width(), size.height()]);
     }
     if matches!(ext.as_str(), "tif" | "tiff") {
-        let layout = super::data_tiff::layout(path)?;
+        let layout = super::data_tiff::probe(path)?.layout;
         if !layout.is_image() {
             return Ok(layout.shown());
         }
@@ -271,7 +283,7 @@ fn lower_extension(path: &Path) -> Option<String> {
         .map(str::to_ascii_lowercase)
 }
 
-fn image_err(path: &Path, what: impl std::fmt::Display) -> Error {
+pub(super) fn image_err(path: &Path, what: impl std::fmt::Display) -> Error {
     Error::Image {
         path: path.to_path_buf(),
         message: what.to_string(),
@@ -462,14 +474,19 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
 }
 
 /// The values of a TIFF data raster ([`super::data_tiff`]) as heights.
-fn load_data_tiff(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
+fn load_data_tiff(
+    path: &Path,
+    probe: super::data_tiff::Probe,
+    opts: &HeightOptions,
+) -> Result<HeightMap> {
     if opts.channel.is_some() {
         return Err(image_err(
             path,
             "holds one band of values: --channel applies to colour images",
         ));
     }
-    let (mut data, layout) = super::data_tiff::read(path, |[w, h]| {
+    let layout = probe.layout;
+    let mut data = super::data_tiff::read(path, probe, |[w, h]| {
         HeightMap::check_size(w, h).map_err(|e| image_err(path, e))
     })?;
     let [w, h] = layout.shown();

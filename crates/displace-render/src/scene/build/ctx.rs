@@ -20,7 +20,6 @@ use std::sync::Arc;
 /// reported as looking nowhere instead of as out of range.
 pub const MAX_COORDINATE: f32 = 1e18;
 
-/// A height source as loaded: the source, its generated size, addressing.
 /// A loaded height map's source, generated size, addressing and height
 /// range (as its `Debug` text: the range holds floats, which do not hash).
 pub(super) type HeightKey = (String, [usize; 2], Address, String);

@@ -101,7 +101,7 @@ impl DispBuild {
         let range = match &d.height_range {
             None => Ok(HeightRange::AsStored),
             Some(HeightRangeSpec::Named(s)) => s.parse(),
-            Some(HeightRangeSpec::Span([lo, hi])) => format!("{lo},{hi}").parse(),
+            Some(HeightRangeSpec::Span([lo, hi])) => HeightRange::span(*lo as f32, *hi as f32),
         }
         .map_err(|e: displace_core::Error| cx.err(format!("{what}.height_range: {e}")))?;
         let size = [hs[0] as usize, hs[1] as usize];
