@@ -9,8 +9,8 @@
 //! marches the conservative distance map of section 8.4 from the mesh's
 //! point on the shell (section 8.5, listing 8-2) with the exact refinement
 //! on the bilinear height surface that `displace-gpu` runs (the same WGSL
-//! modules, `displace::convention`, `displace::distance`,
-//! `displace::surface`), then writes the displaced point's depth in the main
+//! modules of `displace-shaders`, `displace::convention`,
+//! `displace::distance`, `displace::surface`, and the same `MapParams`), then writes the displaced point's depth in the main
 //! pass, the prepass and every shadow pass, discards rays that leave the
 //! shell through its sides, and hands the displaced point and texture
 //! coordinate to Bevy's PBR lighting (section 8.5.3 for the derivatives).
@@ -48,18 +48,12 @@ use bevy::shader::{Shader, ShaderRef};
 use displace_core::distance_map::{FilteredTexels, Format};
 use displace_core::BakeOptions;
 use displace_core::{Address, DisplacementMap, DistanceMap, HeightMap, Method};
+use displace_shaders::{cell_cap, method_code, wgsl, Decode, BIG};
 
 /// The material a Bevy user puts on a mesh: Bevy's `StandardMaterial` (its
 /// maps, lighting and shadows) with the distance-mapping extension.
 pub type DistanceMappedMaterial = ExtendedMaterial<StandardMaterial, DistanceMapping>;
 
-/// `displace::convention`: the trace's constants and `MapParams` (shared
-/// with displace-gpu, whose file it is).
-const CONVENTION: &str = include_str!("../../displace-gpu/shaders/convention.wgsl");
-/// `displace::distance`: filtered distance lookups (section 8.5.3).
-const DISTANCE: &str = include_str!("../../displace-gpu/shaders/distance_filtered.wgsl");
-/// `displace::surface`: the march, the early out and the exact walk.
-const SURFACE: &str = include_str!("../../displace-gpu/shaders/surface.wgsl");
 /// `displace::bindings`: the material bind group's view of the map.
 const BINDINGS: &str = include_str!("bindings.wgsl");
 /// The extension's fragment stage (main pass and prepass).
@@ -73,12 +67,7 @@ const BINDINGS_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f
 pub const MATERIAL_SHADER_HANDLE: Handle<Shader> =
     uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e05");
 
-/// Bits of fixed-point precision assumed for a linear sampler's weights
-/// (Vulkan promises `subTexelPrecisionBits >= 4`; desktop GPUs and lavapipe
-/// have 8), as displace-gpu assumes: the decoded distance subtracts the
-/// resulting worst interpolation error, so the march of section 8.5 never
-/// steps past the surface.
-pub const FILTER_WEIGHT_BITS: u32 = 8;
+pub use displace_shaders::{MapParams, FILTER_WEIGHT_BITS};
 
 /// Registers the shader modules with Bevy's shader assets (naga_oil resolves
 /// `#import displace::...` against their `#define_import_path`, as it does
@@ -89,13 +78,17 @@ impl Plugin for DistanceMappingPlugin {
     fn build(&self, app: &mut App) {
         let mut shaders = app.world_mut().resource_mut::<Assets<Shader>>();
         for (handle, source, path) in [
-            (&CONVENTION_HANDLE, CONVENTION, "displace/convention.wgsl"),
+            (
+                &CONVENTION_HANDLE,
+                wgsl::CONVENTION,
+                "displace/convention.wgsl",
+            ),
             (
                 &DISTANCE_HANDLE,
-                DISTANCE,
+                wgsl::DISTANCE_FILTERED,
                 "displace/distance_filtered.wgsl",
             ),
-            (&SURFACE_HANDLE, SURFACE, "displace/surface.wgsl"),
+            (&SURFACE_HANDLE, wgsl::SURFACE, "displace/surface.wgsl"),
             (&BINDINGS_HANDLE, BINDINGS, "displace/bindings.wgsl"),
             (
                 &MATERIAL_SHADER_HANDLE,
@@ -109,46 +102,6 @@ impl Plugin for DistanceMappingPlugin {
         }
         app.add_plugins(MaterialPlugin::<DistanceMappedMaterial>::default());
     }
-}
-
-/// The trace's uniform: mirror of WGSL `MapParams` (displace-gpu
-/// `convention.wgsl`, `gpu_map::MapParams`), 80 bytes. Set by
-/// [`DistanceMapping`]'s constructors from the bake.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Reflect, ShaderType)]
-pub struct MapParams {
-    /// Tile width and height in shell depths (map space, section 8.3).
-    pub aspect: Vec2,
-    /// Tiles across the shell: 1 x 1 for a clamped map; "infinite" for a
-    /// repeating one, whose shell has no sides to leave through.
-    pub tiles: Vec2,
-    /// Distance-map voxels (section 8.4's W x H x D).
-    pub dist_size: UVec3,
-    /// 0 clamp, 1 repeat across (convention.wgsl `ADDRESS_*`).
-    pub address: u32,
-    /// Height texels, for the exact walk over the bilinear patches.
-    pub height_size: UVec2,
-    /// Early-out threshold of the march: a quarter voxel, in shell depths.
-    pub tau: f32,
-    /// Width of the exact walk after the early out: the map's underestimate
-    /// bound, 1.5x, plus `tau`.
-    pub band: f32,
-    /// A filtered fetch `s` decodes to `decode_offset + decode_scale * s`.
-    pub decode_scale: f32,
-    /// The offset of that decoding.
-    pub decode_offset: f32,
-    /// Bound on the cells one exact walk visits (a guard, never reached).
-    pub max_cells: u32,
-    /// convention.wgsl `METHOD_*`: 0 early out, 1 Donnelly's fixed loop.
-    pub method: u32,
-    /// Donnelly's loop count (section 8.5.2: 16 in the chapter's demo).
-    pub iterations: u32,
-    /// Start of the ray interval in map units (the whole ray through the
-    /// shell).
-    pub t_min: f32,
-    /// End of the ray interval.
-    pub t_max: f32,
-    /// Padding to the WGSL struct's 16-byte size.
-    pub pad_end: u32,
 }
 
 /// What the fragment stage writes ([`DistanceMapping::with_output`]).
@@ -232,8 +185,11 @@ pub enum Error {
 /// iteration budget and the method.
 #[derive(Asset, AsBindGroup, Reflect, Debug, Clone)]
 pub struct DistanceMapping {
-    /// The trace's constants (binding 100).
+    /// The trace's constants (binding 100): displace-shaders' `MapParams`,
+    /// which knows nothing of Bevy, so reflection sees it as opaque (cloned,
+    /// not inspected).
     #[uniform(100)]
+    #[reflect(ignore, clone)]
     pub map: MapParams,
     /// The height map, R32Float, read with `textureLoad` by the exact walk.
     #[texture(101, sample_type = "float", filterable = false)]
@@ -430,32 +386,32 @@ impl DistanceMapping {
         distance_image: Handle<Image>,
         height_image: Handle<Image>,
     ) -> Self {
-        let [w, h, d] = distance.size();
-        let voxel = distance.voxel_size();
-        let tau = displace_core::convention::TRACE_STOP_VOXELS * voxel.min_element();
-        let (hw, hh) = (height.width() as u32, height.height() as u32);
         let repeat = distance.address() == Address::Repeat;
-        // A walk inside one tile crosses at most one cell per texel column
-        // and row, plus the half cells at its borders (as displace-gpu).
-        let max_cells = 2 * (hw + hh) + 64;
-        let big = 1e30f32;
+        let decode = Decode {
+            scale: texels.scale,
+            offset: texels.offset,
+            underestimate: texels.underestimate,
+        };
+        let base = MapParams::for_map(
+            distance.aspect(),
+            distance.size(),
+            distance.voxel_size(),
+            distance.address(),
+            [height.width(), height.height()],
+            &decode,
+        );
         Self {
             map: MapParams {
-                aspect: Vec2::from(distance.aspect()),
-                tiles: if repeat { Vec2::splat(big) } else { Vec2::ONE },
-                dist_size: UVec3::new(w as u32, h as u32, d as u32),
-                address: u32::from(repeat),
-                height_size: UVec2::new(hw, hh),
-                tau,
-                band: displace_core::convention::TRACE_BAND_FACTOR * texels.underestimate + tau,
-                decode_scale: texels.scale,
-                decode_offset: texels.offset,
-                max_cells,
+                // A repeating map's shell has no sides to leave through:
+                // "infinite" tiles, while the walk's cap stays one tile's
+                // (the shader re-enters each tile's cells).
+                tiles: if repeat { Vec2::splat(BIG) } else { Vec2::ONE },
+                max_cells: cell_cap(base.height_size, [1.0, 1.0]),
                 method: method_code(Method::Sphere),
                 iterations: 16,
                 t_min: 0.0,
-                t_max: big,
-                pad_end: 0,
+                t_max: BIG,
+                ..base
             },
             height: height_image,
             distance: distance_image,
@@ -507,16 +463,6 @@ impl DistanceMapping {
         } else {
             MarchMethod::EarlyOut
         }
-    }
-}
-
-/// `displace_core::Method` as the shader's code (`METHOD_*` of
-/// convention.wgsl, in `Method`'s order as displace-gpu numbers them).
-fn method_code(m: Method) -> u32 {
-    match m {
-        Method::Sphere => 0,
-        Method::SphereFixed => 1,
-        Method::Exact => 2,
     }
 }
 

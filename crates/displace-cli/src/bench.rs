@@ -21,6 +21,7 @@ pub enum BenchCommand {
     Render(BenchRenderArgs),
     /// GPU raster and compute paths and the bare fetch loop, ms/frame and
     /// Gpixels/s by GPU timestamps.
+    #[cfg(feature = "gpu")]
     Gpu(crate::gpu::BenchGpuArgs),
 }
 
@@ -29,6 +30,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         BenchCommand::Bake(a) => crate::bench_bake::run(a),
         BenchCommand::Trace(a) => crate::bench_trace::run(a),
         BenchCommand::Render(a) => bench_render::run(a),
+        #[cfg(feature = "gpu")]
         BenchCommand::Gpu(a) => crate::gpu::run_bench(a),
     }
 }

@@ -8,6 +8,8 @@
 //! per map, and an image grid of one view rendered by each technique at
 //! equal cost beside the exact render and error heat maps.
 
+#[cfg(feature = "gpu")]
+mod gpu_costs;
 mod grid;
 mod plot;
 
@@ -15,13 +17,13 @@ use crate::bake::{load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::compare::{
-    csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan, Row,
+    csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan,
 };
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::{write_atomic, Batch};
 use displace_core::io::height::{self, HeightOptions};
-use displace_core::techniques::{Maps, Technique};
-use displace_core::{generators, Address, Extent, HeightMap, MapRay};
+use displace_core::techniques::Technique;
+use displace_core::{generators, Address, Extent, HeightMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -176,28 +178,6 @@ fn map_name(spec: &str) -> String {
         .collect()
 }
 
-/// Fills `gpu_ns_per_ray` of `rows` (one elevation of one map): the rays
-/// repeated to `n` per dispatch, every technique and budget timed on the
-/// GPU's compute path.
-fn time_on_gpu(
-    ctx: &displace_gpu::GpuContext,
-    maps: &Maps,
-    rays: &[MapRay],
-    n: usize,
-    frames: u32,
-    rows: &mut [Row],
-) -> Result<()> {
-    let batch: Vec<MapRay> = rays.iter().copied().cycle().take(n).collect();
-    let runs: Vec<(Technique, u32)> = rows.iter().map(|r| (r.technique, r.budget)).collect();
-    let costs = displace_gpu::technique_costs(ctx, maps, &batch, &runs, frames)
-        .context("timing the techniques on the GPU")?;
-    for (row, cost) in rows.iter_mut().zip(costs) {
-        // Milliseconds per million rays are nanoseconds per ray.
-        row.gpu_ns_per_ray = Some(cost.ms_per_mray());
-    }
-    Ok(())
-}
-
 /// Refuses a comparison whose estimated peak ([`peak::peak_bytes`])
 /// exceeds the memory limit ([`displace_core::memory`]), from the height
 /// maps' headers alone, before any map is decoded or generated.
@@ -317,6 +297,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         .map(|s| load_height(s, &height_args, size).map(|h| (map_name(s), h)))
         .collect::<Result<Vec<_>>>()?;
 
+    #[cfg(not(feature = "gpu"))]
+    if args.gpu {
+        bail!("--gpu: {}", crate::NO_GPU);
+    }
+    #[cfg(feature = "gpu")]
     let gpu = if args.gpu {
         if args.gpu_frames == 0 {
             bail!("--gpu-frames must be positive");
@@ -347,9 +332,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         for &elevation in &plan.elevations {
             let seed = ray_seed(args.seed, k, elevation);
             let rays = elevation_rays(maps.aspect, elevation, plan.rays, seed);
+            #[cfg_attr(not(feature = "gpu"), allow(unused_mut))]
             let mut measured = measure_elevation(&maps, &name, &plan, elevation, &rays)?;
+            #[cfg(feature = "gpu")]
             if let Some((ctx, n)) = &gpu {
-                time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut measured)?;
+                gpu_costs::time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut measured)?;
             }
             rows.extend(measured);
         }

@@ -8,16 +8,16 @@ mod bench_bake;
 mod bench_render;
 mod bench_trace;
 mod compare;
-mod export_mesh;
-mod export_surface;
+mod export;
 mod farm_env;
 mod frames;
+#[cfg(feature = "gpu")]
 mod gpu;
 mod merge;
 mod progress;
 mod render;
 mod trace;
-mod trace_scene;
+#[cfg(feature = "gpu")]
 mod view;
 
 use clap::{Parser, Subcommand};
@@ -50,19 +50,26 @@ enum Command {
     /// Measure: `bench bake`, `bench trace`, `bench render`, `bench gpu`.
     Bench(bench::BenchArgs),
     /// Write a height field as a triangle grid, or a scene's displaced meshes as their tessellated displaced surfaces (OBJ/PLY), for other renderers.
-    ExportMesh(export_mesh::ExportMeshArgs),
+    ExportMesh(export::ExportMeshArgs),
+    #[cfg(feature = "gpu")]
     /// Render a scene's displaced quads, triangles and meshes on the GPU,
     /// offscreen, to PNG (Donnelly's shaders); without SCENE, a built-in
     /// displaced plane configured by flags.
     GpuRender(gpu::GpuRenderArgs),
     /// Show a scene's displaced faces in a window (GPU raster path): orbit
     /// camera, live depth, iterations, method, shadows and light.
+    #[cfg(feature = "gpu")]
     #[command(after_help = displace_gpu::view::controls::KEYS_HELP)]
     View(view::ViewArgs),
     /// Parallax, POM, relief, cone stepping, maximum mipmaps and distance
     /// mapping against the exact hit: CSV, plots and an image grid.
     Compare(compare::CompareArgs),
 }
+
+/// Why a GPU option is refused by a build without the `gpu` feature.
+#[cfg(not(feature = "gpu"))]
+const NO_GPU: &str =
+    "this displace was built without GPU support (rebuild it with the default cargo feature `gpu`)";
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
@@ -72,8 +79,10 @@ fn main() -> std::process::ExitCode {
         Command::Render(args) => render::run(args),
         Command::Merge(args) => merge::run(args),
         Command::Bench(args) => bench::run(args),
-        Command::ExportMesh(args) => export_mesh::run(args),
+        Command::ExportMesh(args) => export::run(args),
+        #[cfg(feature = "gpu")]
         Command::GpuRender(args) => gpu::run_render(args),
+        #[cfg(feature = "gpu")]
         Command::View(args) => view::run(args),
         Command::Compare(args) => compare::run(args),
     };

@@ -398,6 +398,7 @@ fn outputs_are_checked_first_and_committed_together() {
 
 /// `gpu-render` refuses what it cannot write or trace before touching the
 /// GPU, so these run on machines without one.
+#[cfg(feature = "gpu")]
 #[test]
 fn gpu_render_refuses_before_any_gpu_work() {
     let dir = tempfile::tempdir().unwrap();

@@ -251,6 +251,7 @@ fn trace_agrees_with_the_exact_reference() {
 /// 4): on random rays against random height maps, for every method, the
 /// same hit or miss on >= 99.9% of rays and, where both hit, the hit point
 /// within 1e-3 shell depths on >= 99.9% of them (99% for `sphere-fixed`).
+#[cfg(feature = "gpu")]
 #[test]
 fn gpu_backend_agrees_with_the_cpu() {
     if displace_gpu::test_support::test_context().is_none() {

@@ -85,6 +85,7 @@ const QUICK_STUDDED: [&str; 5] = [
 /// `--gpu` times every technique and budget on the GPU (lavapipe in CI,
 /// where a missing adapter fails this test): every row gets a positive
 /// GPU time per ray, the CPU columns are unchanged by it.
+#[cfg(feature = "gpu")]
 #[test]
 fn gpu_timing_fills_its_column() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,6 +1,7 @@
 //! `displace gpu-render` and `displace bench gpu` end to end, on whatever
 //! adapter the machine has (lavapipe in CI; see displace-gpu's
 //! `test_support` for the no-adapter policy).
+#![cfg(feature = "gpu")]
 
 mod cli_common;
 

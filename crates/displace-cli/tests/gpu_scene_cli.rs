@@ -2,6 +2,7 @@
 //! file (a small scene rendered by gpu-render and by the CPU renderer
 //! agrees within a stated tolerance; the UV AOV matches on at least 99.5%
 //! of pixels), and bad scene input through gpu-render.
+#![cfg(feature = "gpu")]
 
 mod bad_scenes;
 mod cli_common;

@@ -7,6 +7,7 @@
 //! A machine without Xvfb fails these tests, under CI always, elsewhere
 //! unless `DISPLACE_ALLOW_NO_GPU=1` (the GPU tests' switch) says to skip
 //! them knowingly.
+#![cfg(feature = "gpu")]
 
 mod bad_scenes;
 mod cli_common;

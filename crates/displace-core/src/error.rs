@@ -1,7 +1,7 @@
 //! Typed errors of the core library. The binary adds context (file names)
 //! with `anyhow`; every message here names the offending value.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Every failure of the core library. Variants carry the offending value
 /// in their message, so callers can show it unchanged.
@@ -121,3 +121,14 @@ pub enum Error {
 
 /// Bytes in a GiB, for messages.
 const GIB: f64 = (1u64 << 30) as f64;
+
+impl Error {
+    /// [`Error::Image`] for the file at `path`: what a height map's or an
+    /// image's decoder found wrong with it, whichever loader read it.
+    pub fn image(path: &Path, what: impl std::fmt::Display) -> Self {
+        Error::Image {
+            path: path.to_path_buf(),
+            message: what.to_string(),
+        }
+    }
+}

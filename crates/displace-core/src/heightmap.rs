@@ -6,17 +6,30 @@
 use crate::convention::{check_allocation, texel_lerp, Address};
 use crate::{Error, Result};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// A displacement map: heights in `[0, 1]` (0 on the base surface, 1 at
 /// the top of the shell) on a texel grid, read as a continuous surface of
 /// bilinear patches between texel centres, as the software ray-tracing
 /// displacement paper intersects it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct HeightMap {
     width: usize,
     height: usize,
     data: Vec<f32>,
     address: Address,
+    /// [`Self::max_steps`], found on first use.
+    steps: OnceLock<[f32; 2]>,
+}
+
+/// Maps are equal when their texels and addressing are.
+impl PartialEq for HeightMap {
+    fn eq(&self, other: &Self) -> bool {
+        self.width == other.width
+            && self.height == other.height
+            && self.address == other.address
+            && self.data == other.data
+    }
 }
 
 impl HeightMap {
@@ -53,6 +66,7 @@ impl HeightMap {
             height,
             data,
             address,
+            steps: OnceLock::new(),
         })
     }
 
@@ -90,7 +104,55 @@ impl HeightMap {
     /// The same texels read with another addressing mode.
     pub fn with_address(mut self, address: Address) -> Self {
         self.address = address;
+        self.steps = OnceLock::new();
         self
+    }
+
+    /// The largest difference in height between neighbouring texels along
+    /// `u` and along `v`, across the wrap too when the map repeats (clamped
+    /// edges add none: the surface is flat past the edge centres).
+    ///
+    /// Within a bilinear patch the slope along `u` varies linearly between
+    /// two such differences, so `steps / texel size` bounds the surface's
+    /// slope everywhere: how far its height can move under a point that
+    /// moves across it, which is what a curved face's chords must bound
+    /// (a chord near the ray's curve in position is near it in height
+    /// above the surface only up to that slope). Found once, on first use,
+    /// and shared by every face over the map.
+    pub fn max_steps(&self) -> [f32; 2] {
+        *self.steps.get_or_init(|| {
+            let (w, h) = (self.width, self.height);
+            let wrap = self.address == Address::Repeat;
+            let row_step = |j: usize| {
+                let row = &self.data[j * w..(j + 1) * w];
+                let inner = row.windows(2).map(|p| (p[1] - p[0]).abs());
+                let across = wrap.then(|| (row[0] - row[w - 1]).abs());
+                inner.chain(across).fold(0.0f32, f32::max)
+            };
+            let col_step = |j: usize| {
+                let next = if j + 1 < h { j + 1 } else { 0 };
+                if next == 0 && !wrap {
+                    return 0.0;
+                }
+                let (a, b) = (
+                    &self.data[j * w..(j + 1) * w],
+                    &self.data[next * w..(next + 1) * w],
+                );
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (y - x).abs())
+                    .fold(0.0f32, f32::max)
+            };
+            let su = (0..h)
+                .into_par_iter()
+                .map(row_step)
+                .reduce(|| 0.0, f32::max);
+            let sv = (0..h)
+                .into_par_iter()
+                .map(col_step)
+                .reduce(|| 0.0, f32::max);
+            [su, sv]
+        })
     }
 
     /// Texel `(i, j)` with addressing applied to out-of-range indices.
@@ -212,6 +274,29 @@ mod tests {
 
     fn map(address: Address) -> HeightMap {
         HeightMap::new(3, 2, vec![0.0, 0.5, 1.0, 0.25, 0.75, 0.0], address).unwrap()
+    }
+
+    #[test]
+    fn max_steps_bound_the_slope_and_follow_the_addressing() {
+        // Rows 0 0.5 1 / 0.25 0.75 0: along u 0.5 and 1 (0.75 to 0);
+        // along v 0.25, 0.25 and 1 (1 to 0). Repeating adds the wraps:
+        // u 1 -> 0 and 0 -> 0.25 (1 and 0.25), v none larger.
+        assert_eq!(map(Address::Clamp).max_steps(), [0.75, 1.0]);
+        assert_eq!(map(Address::Repeat).max_steps(), [1.0, 1.0]);
+        // The surface's slope never exceeds them, anywhere (finite
+        // differences of the bilinear surface, in texels).
+        let m = map(Address::Repeat);
+        let [su, sv] = m.max_steps();
+        for k in 0..200 {
+            let (u, v) = ((k % 20) as f32 / 20.0, (k / 20) as f32 / 10.0);
+            let e = 1e-3;
+            let du = (m.sample(u + e, v) - m.sample(u, v)).abs() / e / 3.0;
+            let dv = (m.sample(u, v + e) - m.sample(u, v)).abs() / e / 2.0;
+            assert!(du <= su * 1.01 && dv <= sv * 1.01, "({u}, {v}): {du} {dv}");
+        }
+        // A new addressing finds its own steps.
+        let clamped = map(Address::Repeat).with_address(Address::Clamp);
+        assert_eq!(clamped.max_steps(), [0.75, 1.0]);
     }
 
     #[test]

@@ -155,6 +155,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(crate::random::property_cases(256)))]
         /// A tilted plane has the analytic normal at every texel, border
         /// texels included, for any proportions of the face.
         #[test]

@@ -13,7 +13,7 @@ use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(48)))]
 
     #[test]
     fn interpolated_distance_never_exceeds_the_truth(

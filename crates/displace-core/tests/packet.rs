@@ -33,7 +33,7 @@ fn random_ray(rng: &mut Rng, span: [f32; 2]) -> MapRay {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(64)))]
 
     #[test]
     fn packets_agree_with_the_scalar_tracer_bit_for_bit(

@@ -242,7 +242,7 @@ fn fixed_step_searches_miss_a_thin_wall() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(32))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(32)))]
 
     /// Conservative cones: however few steps, cone stepping never stands
     /// past the exact hit, and never reports a hit on a ray that misses
@@ -283,7 +283,7 @@ fn cone_maps_and_pyramid_sizes() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(24)))]
 
     /// The two exact techniques on random maps (sharp ones included): with
     /// budget to spare, maximum mipmaps and distance mapping return the

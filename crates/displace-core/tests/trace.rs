@@ -23,7 +23,7 @@ fn random_ray(rng: &mut Rng, extent: [f32; 2]) -> MapRay {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(40))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(40)))]
 
     #[test]
     fn sphere_tracing_finds_the_exact_hit(

@@ -2,55 +2,18 @@
 //! `textureLoad` for the exact walk), the distance map in the chosen
 //! [`DistanceTexture`] format, and the constants every trace needs.
 
-use crate::convention::{address_code, method_code, BAND_FACTOR, FILTER_WEIGHT_BITS, TAU_VOXELS};
+use crate::convention::FILTER_WEIGHT_BITS;
 use crate::descriptors::{
     bind_group, bind_group_layout, linear_sampler, sampler_entry, texture_entry, uniform_entry,
     write_level,
 };
 use crate::shaders::DistanceTexture;
 use crate::{Error, GpuContext, Result};
-use bytemuck::{Pod, Zeroable};
 use displace_core::distance_map::{Format, R8Range};
 use displace_core::{Address, DisplacementMap, DistanceMap, HeightMap, TraceOptions};
+use displace_shaders::Decode;
 
-/// Mirror of WGSL `MapParams` (convention.wgsl), 80 bytes.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct MapParams {
-    /// Tile width and height in shell depths (the metric of
-    /// `displace_core::convention`, Donnelly's "normalization factor", 8.5.2).
-    pub aspect: [f32; 2],
-    /// How many tiles the face spans; `[1, 1]` for a clamped map.
-    pub tiles: [f32; 2],
-    /// Distance map size in voxels `W, H, D`.
-    pub dist_size: [u32; 3],
-    /// Addressing across the face ([`address_code`]).
-    pub address: u32,
-    /// Height map size in texels, for the exact walk's cells.
-    pub height_size: [u32; 2],
-    /// Early-out threshold of sphere tracing in shell depths
-    /// ([`TAU_VOXELS`] of the smallest voxel side).
-    pub tau: f32,
-    /// Length of the exact walk after the early out: [`BAND_FACTOR`] times the
-    /// map's underestimate, plus `tau`.
-    pub band: f32,
-    /// Filtered textures store `(value - offset) / scale`: the scale.
-    pub decode_scale: f32,
-    /// The offset of that encoding.
-    pub decode_offset: f32,
-    /// Most cells the exact walk visits ([`GpuMap::params`] explains the count).
-    pub max_cells: u32,
-    /// Trace method ([`method_code`]).
-    pub method: u32,
-    /// Most sphere-tracing steps.
-    pub iterations: u32,
-    /// Ray parameter where the query starts.
-    pub t_min: f32,
-    /// Ray parameter where it ends (a shadow ray stops at its light).
-    pub t_max: f32,
-    /// Pads the struct to WGSL's 16-byte uniform alignment.
-    pub pad_end: u32,
-}
+pub use displace_shaders::MapParams;
 
 /// The map's textures and bind group (group 0 of every pipeline).
 pub struct GpuMap {
@@ -137,19 +100,14 @@ impl GpuMap {
             format,
             &bytes,
         );
-        let tau = TAU_VOXELS * voxel.min_element();
-        let base = MapParams {
+        let base = MapParams::for_map(
             aspect,
-            tiles: [1.0, 1.0],
-            dist_size: [w as u32, h as u32, d as u32],
-            address: address_code(height.address()),
-            height_size: [hw as u32, hh as u32],
-            tau,
-            band: BAND_FACTOR * decode.underestimate + tau,
-            decode_scale: decode.scale,
-            decode_offset: decode.offset,
-            ..MapParams::default()
-        };
+            [w, h, d],
+            voxel,
+            height.address(),
+            [hw, hh],
+            &decode,
+        );
         let sampler = texture.filtered().then(|| {
             let label = "distance (linear, no mipmaps)";
             linear_sampler(
@@ -191,24 +149,7 @@ impl GpuMap {
                 "t_min and t_max must not be NaN".into(),
             ));
         }
-        let [hw, hh] = self.base.height_size;
-        // A walk inside the shell crosses at most one cell per texel column
-        // and row of the face, plus the half cells at its borders.
-        let cells =
-            2.0 * (hw as f64 * opts.tiles[0] as f64 + hh as f64 * opts.tiles[1] as f64) + 64.0;
-        Ok(MapParams {
-            tiles: opts.tiles,
-            method: method_code(opts.method),
-            iterations: opts.iterations,
-            t_min: opts
-                .t_min
-                .clamp(-crate::convention::BIG, crate::convention::BIG),
-            t_max: opts
-                .t_max
-                .clamp(-crate::convention::BIG, crate::convention::BIG),
-            max_cells: cells.min(u32::MAX as f64) as u32,
-            ..self.base
-        })
+        Ok(self.base.with_trace(opts))
     }
 
     /// Bind group 0 with `params` as its uniform buffer.
@@ -223,17 +164,6 @@ impl GpuMap {
         }
         bind_group(ctx, "map", &self.layout, &resources)
     }
-}
-
-struct Decode {
-    scale: f32,
-    /// Filtered formats: with the worst overestimate of a fixed-point filter
-    /// already taken off ([`DistanceMap::filtered_texels`]).
-    offset: f32,
-    /// Bound on how far the decoded values lie below the true distance,
-    /// filter included: it sets the width of the exact walk after the
-    /// early out.
-    underestimate: f32,
 }
 
 /// The texel bytes, the texture format and the decoding of the values the

@@ -6,8 +6,10 @@
 //! Inside the shell the map coordinates `(x, y, w)` are a smooth function
 //! of the world position, so a straight world ray is a curve in map space
 //! ("curved rays in texture space"). The curve is cut into chords, each
-//! bisected until its midpoint lies within [`CHORD_TOLERANCE`] (map units,
-//! which are shell depths) of the curve's; each chord is traced by the
+//! bisected until its midpoint lies within [`CHORD_TOLERANCE`] (shell
+//! depths) of the curve's in height above the surface (its offset in `w`
+//! plus the height field's steepest slope times its offset across the
+//! map); each chord is traced by the
 //! core's tracer exactly as a flat face's ray is: sphere steps through the
 //! conservative distance map (Donnelly, section 8.3), which are safe in map
 //! space whatever the world mapping stretches, then the exact walk over the
@@ -29,19 +31,15 @@ use crate::curved_shell::{normal_to_world, Boundary, Crossing, CurvedShell, Loca
 use crate::displaced::{map_shading_direction, DisplacedHit};
 use crate::geometry::{Aabb, Ray};
 use crate::texture::Texture;
+use displace_core::convention::CHORD_TOLERANCE;
 use displace_core::sphere_trace::HitKind;
 use displace_core::{DisplacementMap, MapRay, TraceOptions};
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use std::sync::Arc;
 
-/// How far (map units, shell depths) a chord's midpoint may lie from the
-/// curve's before the chord is halved: a thousandth of the depth, far
-/// under what a render resolves and the tests' thresholds (a hit is
-/// refined on the true ray whatever the chord; the tolerance bounds only
-/// what a chord can pass over). A ten-thousandth gave the same hits on a
-/// displaced sphere's million camera rays (positions within 5e-7) with
-/// 1.3x the time: the chords' traces are most of a curved ray's cost.
-pub const CHORD_TOLERANCE: f64 = 1e-3;
+/// Grazes (a chord's hit with no root of the curve next to it) a stretch
+/// traces past before it takes the next one as its hit.
+const MAX_GRAZES: u32 = 8;
 
 /// Deepest halving of one stretch of a ray into chords.
 const MAX_CHORD_DEPTH: u32 = 24;
@@ -93,6 +91,11 @@ pub struct CurvedFace {
     /// Inverse of the texture triangle's edge matrix: map `xy` to `b`.
     to_bary: [[f64; 2]; 2],
     aspect: DVec2,
+    /// The steepest slope of the height field, heights (shell depths) per
+    /// map unit across it ([`displace_core::HeightMap::max_steps`]): what
+    /// an error in a chord's position costs in its height above the
+    /// surface.
+    slope: f64,
     map: Arc<DisplacementMap>,
     trace: TraceOptions,
     uv_offset: Vec2,
@@ -129,11 +132,15 @@ impl CurvedFace {
         }
         let to_bary = [[c2.y / det, -c2.x / det], [-c1.y / det, c1.x / det]];
         let bounds = Aabb::from_points(shell.corners().map(|c| c.as_vec3()));
+        let [su, sv] = map.height.max_steps();
+        let texel = aspect / DVec2::new(map.height.width() as f64, map.height.height() as f64);
+        let slope = DVec2::new(su as f64 / texel.x, sv as f64 / texel.y).length();
         Some(Self {
             shell,
             corners,
             to_bary,
             aspect,
+            slope,
             map,
             trace,
             uv_offset,
@@ -208,24 +215,28 @@ impl CurvedFace {
     }
 
     /// The stretches of the ray inside the shell, in order, until one
-    /// finds what `query` asks for.
+    /// finds what `query` asks for within `[t_min, t_max]`.
+    ///
+    /// A stretch always runs to where the ray leaves the shell, whatever
+    /// `t_max`: its chords, and so the hit they find, depend on the shell
+    /// alone, and a hit beyond `t_max` is then dropped. Cutting the last
+    /// stretch at `t_max` instead cut its chords differently, so a
+    /// shortened ray (a shadow ray's any-hit query, or the BVH's closest
+    /// hit so far) could meet a chord's false hit, one the curve passes
+    /// over within [`CHORD_TOLERANCE`], where the whole ray did not.
     fn trace(&self, ray: &Ray, t_min: f32, t_max: f32, query: Query) -> Option<Found> {
         let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
         let (t_min, t_max) = (t_min as f64, t_max as f64);
         if !self.shell.admits(o, d, t_min, t_max) {
             return None;
         }
-        let (mut xs, n) = self.shell.crossings(o, d, t_min, t_max);
+        let (mut xs, n) = self.shell.crossings(o, d, t_min, f64::INFINITY);
         let xs = &mut xs[..n];
         xs.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
         // The stretches between crossings, each inside the shell or not
         // (its midpoint located): rounding at an edge or corner may count
         // one crossing twice, which leaves an empty or outside stretch.
-        let end = if t_max.is_finite() {
-            t_max
-        } else {
-            xs.last()?.t
-        };
+        let end = xs.last()?.t;
         let mut start = (t_min, None::<Crossing>);
         let mut iterations = 0u32;
         for k in 0..=xs.len() {
@@ -234,6 +245,9 @@ impl CurvedFace {
                 None => (end, None),
             };
             let (a, entry) = start;
+            if a > t_max {
+                break;
+            }
             if b > a {
                 let mid = 0.5 * (a + b);
                 let inside = self
@@ -243,7 +257,7 @@ impl CurvedFace {
                 if inside {
                     let exit = next.map(|c| c.boundary);
                     let ends = ((a, entry), (b, exit));
-                    if let Some(found) = self.stretch(o, d, ends, query, &mut iterations) {
+                    if let Some(found) = self.stretch(o, d, ends, t_max, query, &mut iterations) {
                         return Some(found);
                     }
                 }
@@ -256,15 +270,19 @@ impl CurvedFace {
         None
     }
 
-    /// The first hit on `[ta, tb]` (or, for [`Query::Any`], the proof of
-    /// one), a stretch inside the shell entered through `entry` (`None`:
-    /// the ray starts inside) and left through `exit` (`None`: it ends
-    /// inside).
+    /// The first hit on `[ta, tb]` at most `t_max` (or, for
+    /// [`Query::Any`], the proof of one), a stretch inside the shell
+    /// entered through `entry` (`None`: the ray starts inside) and left
+    /// through `exit` (`None`: it ends inside). Both queries find the same
+    /// hit: the any-hit query skips only the refinement when the chord's
+    /// hit already lies under the surface before `t_max` (the root then
+    /// lies between the stretch's start and it).
     fn stretch(
         &self,
         o: DVec3,
         d: DVec3,
         ((ta, entry), (tb, exit)): ((f64, Option<Crossing>), (f64, Option<Boundary>)),
+        t_max: f64,
         query: Query,
         iterations: &mut u32,
     ) -> Option<Found> {
@@ -303,27 +321,55 @@ impl CurvedFace {
         let (_, cb, _) = self
             .probe(o, d, tb, la.lambda)
             .or_else(|| self.probe(o, d, tb - 1e-9 * (tb - ta), la.lambda))?;
-        let Some((t, span)) = self.chords(o, d, (ta, ca, la.lambda), (tb, cb), 0, iterations)
-        else {
-            // Heights never go below the base: a ray leaving through it
-            // has met the surface there
-            // (`displace_core::sphere_trace::leaves_through_floor`), where
-            // the chords' walks may not resolve the root at their very end.
-            if exit != Some(Boundary::Base) {
+        // The chords from `from`, a point of the curve above the surface:
+        // the stretch's start, then past each graze (a chord's hit that
+        // the curve passes over: no root next to it).
+        let mut from = (ta, ca, la.lambda);
+        for graze in 0..=MAX_GRAZES {
+            let Some((t, span)) = self.chords(o, d, from, (tb, cb), 0, iterations) else {
+                // Heights never go below the base: a ray leaving through
+                // it has met the surface there
+                // (`displace_core::sphere_trace::leaves_through_floor`),
+                // where the chords' walks may not resolve the root at
+                // their very end.
+                if exit != Some(Boundary::Base) || tb > t_max {
+                    return None;
+                }
+                if query == Query::Any {
+                    return Some(Found::Blocked);
+                }
+                let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
+                return Some(self.surface_hit(o, d, tb, &loc, c, *iterations));
+            };
+            if query == Query::Any
+                && t <= t_max
+                && self
+                    .probe(o, d, t, la.lambda)
+                    .is_some_and(|(_, _, g)| g <= 0.0)
+            {
+                return Some(Found::Blocked);
+            }
+            let t = match self.refine(o, d, (from.0, tb), t, span, la.lambda) {
+                Some(root) => root,
+                None if graze < MAX_GRAZES => {
+                    let (l, c, _) = self.probe(o, d, t, la.lambda)?;
+                    from = (t, c, l.lambda);
+                    continue;
+                }
+                // Grazing still: the chord's hit, within the chords'
+                // tolerance above the surface, stands.
+                None => t,
+            };
+            if t > t_max {
                 return None;
             }
             if query == Query::Any {
                 return Some(Found::Blocked);
             }
-            let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
-            return Some(self.surface_hit(o, d, tb, &loc, c, *iterations));
-        };
-        if query == Query::Any {
-            return Some(Found::Blocked);
+            let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
+            return Some(self.surface_hit(o, d, t, &loc, c, *iterations));
         }
-        let t = self.refine(o, d, (ta, tb), t, span, la.lambda);
-        let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
-        Some(self.surface_hit(o, d, t, &loc, c, *iterations))
+        None
     }
 
     /// The first chord hit on the curve from `a` to `b` (ray parameters
@@ -344,7 +390,7 @@ impl CurvedFace {
         if depth < MAX_CHORD_DEPTH {
             let tm = 0.5 * (ta + tb);
             if let Some((lm, cm, _)) = self.probe(o, d, tm, hint) {
-                if (cm - 0.5 * (ca + cb)).length() > CHORD_TOLERANCE {
+                if self.chord_error(cm - 0.5 * (ca + cb)) > CHORD_TOLERANCE {
                     return self
                         .chords(o, d, a, (tm, cm), depth + 1, iterations)
                         .or_else(|| {
@@ -374,12 +420,23 @@ impl CurvedFace {
         Some((ta + f * (tb - ta), tb - ta))
     }
 
+    /// How far a chord that lies `e` (map units) from the curve can be from
+    /// it in height above the surface, `w - h`: the offset in `w` itself,
+    /// and the surface's steepest slope times the offset across it. A
+    /// bound in position alone let the chords of a steep map pass over a
+    /// bump that the curve dips into by several times the tolerance.
+    fn chord_error(&self, e: DVec3) -> f64 {
+        e.z.abs() + self.slope * e.truncate().length()
+    }
+
     /// The root of `w - h` on the true curve near a chord's hit at `t`,
     /// within `[ta, tb]` where `w - h >= 0` at `ta`: regula falsi (the
     /// Illinois variant) on a bracket found next to `t`, its first probe a
     /// thousandth of the chord (`span`) away, since the chord lies within
-    /// [`CHORD_TOLERANCE`] of the curve; `t` itself when the curve stays
-    /// above within that tolerance.
+    /// [`CHORD_TOLERANCE`] of the curve. `None` when the curve stays above
+    /// the surface from `t` on to `tb` (a graze: the chord dipped into a
+    /// bump that the curve passes over); `t` itself where the curve cannot
+    /// be located.
     fn refine(
         &self,
         o: DVec3,
@@ -388,13 +445,13 @@ impl CurvedFace {
         t: f64,
         span: f64,
         hint: f64,
-    ) -> f64 {
+    ) -> Option<f64> {
         let g = |t: f64| self.probe(o, d, t, hint).map(|(_, _, g)| g);
         let Some(gt) = g(t) else {
-            return t;
+            return Some(t);
         };
         if gt == 0.0 {
-            return t;
+            return Some(t);
         }
         let first = 1e-3 * span.max(1e-12);
         // A bracket: [last point above, first point under].
@@ -409,7 +466,7 @@ impl CurvedFace {
                 step *= 8.0;
             }
             if glo < 0.0 {
-                return t;
+                return Some(t);
             }
             (lo, t, glo, gt)
         } else {
@@ -422,7 +479,7 @@ impl CurvedFace {
                 step *= 8.0;
             }
             if ghi > 0.0 {
-                return t;
+                return None;
             }
             (t, hi, gt, ghi)
         };
@@ -451,7 +508,7 @@ impl CurvedFace {
             }
         }
         // The first point under the surface: never in front of it.
-        hi
+        Some(hi)
     }
 
     /// The geometric normal of the surface at shell coordinates `loc` and

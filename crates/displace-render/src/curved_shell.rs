@@ -114,6 +114,48 @@ pub fn min_normal_length(n: &[Vec3; 3]) -> Option<f64> {
     (m > 0.0).then(|| m.sqrt())
 }
 
+/// Whether the shell over corners `p` with unit normals `n`, topped at
+/// `top`, folds over itself: where a triangle's normals converge (the
+/// concave side of a curved mesh) faster than the shell is thick, its
+/// levels turn inside out and one point of space lies at two places of the
+/// shell, two heights at once, so no trace of it can be right. Such a
+/// triangle keeps the flat prism ([`crate::mesh_shells`]).
+pub fn shell_folds(p: &[Vec3; 3], n: &[Vec3; 3], top: f64) -> bool {
+    let p = p.map(|v| v.as_dvec3());
+    let n = n.map(|v| v.as_dvec3().normalize());
+    let e = [p[1] - p[0], p[2] - p[0]];
+    let f = [n[1] - n[0], n[2] - n[0]];
+    let c = [
+        e[0].cross(e[1]),
+        e[0].cross(f[1]) + f[0].cross(e[1]),
+        f[0].cross(f[1]),
+    ];
+    folds(&n, &c, top)
+}
+
+/// [`shell_folds`] from the unit normals and the coefficients `c` of the
+/// level's triangle normal `c0 + l c1 + l^2 c2`. The map `(b, l) -> P(b) +
+/// l N(b)` has Jacobian determinant `N(b) . (c0 + l c1 + l^2 c2)`, linear
+/// in `b` at each level, so at its extremes at a corner: the shell is
+/// folded unless each corner's quadratic in `l` keeps one strict sign on
+/// `[0, top]` (checked at both ends and at its vertex), the same for all
+/// three (either sign: the triangle's winding need not follow its normals).
+fn folds(n: &[DVec3; 3], c: &[DVec3; 3], top: f64) -> bool {
+    let (mut least, mut most) = (f64::INFINITY, f64::NEG_INFINITY);
+    for nk in n {
+        let (a0, a1, a2) = (nk.dot(c[0]), nk.dot(c[1]), nk.dot(c[2]));
+        let q = |l: f64| a0 + l * (a1 + l * a2);
+        let vertex = if a2 != 0.0 { -a1 / (2.0 * a2) } else { -1.0 };
+        for l in [0.0, top, vertex] {
+            if (0.0..=top).contains(&l) {
+                least = least.min(q(l));
+                most = most.max(q(l));
+            }
+        }
+    }
+    !(least > 0.0 || most < 0.0)
+}
+
 /// The top level `lambda` a shell needs so that every height up to 1 lies
 /// under it, for a mesh whose triangles' [`min_normal_length`] is at least
 /// `min_length`: shells that share sides must share it, so a mesh uses one.
@@ -184,7 +226,7 @@ impl CurvedShell {
     /// The shell over corners `p` with unit normals `n`, `depth` world
     /// units per height 1, topped at `top` ([`lambda_for_depth`]); `None`
     /// for a degenerate triangle or normals that cannot carry a shell
-    /// ([`min_normal_length`]).
+    /// ([`min_normal_length`], [`shell_folds`]).
     pub fn new(p: [Vec3; 3], n: [Vec3; 3], depth: f32, top: f64) -> Option<Self> {
         min_normal_length(&n)?;
         let p = p.map(|v| v.as_dvec3());
@@ -200,6 +242,9 @@ impl CurvedShell {
             e[0].cross(f[1]) + f[0].cross(e[1]),
             f[0].cross(f[1]),
         ];
+        if folds(&n, &c, top) {
+            return None;
+        }
         let (hull, hull_planes) = hull_planes(&p, &n, top);
         Some(Self {
             p,
@@ -591,6 +636,37 @@ pub fn real_roots(k: [f64; 4], lo: f64, hi: f64) -> impl Iterator<Item = f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A triangle on a sphere of radius `r` about the origin, its normals
+    /// the sphere's, outward or (the concave side) inward.
+    fn on_sphere(r: f32, inward: bool, flip_winding: bool) -> ([Vec3; 3], [Vec3; 3]) {
+        let mut dirs = [
+            Vec3::new(0.1, 0.1, 1.0).normalize(),
+            Vec3::new(0.4, 0.1, 1.0).normalize(),
+            Vec3::new(0.1, 0.4, 1.0).normalize(),
+        ];
+        if flip_winding {
+            dirs.swap(1, 2);
+        }
+        let sign = if inward { -1.0 } else { 1.0 };
+        (dirs.map(|d| d * r), dirs.map(|d| d * sign))
+    }
+
+    #[test]
+    fn shells_thicker_than_a_concave_curvature_fold() {
+        for flip in [false, true] {
+            // Outward normals diverge: no thickness folds the shell.
+            let (p, n) = on_sphere(1.0, false, flip);
+            assert!(!shell_folds(&p, &n, 5.0));
+            // Inward, the levels shrink to a point at the centre, a
+            // radius in: thinner is a shell, thicker folds.
+            let (p, n) = on_sphere(1.0, true, flip);
+            assert!(!shell_folds(&p, &n, 0.9));
+            assert!(shell_folds(&p, &n, 1.1));
+            assert!(CurvedShell::new(p, n, 0.5, 1.1).is_none());
+            assert!(CurvedShell::new(p, n, 0.5, 0.9).is_some());
+        }
+    }
 
     fn bent() -> CurvedShell {
         let p = [Vec3::ZERO, Vec3::X, Vec3::Y];

@@ -20,7 +20,7 @@ use crate::distribution::Distribution1D;
 use crate::environment::Environment;
 use crate::light::Light;
 use crate::material::Material;
-use crate::scene::{Primitive, Shape};
+use crate::scene::world::{Primitive, Shape};
 use crate::shapes::{Quad, Sphere, Triangle};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;

@@ -75,3 +75,24 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 fn line_column_suffix(at: Option<(usize, usize)>) -> String {
     at.map_or(String::new(), |(line, column)| format!(":{line}:{column}"))
 }
+
+/// 1-based line and column (in characters) of byte offset `at` of a text:
+/// where [`Error::Parse`] and [`Error::Scene`] point in a scene or OBJ file.
+pub(crate) fn line_column(text: &str, at: usize) -> (usize, usize) {
+    let at = at.min(text.len());
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_columns_are_one_based() {
+        assert_eq!(line_column("ab\ncd", 0), (1, 1));
+        assert_eq!(line_column("ab\ncd", 4), (2, 2));
+    }
+}

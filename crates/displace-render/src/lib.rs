@@ -57,6 +57,7 @@ pub mod probe;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod settings;
 pub mod shapes;
 pub mod sobol;
 pub mod texture;
@@ -66,7 +67,7 @@ pub mod vertex_normals;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};
-pub use path::{Integrator, Sampling};
 pub use render::{render, Aov, AovImage, Crop, Image, RenderOptions, Rendered};
 pub use sampler::SamplerKind;
 pub use scene::{Scene, SceneOptions};
+pub use settings::{Integrator, Sampling};

@@ -58,7 +58,7 @@ pub fn load(path: &Path) -> Result<Mesh> {
                     // The parser reads lines as UTF-8 and says only "read
                     // error" at the first byte that is not: name it.
                     let good = std::str::from_utf8(&bytes[..bad.valid_up_to()]).unwrap_or_default();
-                    let (line, column) = crate::scene::line_column(good, good.len());
+                    let (line, column) = crate::error::line_column(good, good.len());
                     return Error::Parse {
                         path: path.to_path_buf(),
                         line,

@@ -8,8 +8,11 @@
 //! keeps the flat prism of the ray-tracer paper (section 2.4), whose
 //! walls are its face normal's. Normals 75 degrees or more apart within one
 //! triangle cannot carry a shell without folding
-//! ([`crate::curved_shell::min_normal_length`] under 0.5): such a triangle
-//! falls back to the flat prism too.
+//! ([`crate::curved_shell::min_normal_length`] under 0.5), nor can a
+//! triangle whose normals converge faster than the shell is thick (the
+//! concave side of a mesh displaced deeper than it is curved:
+//! [`crate::curved_shell::shell_folds`]): such a triangle falls back to
+//! the flat prism too.
 //!
 //! Two triangles continue one another across a side when they share its
 //! two corners (positions and shell normals bit for bit, as a mesh's
@@ -19,7 +22,7 @@
 //! (an open boundary, a crease, a seam that splits the heights) the side
 //! is a wall.
 
-use crate::curved_shell::{lambda_for_depth, min_normal_length};
+use crate::curved_shell::{lambda_for_depth, min_normal_length, shell_folds};
 use crate::mesh::MeshTriangle;
 use crate::shapes::Triangle;
 use displace_core::Address;
@@ -44,14 +47,28 @@ impl MeshShells {
     /// The shells of `triangles` displaced by `depth` over a map with
     /// `address`ing.
     pub fn of(triangles: &[MeshTriangle], depth: f32, address: Address) -> Self {
-        let curved: Vec<bool> = triangles.iter().map(|t| curvature(t).is_some()).collect();
-        let min_len = triangles
-            .iter()
-            .filter_map(curvature)
-            .fold(f64::INFINITY, f64::min);
-        let top = min_len
-            .is_finite()
-            .then(|| lambda_for_depth(depth as f64, min_len));
+        let top_of = |curved: &[bool]| {
+            let min_len = triangles
+                .iter()
+                .zip(curved)
+                .filter(|(_, &c)| c)
+                .filter_map(|(t, _)| curvature(t))
+                .fold(f64::INFINITY, f64::min);
+            min_len
+                .is_finite()
+                .then(|| lambda_for_depth(depth as f64, min_len))
+        };
+        let mut curved: Vec<bool> = triangles.iter().map(|t| curvature(t).is_some()).collect();
+        // Triangles whose shells would fold at the mesh's top keep flat
+        // prisms; the top of those left is no higher, so none of them folds.
+        if let Some(top) = top_of(&curved) {
+            for (c, t) in curved.iter_mut().zip(triangles) {
+                if let (true, Some(n)) = (*c, t.normals) {
+                    *c = !shell_folds(&t.positions, &n, top);
+                }
+            }
+        }
+        let top = top_of(&curved);
         type Corner = ([u32; 3], [u32; 3]);
         let corners: Vec<[Corner; 3]> = triangles
             .iter()

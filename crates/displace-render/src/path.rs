@@ -22,75 +22,16 @@
 //! unbiased by itself; Veach 1997, figure 9.2's comparison).
 
 use crate::bsdf::Bsdf;
-use crate::error::Error;
 use crate::geometry::Ray;
 use crate::integrator::{emitted, facing, shadow_query};
 use crate::sampler::SampleStream;
 use crate::scene::{Interaction, Scene};
-use displace_core::names::parse_known;
+use crate::settings::Sampling;
 use glam::Vec3;
 
 /// Bounces before Russian roulette may end a path (pbrt-v3's choice; pbrt-v4
 /// starts after the first).
 pub const RR_DEPTH: u32 = 3;
-
-/// The light transport algorithm of a render (`image.integrator`,
-/// `--integrator`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Integrator {
-    /// The seed's Whitted ray tracer with distributed effects
-    /// ([`crate::integrator`]).
-    #[default]
-    Whitted,
-    /// This module's path tracer.
-    Path,
-}
-
-impl Integrator {
-    /// The name a scene file and the command line use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Integrator::Whitted => "whitted",
-            Integrator::Path => "path",
-        }
-    }
-}
-
-impl std::str::FromStr for Integrator {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self, Error> {
-        let choices = [Self::Whitted, Self::Path].map(|i| (i.name(), i));
-        parse_known("integrator", s, &choices).map_err(Error::Option)
-    }
-}
-
-/// Which estimators of direct light the path integrator combines
-/// (`image.sampling`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Sampling {
-    /// Light sampling and BSDF sampling, power heuristic (the default).
-    #[default]
-    Mis,
-    /// Light sampling alone: emitters that paths hit count only where light
-    /// sampling cannot reach them (after a mirror, the camera's own view,
-    /// lights no sampler knows).
-    Light,
-    /// BSDF sampling alone: lights are sampled only where BSDF sampling
-    /// cannot find them (point lights, invisible area lights).
-    Bsdf,
-}
-
-impl std::str::FromStr for Sampling {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self, Error> {
-        let choices = [
-            ("mis", Self::Mis),
-            ("light", Self::Light),
-            ("bsdf", Self::Bsdf),
-        ];
-        parse_known("sampling", s, &choices).map_err(Error::Option)
-    }
-}
 
 /// The power heuristic, `beta = 2` (Veach 1997, eq. 9.13): the weight of a
 /// sample drawn with density `f` when `g` could also have drawn it.
@@ -294,19 +235,6 @@ fn direct(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn names_parse_and_bad_ones_are_listed() {
-        assert_eq!("path".parse::<Integrator>().unwrap(), Integrator::Path);
-        assert_eq!(
-            "whitted".parse::<Integrator>().unwrap(),
-            Integrator::Whitted
-        );
-        let e = "bogus".parse::<Integrator>().unwrap_err().to_string();
-        assert!(e.contains("bogus") && e.contains("whitted, path"), "{e}");
-        assert_eq!("bsdf".parse::<Sampling>().unwrap(), Sampling::Bsdf);
-        assert!("both".parse::<Sampling>().is_err());
-    }
 
     #[test]
     fn power_heuristic_weights_sum_to_one() {

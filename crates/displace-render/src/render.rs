@@ -6,11 +6,11 @@
 use crate::error::{Error, Result};
 use crate::geometry::Ray;
 use crate::integrator::{radiance_deferred, Deferred, PixelSample, Term};
-use crate::path::Integrator;
 use crate::sampler::{jittered, Rng, SampleStream, SamplerKind};
 use crate::scene::batch::Batch;
 use crate::scene::Interaction;
 use crate::scene::Scene;
+use crate::settings::Integrator;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};

@@ -304,6 +304,21 @@ fn smooth_heights_on_curved_meshes_show_no_seams() {
     }
 }
 
+/// Vertex normals tilted up to about 35 degrees off the face's `normal`,
+/// as far apart as the builder lets a shell be (`min_normal_length` of at
+/// least 0.5).
+fn tilted(normal: Vec3, next: &mut impl FnMut() -> f32) -> [Vec3; 3] {
+    loop {
+        let n = [0, 1, 2].map(|_| {
+            let tilt = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 1.2;
+            (normal + tilt).normalize()
+        });
+        if min_normal_length(&n).is_some_and(|m| m >= 0.5) {
+            break n;
+        }
+    }
+}
+
 /// A random curved shell over a random height map, and its face.
 fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
     let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
@@ -319,18 +334,7 @@ fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
         Vec3::new(next() * 0.3, 1.0 + next() * 0.3, next() * 0.3),
     ];
     let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-    // Vertex normals tilted up to about 35 degrees off the face's, as
-    // far apart as the builder lets a shell be (`min_normal_length` of at
-    // least 0.5).
-    let normals = loop {
-        let n = [0, 1, 2].map(|_| {
-            let tilt = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 1.2;
-            (normal + tilt).normalize()
-        });
-        if min_normal_length(&n).is_some_and(|m| m >= 0.5) {
-            break n;
-        }
-    };
+    let mut normals = tilted(normal, &mut next);
     let texels: Vec<f32> = (0..16 * 16).map(|_| next()).collect();
     let height = HeightMap::new(16, 16, texels, Address::Clamp).unwrap();
     let depth = 0.1 + 0.3 * next();
@@ -341,9 +345,16 @@ fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
         )
         .unwrap(),
     );
-    let min_len = min_normal_length(&normals).unwrap();
-    let top = lambda_for_depth(depth as f64, min_len);
-    let shell = CurvedShell::new(p, normals, depth, top).expect("a shell");
+    // A shell that folds over itself (`shell_folds`: normals converging
+    // faster than the shell is thick) is no shell, and the builder keeps a
+    // flat prism there: other normals, then.
+    let shell = loop {
+        let top = lambda_for_depth(depth as f64, min_normal_length(&normals).unwrap());
+        if let Some(shell) = CurvedShell::new(p, normals, depth, top) {
+            break shell;
+        }
+        normals = tilted(normal, &mut next);
+    };
     let uv = [
         Vec2::new(0.05, 0.1),
         Vec2::new(0.95, 0.2),
@@ -362,7 +373,7 @@ fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
+    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(256)))]
 
     /// The step bound: between the ray's entry into the shell and its
     /// reported hit, no point of the ray lies under the surface (beyond
@@ -384,14 +395,25 @@ proptest! {
         prop_assert_eq!(face.occludes(&ray, 0.0, f32::INFINITY), first.is_some());
         if let Some((t, _)) = first {
             prop_assert!(!face.occludes(&ray, 0.0, t * 0.999), "blocked before the hit at {}", t);
+            // A shortened ray (a shadow ray to a light, the BVH's closest
+            // hit so far) sees the whole ray's hit, or nothing.
+            for f in [0.25f32, 0.999, 1.001, 4.0] {
+                let t_max = t * f;
+                prop_assert_eq!(face.occludes(&ray, 0.0, t_max), f > 1.0, "t_max {} of the hit at {}", t_max, t);
+                let bounded = face.intersect(&ray, 0.0, t_max).map(|(tb, _)| tb);
+                prop_assert_eq!(bounded, (f > 1.0).then_some(t), "t_max {} of the hit at {}", t_max, t);
+            }
         }
         let Some((t_hit, hit)) = first else {
             return Ok(());
         };
-        // The hit lies on the surface (or on a wall).
-        let uv_of = |p: Vec3| -> Option<(f64, f64)> {
+        // The hit lies on the surface (or on a wall), its shell
+        // coordinates within rounding of the shell; the points before it
+        // are checked where they lie in the shell itself (a ray may run
+        // along a wall just outside it, under the surface's level there).
+        let uv_of = |p: Vec3, tol: f64| -> Option<(f64, f64)> {
             let loc = shell.locate(p.as_dvec3(), 0.5 * shell.top())?;
-            if !shell.contains(&loc, 1e-5) {
+            if !shell.contains(&loc, tol) {
                 return None;
             }
             let b = loc.b;
@@ -401,12 +423,12 @@ proptest! {
             Some((loc.w, map.height.sample(uv.x, uv.y) as f64))
         };
         if !hit.wall {
-            let (w, h) = uv_of(hit.position).expect("the hit lies in its shell");
+            let (w, h) = uv_of(hit.position, 1e-5).expect("the hit lies in its shell");
             prop_assert!((w - h).abs() < 1e-4, "hit at w {w}, surface {h}");
         }
         for k in 0..400 {
             let t = t_hit * k as f32 / 400.0;
-            if let Some((w, h)) = uv_of(ray.at(t)) {
+            if let Some((w, h)) = uv_of(ray.at(t), 0.0) {
                 prop_assert!(w >= h - 2e-3, "at t {t} of {t_hit}: w {w} under h {h}");
             }
         }

@@ -9,6 +9,7 @@ use std::process::{Command, Output};
 
 /// A scratch directory for a test that needs the GPU, or `None` where
 /// displace-gpu's test policy lets such a test pass without one.
+#[cfg(feature = "gpu")]
 pub fn gpu_scratch_dir() -> Option<tempfile::TempDir> {
     displace_gpu::test_support::test_context()?;
     Some(tempfile::tempdir().unwrap())

@@ -617,7 +617,7 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(256))]
+        #![proptest_config(ProptestConfig::with_cases(crate::random::property_cases(256)))]
 
         /// Bit-identical to the scalar envelope, up to the rounding of a tie
         /// (see the module docs), on random lines with repeated values
@@ -657,7 +657,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(256))]
+        #![proptest_config(ProptestConfig::with_cases(crate::random::property_cases(256)))]
 
         /// Sixteen lanes give the eight-lane kernel's values to the bit,
         /// lane for lane, on smooth lines (every site on the envelope: the

@@ -10,7 +10,6 @@
 //! file's no-data value (GDAL's `GDAL_NODATA` tag) or a non-finite value is
 //! refused, named, rather than baked as a pit or a spike.
 
-use super::height::image_err as err;
 use crate::{Error, Result};
 use std::io::BufReader;
 use std::path::Path;
@@ -76,11 +75,12 @@ fn open(path: &Path) -> Result<TiffDecoder> {
         path: path.to_path_buf(),
         source,
     })?;
-    Decoder::new(BufReader::new(file)).map_err(|e| err(path, format!("cannot read TIFF: {e}")))
+    Decoder::new(BufReader::new(file))
+        .map_err(|e| Error::image(path, format!("cannot read TIFF: {e}")))
 }
 
 fn layout_of(path: &Path, d: &mut TiffDecoder) -> Result<Layout> {
-    let bad = |e: tiff::TiffError| err(path, format!("cannot read TIFF: {e}"));
+    let bad = |e: tiff::TiffError| Error::image(path, format!("cannot read TIFF: {e}"));
     let (w, h) = d.dimensions().map_err(bad)?;
     let color = d.colortype().map_err(bad)?;
     let format = d
@@ -122,7 +122,7 @@ pub(super) struct Probe {
 pub(super) fn probe(path: &Path) -> Result<Probe> {
     super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
     if std::fs::metadata(path).is_ok_and(|m| m.len() == 0) {
-        return Err(err(path, "the file is empty"));
+        return Err(Error::image(path, "the file is empty"));
     }
     let mut decoder = open(path)?;
     let layout = layout_of(path, &mut decoder)?;
@@ -132,7 +132,7 @@ pub(super) fn probe(path: &Path) -> Result<Probe> {
 /// The refusal of samples wider than 32 bits, which would need twice the
 /// memory the estimate allows for decoding.
 fn too_wide(path: &Path, bits: u8) -> Error {
-    err(
+    Error::image(
         path,
         format!(
             "has {bits}-bit samples: convert the heights to 32-bit float first \
@@ -156,7 +156,7 @@ pub(super) fn read(
         ColorType::Gray(_) => 1,
         ColorType::Multiband { num_samples, .. } => num_samples,
         other => {
-            return Err(err(
+            return Err(Error::image(
                 path,
                 format!(
                     "a {other:?} TIFF of {:?} samples: heights are read from one band",
@@ -166,7 +166,7 @@ pub(super) fn read(
         }
     };
     if samples != 1 {
-        return Err(err(
+        return Err(Error::image(
             path,
             format!(
                 "has {samples} bands of {:?} samples: heights are read from one band \
@@ -180,7 +180,7 @@ pub(super) fn read(
         return Err(too_wide(path, bits));
     }
     if !matches!(bits, 8 | 16 | 32) {
-        return Err(err(
+        return Err(Error::image(
             path,
             format!(
                 "has {bits}-bit {:?} samples: heights are read from 8, 16 or 32 bits",
@@ -199,10 +199,10 @@ pub(super) fn read(
     let mut d = decoder.with_limits(limits);
     let image = d
         .read_image()
-        .map_err(|e| err(path, format!("cannot decode TIFF: {e}")))?;
+        .map_err(|e| Error::image(path, format!("cannot decode TIFF: {e}")))?;
     let (values, nodata_at) = to_f32(path, image, layout.nodata)?;
     if values.len() != w * h {
-        return Err(err(
+        return Err(Error::image(
             path,
             format!("decoded {} samples for {w}x{h} texels", values.len()),
         ));
@@ -210,7 +210,7 @@ pub(super) fn read(
     let bad = nodata_at.or_else(|| values.iter().position(|v| !v.is_finite()));
     if let Some(k) = bad {
         let (i, j) = (k % w, k / w);
-        return Err(err(
+        return Err(Error::image(
             path,
             if nodata_at.is_some() {
                 format!(

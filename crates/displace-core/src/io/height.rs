@@ -231,7 +231,7 @@ fn raster_decoder(
         source,
     })?;
     if file.metadata().is_ok_and(|m| m.len() == 0) {
-        return Err(image_err(path, "the file is empty"));
+        return Err(Error::image(path, "the file is empty"));
     }
     let name = format_name(format);
     let mut reader = image::ImageReader::with_format(std::io::BufReader::new(file), format);
@@ -240,7 +240,7 @@ fn raster_decoder(
     reader.no_limits();
     let mut decoder = reader
         .into_decoder()
-        .map_err(|e| image_err(path, format!("cannot read {name}: {e}")))?;
+        .map_err(|e| Error::image(path, format!("cannot read {name}: {e}")))?;
     let orientation = decoder
         .orientation()
         .unwrap_or(image::metadata::Orientation::NoTransforms);
@@ -268,11 +268,11 @@ fn format_name(format: image::ImageFormat) -> &'static str {
 fn exr_size(path: &Path) -> Result<exr::math::Vec2<usize>> {
     super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
     let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| image_err(path, format!("cannot read EXR: {e}")))?;
+        .map_err(|e| Error::image(path, format!("cannot read EXR: {e}")))?;
     let header = meta
         .headers
         .first()
-        .ok_or_else(|| image_err(path, "EXR file has no layers"))?;
+        .ok_or_else(|| Error::image(path, "EXR file has no layers"))?;
     Ok(header.layer_size)
 }
 
@@ -283,16 +283,9 @@ fn lower_extension(path: &Path) -> Option<String> {
         .map(str::to_ascii_lowercase)
 }
 
-pub(super) fn image_err(path: &Path, what: impl std::fmt::Display) -> Error {
-    Error::Image {
-        path: path.to_path_buf(),
-        message: what.to_string(),
-    }
-}
-
 /// Makes the map, naming the file in any complaint about its texels.
 fn finish(path: &Path, w: usize, h: usize, data: Vec<f32>, address: Address) -> Result<HeightMap> {
-    HeightMap::new(w, h, data, address).map_err(|e| image_err(path, e))
+    HeightMap::new(w, h, data, address).map_err(|e| Error::image(path, e))
 }
 
 fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) -> Result<HeightMap> {
@@ -300,9 +293,9 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
     let name = format_name(format);
     let (decoder, orientation) = raster_decoder(path, format)?;
     let [w, h] = shown_size(decoder.dimensions(), orientation);
-    HeightMap::check_size(w, h).map_err(|e| image_err(path, e))?;
+    HeightMap::check_size(w, h).map_err(|e| Error::image(path, e))?;
     let mut img = DynamicImage::from_decoder(decoder)
-        .map_err(|e| image_err(path, format!("cannot decode {name}: {e}")))?;
+        .map_err(|e| Error::image(path, format!("cannot decode {name}: {e}")))?;
     // A camera's photograph is stored as the sensor read it and shown as
     // its orientation tag says; the map is what the user sees.
     img.apply_orientation(orientation);
@@ -324,7 +317,7 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
         DynamicImage::ImageRgb16(b) => heights(path, &b.into_raw(), 3, false, opts.channel, c16),
         DynamicImage::ImageRgba16(b) => heights(path, &b.into_raw(), 4, false, opts.channel, c16),
         other => {
-            return Err(image_err(
+            return Err(Error::image(
                 path,
                 format!(
                     "unsupported {name} colour type {:?}: heights are read from 8- or 16-bit \
@@ -365,7 +358,7 @@ fn heights<T: Copy + Into<f32> + Sync>(
     };
     Ok(match (channel, grey) {
         (Some(Channel::A), _) if !has_alpha => {
-            return Err(image_err(path, "has no alpha channel (--channel a)"));
+            return Err(Error::image(path, "has no alpha channel (--channel a)"));
         }
         (Some(Channel::A), _) => pick(channels - 1),
         // Grey: r, g and b are all the grey value.
@@ -381,7 +374,7 @@ fn heights<T: Copy + Into<f32> + Sync>(
 fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     use exr::prelude::*;
     let size = exr_size(path)?;
-    HeightMap::check_size(size.width(), size.height()).map_err(|e| image_err(path, e))?;
+    HeightMap::check_size(size.width(), size.height()).map_err(|e| crate::Error::image(path, e))?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -389,10 +382,10 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|e| image_err(path, format!("cannot decode EXR: {e}")))?;
+        .map_err(|e| crate::Error::image(path, format!("cannot decode EXR: {e}")))?;
     let layer = image.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
-    HeightMap::check_size(w, h).map_err(|e| image_err(path, e))?;
+    HeightMap::check_size(w, h).map_err(|e| crate::Error::image(path, e))?;
     // The channels as decoded (no `f32` copy of each: a channel is read
     // where it lies, converted sample by sample as `values_as_f32` does).
     let channels: Vec<(String, &FlatSamples)> = layer
@@ -419,7 +412,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     let used: Vec<(&(String, &FlatSamples), f32)> = match opts.channel {
         Some(c) => {
             let ch = find(c.letter()).ok_or_else(|| {
-                image_err(
+                crate::Error::image(
                     path,
                     format!("has no {} channel (channels: {})", c.letter(), names()),
                 )
@@ -432,7 +425,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             _ => vec![(
                 channels
                     .first()
-                    .ok_or_else(|| image_err(path, "EXR layer has no channels"))?,
+                    .ok_or_else(|| crate::Error::image(path, "EXR layer has no channels"))?,
                 1.0,
             )],
         },
@@ -441,7 +434,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     let at = |values: &FlatSamples, k: usize| values.value_by_flat_index(k).to_f32();
     for ((name, values), _) in &used {
         if values.len() != w * h {
-            return Err(image_err(
+            return Err(crate::Error::image(
                 path,
                 format!("channel {name} is subsampled, which is not supported"),
             ));
@@ -450,7 +443,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             .into_par_iter()
             .position_first(|k| !at(values, k).is_finite())
         {
-            return Err(image_err(
+            return Err(crate::Error::image(
                 path,
                 format!(
                     "texel ({}, {}) of channel {name} is {}: heights must be finite",
@@ -480,14 +473,14 @@ fn load_data_tiff(
     opts: &HeightOptions,
 ) -> Result<HeightMap> {
     if opts.channel.is_some() {
-        return Err(image_err(
+        return Err(Error::image(
             path,
             "holds one band of values: --channel applies to colour images",
         ));
     }
     let layout = probe.layout;
     let mut data = super::data_tiff::read(path, probe, |[w, h]| {
-        HeightMap::check_size(w, h).map_err(|e| image_err(path, e))
+        HeightMap::check_size(w, h).map_err(|e| Error::image(path, e))
     })?;
     let [w, h] = layout.shown();
     // Unsigned 8- and 16-bit codes as stored are normalised as an image's
@@ -523,7 +516,7 @@ fn apply_range(path: &Path, data: &mut [f32], w: usize, range: HeightRange) -> R
     if let Some(k) = data.par_iter().position_first(|v| !(lo..=hi).contains(v)) {
         let (a, b) = span();
         let texel = format!("texel ({}, {}) is {}", k % w.max(1), k / w.max(1), data[k]);
-        return Err(image_err(
+        return Err(Error::image(
             path,
             match range {
                 HeightRange::Span(..) => format!(

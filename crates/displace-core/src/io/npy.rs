@@ -530,6 +530,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(crate::random::property_cases(256)))]
         #[test]
         fn round_trips_any_shape(shape in prop::collection::vec(0usize..5, 0..5), seed in any::<u32>()) {
             let n: usize = shape.iter().product();

@@ -9,6 +9,23 @@
 
 pub mod rays;
 
+/// How many cases a property test runs: its own count `cases`, times the
+/// whole number in `DISPLACE_PROPERTY_SCALE` when that is set.
+///
+/// The suite runs each property on a fixed seed (`PROPTEST_RNG_SEED`, set
+/// in the workspace's `.cargo/config.toml`), so it passes or fails the same
+/// way on every machine; `scripts/explore.sh` searches fresh seeds on
+/// purpose, many times the cases, and keeps what it finds in the tests'
+/// regression files.
+pub fn property_cases(cases: u32) -> u32 {
+    let scale = std::env::var("DISPLACE_PROPERTY_SCALE")
+        .ok()
+        .and_then(|s| s.trim().parse::<u32>().ok())
+        .unwrap_or(1)
+        .max(1);
+    cases.saturating_mul(scale)
+}
+
 /// SplitMix64's output function (Steele et al. 2014, the variant "Mix13" of
 /// Stafford's MurmurHash3 finaliser search): every input bit changes every
 /// output bit with probability near 1/2, so consecutive or structured

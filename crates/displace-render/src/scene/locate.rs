@@ -8,8 +8,7 @@
 //! ...`), and [`located`] finds that key once in the file's TOML, spans
 //! and all, when an error leaves the build.
 
-use super::line_column;
-use crate::error::Error;
+use crate::error::{line_column, Error};
 use toml::de::{DeTable, DeValue};
 
 /// `e` with the place of the key its message starts with, when it is a

@@ -7,7 +7,7 @@ mod build;
 mod content;
 mod locate;
 pub mod spec;
-mod world;
+pub(crate) mod world;
 
 pub use build::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
 pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriAttr};
@@ -17,11 +17,11 @@ use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::emitters::Emitters;
 use crate::environment::Environment;
-use crate::error::{Error, Result};
+use crate::error::{line_column, Error, Result};
 use crate::light::Light;
 use crate::material::Material;
-use crate::path::{Integrator, Sampling};
 use crate::sampler::SamplerKind;
+use crate::settings::{Integrator, Sampling};
 use displace_core::Method;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -245,24 +245,4 @@ fn parse(text: &str, name: &Path) -> Result<spec::SceneSpec> {
             message: e.message().trim().to_string(),
         }
     })
-}
-
-/// 1-based line and column (in characters) of byte offset `at`.
-pub(crate) fn line_column(text: &str, at: usize) -> (usize, usize) {
-    let at = at.min(text.len());
-    let before = &text[..at];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn line_columns_are_one_based() {
-        assert_eq!(line_column("ab\ncd", 0), (1, 1));
-        assert_eq!(line_column("ab\ncd", 4), (2, 2));
-    }
 }

@@ -8,8 +8,8 @@ use super::ctx::Ctx;
 use crate::camera::Camera;
 use crate::environment::{Environment, EnvironmentMap};
 use crate::error::{Error, Result};
-use crate::path::{Integrator, Sampling};
 use crate::sampler::SamplerKind;
+use crate::settings::{Integrator, Sampling};
 use glam::Vec3;
 use std::sync::Arc;
 

@@ -14,7 +14,7 @@
 //! on a miss, -2 on a visible area light's quad). Any-hit queries are
 //! `(N, 1)`: 1 where something lies on the ray within `(0, t_max)`, else 0.
 
-use crate::trace::read_rays_with_length;
+use super::rays::read_rays_with_length;
 use anyhow::{Context, Result};
 use displace_render::geometry::Ray;
 use displace_render::scene::batch::{Batch, GeometryHit};

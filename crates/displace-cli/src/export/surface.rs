@@ -5,7 +5,7 @@
 //! it; its texture coordinates are those the height map is read at (the
 //! mesh's own times the displacement's `tiles`).
 
-use crate::export_mesh::MeshFile;
+use super::format::MeshFile;
 use anyhow::{bail, Context, Result};
 use displace_core::io::atomic::write_atomic;
 use displace_render::displaced_surface::DisplacedSurface;

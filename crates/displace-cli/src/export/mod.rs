@@ -25,11 +25,15 @@
 //! the mesh and move its vertices along the interpolated normals, and the
 //! ground truth of curved displaced meshes.
 
-use crate::bake::{check_not_inputs, check_output_dir, load_height, parse_extent, HeightArgs};
+mod format;
+mod surface;
+
+use crate::bake::{check_not_inputs, load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::atomic::write_atomic;
 use displace_core::{Extent, HeightMap, NormalMap};
+use format::{least_bytes, mesh_file, MeshFile};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -74,12 +78,6 @@ pub struct ExportMeshArgs {
     /// Output mesh: .obj (text) or .ply (binary little-endian)
     #[arg(short, long, value_name = "MESH")]
     pub output: PathBuf,
-}
-
-#[derive(Clone, Copy, PartialEq, Debug)]
-pub(crate) enum MeshFile {
-    Obj,
-    Ply,
 }
 
 /// The grid's vertex coordinates along one axis of `n` height texels.
@@ -139,23 +137,6 @@ impl Grid<'_> {
     }
 }
 
-/// The mesh file `output` names, refused before any work when it is
-/// neither, or its directory is missing.
-fn mesh_file(output: &std::path::Path) -> Result<MeshFile> {
-    let kind = match output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-    {
-        Some("obj") => MeshFile::Obj,
-        Some("ply") => MeshFile::Ply,
-        _ => bail!("output {}: write a .obj or a .ply mesh", output.display()),
-    };
-    check_output_dir(output)?;
-    Ok(kind)
-}
-
 pub fn run(args: ExportMeshArgs) -> Result<()> {
     let kind = mesh_file(&args.output)?;
     if let Some(scene) = &args.scene {
@@ -166,7 +147,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         let edge = args
             .edge_texels
             .unwrap_or(displace_render::displaced_surface::REFERENCE_EDGE_TEXELS);
-        return crate::export_surface::run(scene, edge, kind, &args.output);
+        return surface::run(scene, edge, kind, &args.output);
     }
     if args.edge_texels.is_some() {
         bail!("--edge-texels sets the sub-edges of a --scene's meshes; a height field's grid is set by --scale");
@@ -222,26 +203,6 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
-}
-
-/// The fewest bytes a mesh of `nu x nv` vertices takes in `kind`: a PLY
-/// exactly (its header aside: 32 bytes a vertex, 13 a triangle); an OBJ at
-/// least its shortest lines (`v 0 0 0`, `vt 0 0`, `vn 0 0 0`, and faces
-/// whose indices have at least the digits of a tenth of the count, as nine
-/// in ten do). A lower bound, so that a refusal is sure: the free space is
-/// checked against it before the map is loaded.
-fn least_bytes(kind: MeshFile, nu: u64, nv: u64) -> u64 {
-    let vertices = nu * nv;
-    let triangles = 2 * (nu - 1) * (nv - 1);
-    match kind {
-        MeshFile::Ply => vertices * 32 + triangles * 13,
-        MeshFile::Obj => {
-            let digits = (vertices / 10).max(1).ilog10() as u64 + 1;
-            // `f a/a/a b/b/b c/c/c`: three triples of three indices.
-            let face = 2 + 3 * (3 * digits + 3);
-            vertices * (8 + 7 + 9) + triangles / 10 * 9 * face
-        }
-    }
 }
 
 /// Bytes the command holds at its peak per height texel: the heights

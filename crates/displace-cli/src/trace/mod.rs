@@ -1,6 +1,6 @@
 //! `displace trace`: batch ray queries against one displaced face, in the
 //! face's physical frame, so users can check our tracer against their own
-//! tools (or, with `--scene`, against a whole scene: [`crate::trace_scene`]).
+//! tools (or, with `--scene`, against a whole scene: [`scene`]).
 //!
 //! **Frames.** A physical point `(x, y, z)` (x along u in `[0, SX]`, y along
 //! v in `[0, SY]`, z up, the shell in `[0, SZ]`) is map-space point
@@ -11,14 +11,19 @@
 //! parameter for the direction *as given*: `hit = origin + t * dir`, i.e.
 //! `t = t_m * SZ / |dir|` (the physical distance when `dir` is unit length).
 
+mod rays;
+mod scene;
+
 use crate::bake::{load_height, parse_extent, parse_map_size, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::{self as dio, npy};
 use displace_core::{DisplacementMap, Extent, MapRay, Method, NormalMap, TraceOptions};
+#[cfg(feature = "gpu")]
 use displace_gpu::{DistanceTexture, GpuContext};
 use glam::Vec3;
 use rayon::prelude::*;
+use rays::read_rays;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -85,83 +90,6 @@ fn parse_method(s: &str) -> Result<Method, String> {
     s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
-/// Largest magnitude of a ray's origin or direction component: past it the
-/// direction's length overflows float32 and a ray of direction 1e30 would
-/// be reported as having no length.
-pub const MAX_RAY_COMPONENT: f32 = 1e18;
-
-/// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
-/// directions. Returned in physical units, as given.
-pub fn read_rays(path: &Path) -> Result<Vec<[f32; 6]>> {
-    let rays = read_ray_rows(path, false)?;
-    Ok(rays
-        .iter()
-        .map(|r| [r[0], r[1], r[2], r[3], r[4], r[5]])
-        .collect())
-}
-
-/// Rays of shape `(N, 6)` or `(N, 7)` (then `t_max`, positive or inf),
-/// checked as [`read_rays`] checks them; a missing `t_max` is inf.
-pub fn read_rays_with_length(path: &Path) -> Result<Vec<[f32; 7]>> {
-    read_ray_rows(path, true)
-}
-
-fn read_ray_rows(path: &Path, with_length: bool) -> Result<Vec<[f32; 7]>> {
-    let arr = npy::read_file(path).with_context(|| format!("reading rays {}", path.display()))?;
-    let columns = arr.shape.get(1).copied().unwrap_or(0);
-    if arr.shape.len() != 2 || !(columns == 6 || (with_length && columns == 7)) {
-        bail!(
-            "rays {}: shape {:?}, expected (N, 6): origin x, y, z then direction x, y, z per row{}",
-            path.display(),
-            arr.shape,
-            if with_length {
-                ", or (N, 7) with t_max last"
-            } else {
-                ""
-            }
-        );
-    }
-    let rays: Vec<[f32; 7]> = arr
-        .data
-        .chunks_exact(columns)
-        .map(|r| {
-            let t_max = if columns == 7 { r[6] } else { f32::INFINITY };
-            [r[0], r[1], r[2], r[3], r[4], r[5], t_max]
-        })
-        .collect();
-    for (n, r) in rays.iter().enumerate() {
-        if r[6].is_nan() || r[6] <= 0.0 {
-            bail!(
-                "rays {}: ray {n} has t_max {} in column 6, which must be positive (or inf)",
-                path.display(),
-                r[6]
-            );
-        }
-        if let Some(c) = r[..6].iter().position(|v| !v.is_finite()) {
-            bail!(
-                "rays {}: ray {n} has {} in column {c}",
-                path.display(),
-                r[c]
-            );
-        }
-        if let Some(c) = r[..6].iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
-            bail!(
-                "rays {}: ray {n} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
-                path.display(),
-                r[c]
-            );
-        }
-        let d = Vec3::new(r[3], r[4], r[5]);
-        if !(d.length() > 0.0 && d.length().is_finite()) {
-            bail!(
-                "rays {}: ray {n} has direction {d}, which has no length",
-                path.display()
-            );
-        }
-    }
-    Ok(rays)
-}
-
 /// Traces one physical-frame ray: `[t, x, y, z, iterations]`.
 pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) -> [f32; 5] {
     let sz = map.extent.sz;
@@ -185,7 +113,7 @@ pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) 
 
 pub fn run(args: TraceArgs) -> Result<()> {
     if let Some(scene) = &args.scene {
-        return crate::trace_scene::run(
+        return scene::run(
             scene,
             &args.rays,
             &args.output,
@@ -212,6 +140,9 @@ pub fn run(args: TraceArgs) -> Result<()> {
     // Counts are refused before the rays are read or a map baked.
     displace_core::check_iterations(args.iterations).context("--iterations")?;
     if args.backend == Backend::Gpu {
+        #[cfg(not(feature = "gpu"))]
+        bail!("--backend gpu: {}", crate::NO_GPU);
+        #[cfg(feature = "gpu")]
         crate::gpu::check_gpu_iterations(args.iterations)
             .context("--iterations with --backend gpu")?;
     }
@@ -265,6 +196,9 @@ pub fn run(args: TraceArgs) -> Result<()> {
             let on = format!("{} threads", rayon::current_num_threads());
             (hits, start.elapsed().as_secs_f64(), on)
         }
+        #[cfg(not(feature = "gpu"))]
+        Backend::Gpu => bail!("--backend gpu: {}", crate::NO_GPU),
+        #[cfg(feature = "gpu")]
         Backend::Gpu => {
             let ctx = GpuContext::new_headless().context("opening a GPU for --backend gpu")?;
             // Timed from upload to readback, the cost a caller sees.
