@@ -6,12 +6,35 @@
 use crate::descriptors::{bind_group, buffer_of, empty_buffer, pipeline_layout, shader_module};
 use crate::gpu_map::GpuMap;
 use crate::timing::{compute_writes, time_frames, Timing};
-use crate::trace::RayIn;
 use crate::{Error, GpuContext, Result};
-use bytemuck::Pod;
+use bytemuck::{Pod, Zeroable};
 use displace_core::MapRay;
 
 pub(crate) const WORKGROUP: u32 = 64;
+
+/// Mirror of WGSL `RayIn` (convention.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct RayIn {
+    origin: [f32; 3],
+    pad_origin: f32,
+    dir: [f32; 3],
+    pad_dir: f32,
+}
+
+impl RayIn {
+    /// The shader's copies of `rays`.
+    pub(crate) fn all(rays: &[MapRay]) -> Vec<RayIn> {
+        rays.iter()
+            .map(|r| RayIn {
+                origin: r.origin.to_array(),
+                pad_origin: 0.0,
+                dir: r.dir.to_array(),
+                pad_dir: 0.0,
+            })
+            .collect()
+    }
+}
 
 /// Compiles `source` and builds the pipeline of `entry` over `layouts`;
 /// shader and layout mistakes come back as [`Error::Gpu`].
@@ -273,5 +296,26 @@ impl BatchQuery {
             rays,
             extra,
         )
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    #[test]
+    fn ray_records_match_wgsl() {
+        use super::RayIn;
+        use crate::shaders::{assert_layout, compute_trace_source, offsets, DistanceTexture};
+        let src = compute_trace_source(DistanceTexture::R32Load);
+        assert_layout(
+            &src,
+            "RayIn",
+            std::mem::size_of::<RayIn>(),
+            offsets!(RayIn {
+                origin,
+                pad_origin,
+                dir,
+                pad_dir
+            }),
+        );
     }
 }

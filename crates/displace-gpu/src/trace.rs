@@ -17,30 +17,6 @@ use glam::{Vec2, Vec3};
 /// What [`trace_rays`] returns per ray: the CPU's hit record.
 pub type GpuHit = MapHit;
 
-/// Mirror of WGSL `RayIn` (convention.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub(crate) struct RayIn {
-    origin: [f32; 3],
-    pad_origin: f32,
-    dir: [f32; 3],
-    pad_dir: f32,
-}
-
-impl RayIn {
-    /// The shader's copies of `rays`.
-    pub(crate) fn all(rays: &[MapRay]) -> Vec<RayIn> {
-        rays.iter()
-            .map(|r| RayIn {
-                origin: r.origin.to_array(),
-                pad_origin: 0.0,
-                dir: r.dir.to_array(),
-                pad_dir: 0.0,
-            })
-            .collect()
-    }
-}
-
 /// Refuses rays the shaders cannot trace, naming the first bad one.
 pub(crate) fn check_rays(rays: &[MapRay]) -> Result<()> {
     for (index, r) in rays.iter().enumerate() {
@@ -187,21 +163,10 @@ pub fn trace_rays(
 #[cfg(test)]
 mod layout_tests {
     #[test]
-    fn ray_and_hit_records_match_wgsl() {
-        use super::{HitOut, RayIn};
+    fn hit_records_match_wgsl() {
+        use super::HitOut;
         use crate::shaders::{assert_layout, compute_trace_source, offsets, DistanceTexture};
         let src = compute_trace_source(DistanceTexture::R32Load);
-        assert_layout(
-            &src,
-            "RayIn",
-            std::mem::size_of::<RayIn>(),
-            offsets!(RayIn {
-                origin,
-                pad_origin,
-                dir,
-                pad_dir
-            }),
-        );
         assert_layout(
             &src,
             "HitOut",
