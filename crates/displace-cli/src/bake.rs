@@ -1,20 +1,21 @@
 //! `displace bake`: height map in, conservative distance map (KTX2, DDS or
-//! npy) and optionally a normal map out. Also the argument parsing shared
-//! with `trace`, `compare` and `export-mesh` (height sources, sizes,
-//! extents, output checks).
+//! npy) and optionally a normal map out; and the memory check of a bake,
+//! which `trace` shares.
 
+use crate::args::{load_height, parse_extent, parse_format, parse_map_size, HeightArgs};
+use crate::outputs::{check_distinct_outputs, check_not_inputs, check_output, check_output_dir};
 use crate::progress::{cancel_flag, DelayedBar};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::convention::parse_size;
 use displace_core::distance_map::Format;
 use displace_core::io::atomic::Batch;
-use displace_core::io::height::{self, Channel, HeightOptions, HeightRange};
+use displace_core::io::height;
 use displace_core::io::stream::MapStream;
 use displace_core::io::{self as dio, MapFile};
 use displace_core::memory::StreamedBake;
 use displace_core::techniques::{ConeKind, ConeMap};
-use displace_core::{Address, BakeOptions, DistanceMap, Error, Extent, HeightMap, NormalMap};
+use displace_core::{BakeOptions, Error, Extent, HeightMap, NormalMap};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -24,46 +25,6 @@ pub const WEBGPU_MAX_3D: usize = 2048;
 
 /// The built-in height map baked when none is given.
 pub const DEFAULT_HEIGHT: &str = "gen:studded";
-
-/// How a height source is read (shared by `bake`, `trace`, `compare` and
-/// `export-mesh`).
-#[derive(Args, Debug, Clone)]
-pub struct HeightArgs {
-    /// Texels of a generated height map (`gen:...`), WxH [default: the
-    /// distance map's W x H]
-    #[arg(long, value_name = "WxH")]
-    pub height_size: Option<String>,
-    /// Channel of a colour image that holds the height [default: Rec. 709
-    /// luminance]
-    #[arg(long, value_parser = parse_channel)]
-    pub channel: Option<Channel>,
-    /// Texture addressing: a repeating height map bakes a tiling distance map
-    #[arg(long, default_value = "clamp", value_parser = parse_address)]
-    pub address: Address,
-    /// Which values become heights 0 and 1: `auto` (the map's lowest and
-    /// highest) or LO,HI in the file's values (an elevation model's metres,
-    /// an image's codes) [default: 8/16-bit images by their full scale,
-    /// float data as stored, in [0, 1]]
-    #[arg(long, value_name = "auto|LO,HI", value_parser = parse_height_range, allow_hyphen_values = true)]
-    pub height_range: Option<HeightRange>,
-}
-
-impl HeightArgs {
-    /// The core's options for these arguments, `size` texels for a
-    /// generated map.
-    pub fn options(&self, size: [usize; 2]) -> HeightOptions {
-        HeightOptions {
-            channel: self.channel,
-            size,
-            address: self.address,
-            range: self.height_range.unwrap_or_default(),
-        }
-    }
-}
-
-pub(crate) fn parse_height_range(s: &str) -> Result<HeightRange, String> {
-    s.parse().map_err(|e: displace_core::Error| e.to_string())
-}
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
@@ -107,156 +68,6 @@ pub fn parse_cone_kind(s: &str) -> Result<ConeKind, String> {
         ("relaxed", ConeKind::Relaxed),
     ];
     displace_core::names::parse_choice("cone kind", s, &choices)
-}
-
-pub fn parse_channel(s: &str) -> Result<Channel, String> {
-    s.parse().map_err(|e: Error| e.to_string())
-}
-
-pub fn parse_address(s: &str) -> Result<Address, String> {
-    s.parse().map_err(|e: Error| e.to_string())
-}
-
-pub fn parse_format(s: &str) -> Result<Format, String> {
-    s.parse().map_err(|e: Error| e.to_string())
-}
-
-/// `SX,SY,SZ`: three positive finite numbers.
-pub fn parse_extent(s: &str) -> Result<Extent, String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
-        return Err(format!("`{s}`: expected three numbers SX,SY,SZ"));
-    }
-    let mut v = [0.0f32; 3];
-    for (o, p) in v.iter_mut().zip(&parts) {
-        *o = p
-            .trim()
-            .parse()
-            .map_err(|_| format!("`{s}`: `{p}` is not a number"))?;
-    }
-    Extent::new(v[0], v[1], v[2]).map_err(|e| e.to_string())
-}
-
-/// `WxHxD`, refused (before anything is allocated) when too large.
-pub fn parse_map_size(s: &str) -> Result<[usize; 3]> {
-    let size = parse_size::<3>(s).with_context(|| format!("--size {s}"))?;
-    DistanceMap::check_size(size).with_context(|| format!("--size {s}"))?;
-    Ok(size)
-}
-
-/// Loads `source`, with generated maps at `--height-size` or `default_size`.
-pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) -> Result<HeightMap> {
-    let size = match &args.height_size {
-        Some(s) if !source.starts_with(displace_core::generators::PREFIX) => bail!(
-            "--height-size {s} sets the size of a generated height map (gen:...); `{source}` has its own size"
-        ),
-        Some(s) => {
-            let size = parse_size::<2>(s).with_context(|| format!("--height-size {s}"))?;
-            HeightMap::check_size(size[0], size[1])
-                .with_context(|| format!("--height-size {s}"))?;
-            size
-        }
-        None => default_size,
-    };
-    let opts = args.options(size);
-    height::load(source, &opts).with_context(|| format!("loading height map `{source}`"))
-}
-
-/// Refuses an output path whose file type or directory cannot work, before
-/// any time is spent baking.
-pub fn check_output(path: &Path) -> Result<MapFile> {
-    let kind = MapFile::from_path(path).with_context(|| format!("output {}", path.display()))?;
-    check_output_dir(path)?;
-    Ok(kind)
-}
-
-/// Refuses an output path whose directory does not exist, so that no work
-/// is done for a file that cannot be written.
-pub fn check_output_dir(path: &Path) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            bail!(
-                "output {}: directory {} does not exist",
-                path.display(),
-                dir.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// `trace` writes `.npy` only; checked before any work is done, with a
-/// message that names only what trace can write.
-pub fn check_npy_output(path: &Path) -> Result<()> {
-    if !path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-    {
-        bail!("output {}: hits are written as .npy", path.display());
-    }
-    check_output_dir(path)
-}
-
-/// Refuses two outputs of one command that name the same file: the later
-/// write would silently replace the earlier one.
-pub fn check_distinct_outputs(outputs: &[(&str, &Path)]) -> Result<()> {
-    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    for (i, (a_name, a)) in outputs.iter().enumerate() {
-        for (b_name, b) in &outputs[..i] {
-            if absolute(a) == absolute(b) {
-                bail!(
-                    "{b_name} and {a_name} are the same file ({}): each output needs its own path",
-                    a.display()
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Refuses an output that names one of the command's inputs (the same
-/// file, through whatever path: a link or `./` counts): the output is
-/// written under a temporary name and renamed over the path at the end, so
-/// the input would be replaced by what was made from it. Generated inputs
-/// (`gen:...`, `builtin:...`) and inputs that do not exist yet name no
-/// file.
-pub fn check_not_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
-    use std::os::unix::fs::MetadataExt;
-    let identity = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
-    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    for (out_name, out) in outputs {
-        let out_id = identity(out);
-        for (in_name, input) in inputs {
-            let same = match (out_id, identity(input)) {
-                (Some(a), Some(b)) => a == b,
-                _ => absolute(out) == absolute(input),
-            };
-            if same {
-                bail!(
-                    "{out_name} {} is also an input ({in_name}): writing it would replace the file it is made from; choose another output path",
-                    out.display()
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// [`check_not_inputs`] for a command that writes `output` from a loaded
-/// scene: every file the scene read (height maps, textures, meshes), and
-/// the scene file itself where given.
-pub fn check_not_scene_inputs(
-    output: &Path,
-    scene: &displace_render::Scene,
-    scene_file: Option<&Path>,
-) -> Result<()> {
-    let mut read: Vec<(&str, &Path)> = scene
-        .sources()
-        .iter()
-        .map(|p| ("a file the scene reads", p.as_path()))
-        .collect();
-    read.extend(scene_file.map(|p| ("scene", p)));
-    check_not_inputs(&[("-o", output)], &read)
 }
 
 /// How a checked bake holds its map: whole in memory (`trace`), or

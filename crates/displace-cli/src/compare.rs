@@ -13,7 +13,7 @@ mod gpu_costs;
 mod grid;
 mod plot;
 
-use crate::bake::{load_height, parse_extent, HeightArgs};
+use crate::args::{load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::compare::{

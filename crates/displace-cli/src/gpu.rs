@@ -8,7 +8,7 @@
 
 pub(crate) mod scene;
 
-use crate::bake::parse_extent;
+use crate::args::parse_extent;
 use anyhow::{bail, Context, Result};
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::Batch;
@@ -39,7 +39,7 @@ pub struct FaceArgs {
     #[arg(long, default_value = "clamp")]
     pub address: Address,
     /// Which values become heights 0 and 1: `auto` or LO,HI (as `bake`).
-    #[arg(long, value_name = "auto|LO,HI", value_parser = crate::bake::parse_height_range, allow_hyphen_values = true)]
+    #[arg(long, value_name = "auto|LO,HI", value_parser = crate::args::parse_height_range, allow_hyphen_values = true)]
     pub height_range: Option<HeightRange>,
 }
 
@@ -194,7 +194,7 @@ fn uv_aov_path(output: &std::path::Path) -> PathBuf {
 /// range for the built-in plane.
 fn check_render_args(args: &GpuRenderArgs) -> Result<ImageFile> {
     let kind = ImageFile::from_path(&args.output)?;
-    crate::bake::check_output_dir(&args.output)?;
+    crate::outputs::check_output_dir(&args.output)?;
     check_gpu_iterations(args.iterations).context("--iterations")?;
     Ok(kind)
 }

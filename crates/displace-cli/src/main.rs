@@ -2,11 +2,9 @@
 //! measure it all. Each subcommand lives in its own module; errors are
 //! reported with context and a non-zero exit code.
 
+mod args;
 mod bake;
 mod bench;
-mod bench_bake;
-mod bench_render;
-mod bench_trace;
 mod compare;
 mod export;
 mod farm_env;
@@ -14,8 +12,10 @@ mod frames;
 #[cfg(feature = "gpu")]
 mod gpu;
 mod merge;
+mod outputs;
 mod progress;
 mod render;
+mod threads;
 mod trace;
 #[cfg(feature = "gpu")]
 mod view;

@@ -22,10 +22,10 @@ pub struct MergeArgs {
 
 pub fn run(args: MergeArgs) -> Result<()> {
     ImageFile::from_path(&args.output)?;
-    crate::bake::check_output_dir(&args.output)?;
+    crate::outputs::check_output_dir(&args.output)?;
     let tiles: Vec<(&str, &std::path::Path)> =
         args.tiles.iter().map(|t| ("tile", t.as_path())).collect();
-    crate::bake::check_not_inputs(&[("-o", &args.output)], &tiles)?;
+    crate::outputs::check_not_inputs(&[("-o", &args.output)], &tiles)?;
     let start = Instant::now();
     let image = merge_files(&args.tiles)?;
     write_image(&args.output, &image)

@@ -128,7 +128,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let jobs = crate::frames::jobs(args.frame.as_deref(), args.frames.as_deref(), &args.output)?;
     for (_, output) in &jobs {
-        crate::bake::check_output_dir(output)?;
+        crate::outputs::check_output_dir(output)?;
     }
     if let (Some(range), Some((Some(last), _))) = (&args.frames, jobs.last()) {
         let count = Scene::animation_frames(args.scene.as_deref())?;
@@ -138,7 +138,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             bail!("--frames {range}: the animation has {count} frames (0..{count})");
         }
     }
-    let pool = crate::bench_bake::pool(args.threads)?;
+    let pool = crate::threads::pool(args.threads)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let cancel = cancel.clone();
@@ -190,7 +190,7 @@ fn render_one(
         None => Scene::default_scene(&opts),
     })?;
     let setup = start.elapsed();
-    crate::bake::check_not_scene_inputs(output, &scene, args.scene.as_deref())?;
+    crate::outputs::check_not_scene_inputs(output, &scene, args.scene.as_deref())?;
     let stats = scene.cache_stats();
     for w in scene.warnings() {
         eprintln!("warning: {w}");

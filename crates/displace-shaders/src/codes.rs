@@ -61,9 +61,12 @@ pub const TAU_VOXELS: f32 = displace_core::convention::TRACE_STOP_VOXELS;
 /// underestimate bound, plus `tau`.
 pub const BAND_FACTOR: f32 = displace_core::convention::TRACE_BAND_FACTOR;
 
-/// A curved mesh's chords are halved while their midpoints stray further
-/// than this from the ray's curve in map space
-/// ([`displace_core::convention::CHORD_TOLERANCE`]).
+/// The chord tolerance of curved meshes
+/// ([`displace_core::convention::CHORD_TOLERANCE`]). `curved.wgsl` halves
+/// a chord while its midpoint strays further than this from the ray's
+/// curve in map position; the CPU measures the same offset in height
+/// above the surface (the height field's slope included), which the
+/// shader does not yet.
 pub const CHORD_TOLERANCE: f32 = displace_core::convention::CHORD_TOLERANCE as f32;
 
 /// Bits of fixed-point precision assumed for a linear sampler's weights.

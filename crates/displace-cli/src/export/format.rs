@@ -2,7 +2,7 @@
 //! asks for, and the least it can take on disk (checked against the free
 //! space before any work).
 
-use crate::bake::check_output_dir;
+use crate::outputs::check_output_dir;
 use anyhow::{bail, Result};
 
 /// A mesh file format.

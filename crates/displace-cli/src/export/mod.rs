@@ -28,7 +28,8 @@
 mod format;
 mod surface;
 
-use crate::bake::{check_not_inputs, load_height, parse_extent, HeightArgs};
+use crate::args::{load_height, parse_extent, HeightArgs};
+use crate::outputs::check_not_inputs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::atomic::write_atomic;

@@ -14,7 +14,7 @@
 mod rays;
 mod scene;
 
-use crate::bake::{load_height, parse_extent, parse_map_size, HeightArgs};
+use crate::args::{load_height, parse_extent, parse_map_size, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::{self as dio, npy};
@@ -130,13 +130,13 @@ pub fn run(args: TraceArgs) -> Result<()> {
     let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.extent) else {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
     };
-    crate::bake::check_npy_output(&args.output)?;
+    crate::outputs::check_npy_output(&args.output)?;
     let mut inputs = vec![
         ("--rays", args.rays.as_path()),
         ("--height", Path::new(height_source)),
     ];
     inputs.extend(args.map.as_deref().map(|m| ("--map", m)));
-    crate::bake::check_not_inputs(&[("-o", &args.output)], &inputs)?;
+    crate::outputs::check_not_inputs(&[("-o", &args.output)], &inputs)?;
     // Counts are refused before the rays are read or a map baked.
     displace_core::check_iterations(args.iterations).context("--iterations")?;
     if args.backend == Backend::Gpu {

@@ -116,8 +116,8 @@ fn row(scene: &Scene, hit: &Option<GeometryHit>, len: f32) -> [f32; 8] {
 
 /// Loads `scene`, traces every ray of `rays` and writes `output`.
 pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool) -> Result<()> {
-    crate::bake::check_npy_output(output)?;
-    crate::bake::check_not_inputs(&[("-o", output)], &[("--rays", rays), ("--scene", scene)])?;
+    crate::outputs::check_npy_output(output)?;
+    crate::outputs::check_not_inputs(&[("-o", output)], &[("--rays", rays), ("--scene", scene)])?;
     let rays = read_rays_with_length(rays)?;
     let opts = SceneOptions {
         cache_dir: if cache {
@@ -130,7 +130,7 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     let start = Instant::now();
     let scene =
         Scene::load(scene, &opts).with_context(|| format!("loading scene {}", scene.display()))?;
-    crate::bake::check_not_scene_inputs(output, &scene, None)?;
+    crate::outputs::check_not_scene_inputs(output, &scene, None)?;
     println!(
         "loaded the scene in {:.3} s (displacement maps {:.1} MB)",
         start.elapsed().as_secs_f64(),

@@ -2,8 +2,9 @@
 //! sphere-fixed, exact) on one core and on all, and the mean iterations per
 //! hit, on every generator. A measurement, not a test.
 
-use crate::bake::parse_extent;
-use crate::bench_bake::{height_for, pool};
+use super::bake::height_for;
+use crate::args::parse_extent;
+use crate::threads::pool;
 use anyhow::{Context, Result};
 use clap::Args;
 use displace_core::random::rays::{tile_rays, Elevation, Start};

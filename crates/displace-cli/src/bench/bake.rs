@@ -7,7 +7,8 @@
 //! scipy compute one side only (distances inside the volume, zeros outside)
 //! and are printed beside it for what one such pass costs.
 
-use crate::bake::parse_extent;
+use crate::args::parse_extent;
+use crate::threads::pool;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::convention::texel_centre;
@@ -52,7 +53,7 @@ pub struct BenchBakeArgs {
 }
 
 fn parse_bench_size(s: &str) -> Result<[usize; 3], String> {
-    crate::bake::parse_map_size(s).map_err(|e| format!("{e:#}"))
+    crate::args::parse_map_size(s).map_err(|e| format!("{e:#}"))
 }
 
 fn parse_generator(s: &str) -> Result<String, String> {
@@ -64,27 +65,6 @@ fn parse_generator(s: &str) -> Result<String, String> {
             BAKE_GENERATORS.join(", ")
         ))
     }
-}
-
-/// Most worker threads `--threads` may ask for: each costs a stack and a
-/// kernel thread, and 100000 of them exhaust the machine long before any
-/// work is done; far more than any machine this runs on has cores.
-pub const MAX_THREADS: usize = 1024;
-
-/// The worker pool of `--threads` (all cores when `None`), refusing 0 and
-/// more than [`MAX_THREADS`].
-pub fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    let mut b = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = threads {
-        if n == 0 {
-            bail!("--threads must be at least 1");
-        }
-        if n > MAX_THREADS {
-            bail!("--threads {n}: at most {MAX_THREADS} worker threads");
-        }
-        b = b.num_threads(n);
-    }
-    b.build().context("starting the worker threads")
 }
 
 const BAKE_GENERATORS: [&str; 3] = ["studded", "gaussian", "noise"];

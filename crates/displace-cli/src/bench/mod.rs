@@ -1,8 +1,12 @@
 //! `displace bench`: measurements that go into BENCHMARKS.md, one
 //! subcommand per subject.
 
-use crate::bench_render::{self, BenchRenderArgs};
+mod bake;
+mod render;
+mod trace;
+
 use anyhow::Result;
+use render::BenchRenderArgs;
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -13,9 +17,9 @@ pub struct BenchArgs {
 #[derive(clap::Subcommand, Debug)]
 pub enum BenchCommand {
     /// Bake throughput (Mvoxels/s) next to `edt` and scipy on the same volume.
-    Bake(crate::bench_bake::BenchBakeArgs),
+    Bake(bake::BenchBakeArgs),
     /// Map-space trace throughput (rays/s, one core and all) and iterations.
-    Trace(crate::bench_trace::BenchTraceArgs),
+    Trace(trace::BenchTraceArgs),
     /// Primary and shadow rays per second on displaced surfaces, per scene,
     /// on one core and on all.
     Render(BenchRenderArgs),
@@ -27,9 +31,9 @@ pub enum BenchCommand {
 
 pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
-        BenchCommand::Bake(a) => crate::bench_bake::run(a),
-        BenchCommand::Trace(a) => crate::bench_trace::run(a),
-        BenchCommand::Render(a) => bench_render::run(a),
+        BenchCommand::Bake(a) => bake::run(a),
+        BenchCommand::Trace(a) => trace::run(a),
+        BenchCommand::Render(a) => render::run(a),
         #[cfg(feature = "gpu")]
         BenchCommand::Gpu(a) => crate::gpu::run_bench(a),
     }

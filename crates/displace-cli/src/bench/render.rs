@@ -84,8 +84,8 @@ pub fn run(args: BenchRenderArgs) -> Result<()> {
             bail!("scene {}: no such file", s.display());
         }
     }
-    let one = crate::bench_bake::pool(Some(1))?;
-    let all = crate::bench_bake::pool(args.threads)?;
+    let one = crate::threads::pool(Some(1))?;
+    let all = crate::threads::pool(args.threads)?;
     let opts = SceneOptions {
         spp: Some(args.spp),
         size: Some(size),
