@@ -1,5 +1,5 @@
 //! Curved meshes for the raster path: the shells of the CPU renderer
-//! (`displace_render::curved_shell`, the triangles' extrusions along their
+//! (`displace_scene::curved_shell`, the triangles' extrusions along their
 //! vertex normals) as a storage buffer of prisms with their neighbours,
 //! and the outer boundary of those shells as triangles to rasterise
 //! (`shaders/curved.wgsl` walks the prisms per fragment).
@@ -12,8 +12,8 @@
 use crate::{Error, Result};
 use bytemuck::{Pod, Zeroable};
 use displace_core::Address;
-use displace_render::mesh::MeshTriangle;
-use displace_render::mesh_shells::{shell_normals, MeshShells};
+use displace_scene::mesh::MeshTriangle;
+use displace_scene::mesh_shells::{shell_normals, MeshShells};
 use glam::{Vec2, Vec3};
 
 /// One shell. Mirror of WGSL `Prism` (curved.wgsl).
@@ -180,7 +180,7 @@ mod tests {
 
     #[test]
     fn a_closed_curved_mesh_draws_tops_and_bases_only() {
-        let mesh = displace_render::builtin_mesh::generate("torus").unwrap();
+        let mesh = displace_scene::builtin_mesh::generate("torus").unwrap();
         let tris: Vec<MeshTriangle> = mesh.triangles;
         let shells = MeshShells::of(&tris, 0.1, Address::Repeat);
         let s = CurvedShells::new(&tris, &shells, 0.1, [10.0, 10.0], Address::Repeat)

@@ -85,7 +85,7 @@ impl PlainMesh {
 
     /// A sphere as [`SPHERE_STEPS`] longitude by latitude cells, normals
     /// exact at the corners, uv the CPU's longitude/latitude coordinate
-    /// (`displace_render::shapes::Sphere::uv`: u from atan2(z, x), v from
+    /// (`displace_scene::shapes::Sphere::uv`: u from atan2(z, x), v from
     /// the angle to +y).
     pub fn sphere(&mut self, centre: Vec3, radius: f32, m: &PlainMaterial) {
         let [nu, nv] = SPHERE_STEPS;

@@ -9,7 +9,7 @@ use displace_core::Address;
 use displace_gpu::mesh::tangent_frames;
 use displace_gpu::test_support::test_context;
 use displace_gpu::{DistanceTexture, MeshTriangle, PlaneScene, Renderer, ShellMesh};
-use displace_render::builtin_mesh;
+use displace_scene::builtin_mesh;
 use glam::{Vec2, Vec3};
 
 fn builtin(name: &str) -> Vec<MeshTriangle> {

@@ -29,41 +29,41 @@
 
 #![warn(missing_docs)]
 
-pub mod bake_cache;
-pub mod bake_lock;
+pub use displace_scene::bake_cache;
+pub use displace_scene::bake_lock;
 pub mod bsdf;
-pub mod builtin_mesh;
+pub use displace_scene::builtin_mesh;
 pub mod bvh;
-pub mod camera;
+pub use displace_scene::camera;
 pub mod curved_face;
-pub mod curved_shell;
+pub use displace_scene::curved_shell;
 pub mod displaced;
 pub mod displaced_surface;
-pub mod distribution;
+pub use displace_scene::distribution;
 pub mod emitters;
-pub mod environment;
-pub mod error;
-pub mod geometry;
+pub use displace_scene::environment;
+pub use displace_scene::error;
+pub use displace_scene::geometry;
 mod heights;
 pub mod integrator;
-pub mod light;
-pub mod material;
+pub use displace_scene::light;
+pub use displace_scene::material;
 pub mod merge;
-pub mod mesh;
-pub mod mesh_shells;
+pub use displace_scene::mesh;
+pub use displace_scene::mesh_shells;
 pub mod output;
 pub mod path;
 pub mod probe;
 pub mod render;
 pub mod sampler;
 pub mod scene;
-pub mod settings;
-pub mod shapes;
+pub use displace_scene::settings;
+pub use displace_scene::shapes;
 pub mod sobol;
-pub mod texture;
+pub use displace_scene::texture;
 pub mod tile_file;
 pub mod tiling;
-pub mod vertex_normals;
+pub use displace_scene::vertex_normals;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
 pub use error::{Error, Result};

@@ -33,10 +33,10 @@ use crate::{
 };
 use displace_core::{Method, TraceOptions};
 use displace_render::displaced::DisplacedFace;
-use displace_render::light::Light;
-use displace_render::material::Material;
 use displace_render::scene::{MeshDisplacement, Primitive, SceneMesh, Shape};
 use displace_render::Scene;
+use displace_scene::light::Light;
+use displace_scene::material::Material;
 use glam::Vec3;
 use shading::{material_shading, plain_material, Shading};
 use stage::Stage;

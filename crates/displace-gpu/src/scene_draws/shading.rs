@@ -1,10 +1,10 @@
 //! A scene material as the raster path shades it: the CPU's Lambert and
-//! normalised Blinn-Phong terms (`displace_render::material`) rewritten as
+//! normalised Blinn-Phong terms (`displace_scene::material`) rewritten as
 //! the GPU's albedo, light strength and specular weight (Donnelly's
 //! fragment stage lights with one point light, GPU Gems 2 8.5.2).
 
 use crate::PlainMaterial;
-use displace_render::material::Material;
+use displace_scene::material::Material;
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -51,7 +51,7 @@ pub(super) fn material_shading(mat: &Material, intensity: Vec3) -> Shading {
     let rgb = mat.diffuse * intensity / PI;
     let strength = rgb.max_element();
     let strength = if strength > 0.0 { strength } else { 1.0 };
-    // Normalised Blinn-Phong (displace_render::material::brdf) with the
+    // Normalised Blinn-Phong (displace_scene::material::brdf) with the
     // mean of its specular colour and the light's (the GPU highlight is
     // white).
     let mean = |v: Vec3| (v.x + v.y + v.z) / 3.0;

@@ -56,7 +56,7 @@ pub(super) fn bounds(mesh: &SceneMesh) -> [Vec3; 2] {
 /// A triangle's vertex normals as a rasteriser needs them: the scene's
 /// (unit, turned with the mesh), the flat normal where it gives none or a
 /// zero one.
-fn vertex_normals(t: &displace_render::mesh::MeshTriangle) -> [Vec3; 3] {
+fn vertex_normals(t: &displace_scene::mesh::MeshTriangle) -> [Vec3; 3] {
     let flat = flat_normal(t.positions);
     t.normals.map_or([flat; 3], |n| {
         n.map(|v| if v == Vec3::ZERO { flat } else { v })
@@ -78,7 +78,7 @@ mod tests {
     /// triangle, an OBJ without `vn`) and for a zero one among those given.
     #[test]
     fn missing_and_zero_normals_fall_back_to_the_flat_one() {
-        let t = |normals| displace_render::mesh::MeshTriangle {
+        let t = |normals| displace_scene::mesh::MeshTriangle {
             positions: [Vec3::ZERO, Vec3::X, Vec3::Y],
             normals,
             uvs: [Vec2::ZERO; 3],

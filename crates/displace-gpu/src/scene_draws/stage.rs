@@ -4,8 +4,8 @@
 
 use crate::{Draw, DrawShape, Error, Result, Shadows, View};
 use displace_core::Method;
-use displace_render::light::Light;
 use displace_render::Scene;
+use displace_scene::light::Light;
 use glam::Vec3;
 
 use super::shading::Shading;

@@ -78,7 +78,7 @@ fn line_column_suffix(at: Option<(usize, usize)>) -> String {
 
 /// 1-based line and column (in characters) of byte offset `at` of a text:
 /// where [`Error::Parse`] and [`Error::Scene`] point in a scene or OBJ file.
-pub(crate) fn line_column(text: &str, at: usize) -> (usize, usize) {
+pub fn line_column(text: &str, at: usize) -> (usize, usize) {
     let at = at.min(text.len());
     let before = &text[..at];
     let line = before.matches('\n').count() + 1;
