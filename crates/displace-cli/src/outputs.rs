@@ -91,11 +91,10 @@ pub fn check_not_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> 
 /// the scene file itself where given.
 pub fn check_not_scene_inputs(
     output: &Path,
-    scene: &displace_render::Scene,
+    sources: &[std::path::PathBuf],
     scene_file: Option<&Path>,
 ) -> Result<()> {
-    let mut read: Vec<(&str, &Path)> = scene
-        .sources()
+    let mut read: Vec<(&str, &Path)> = sources
         .iter()
         .map(|p| ("a file the scene reads", p.as_path()))
         .collect();

@@ -190,7 +190,7 @@ fn render_one(
         None => Scene::default_scene(&opts),
     })?;
     let setup = start.elapsed();
-    crate::outputs::check_not_scene_inputs(output, &scene, args.scene.as_deref())?;
+    crate::outputs::check_not_scene_inputs(output, scene.sources(), args.scene.as_deref())?;
     let stats = scene.cache_stats();
     for w in scene.warnings() {
         eprintln!("warning: {w}");

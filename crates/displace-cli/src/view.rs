@@ -62,7 +62,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let size = args.size.as_deref().map(image_size).transpose()?;
     let loaded = scene::load(&args.scene, size, args.no_cache)?;
     let opts = ViewOptions {
-        size: [loaded.width(), loaded.height()],
+        size: [loaded.width, loaded.height],
         frames: args.frames,
         screenshot: args.screenshot.is_some(),
         script,

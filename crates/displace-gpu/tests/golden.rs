@@ -19,7 +19,7 @@ use displace_core::generators::generate;
 use displace_core::{bake, Address, BakeOptions, Extent};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{from_scene, DistanceTexture, GpuContext, Image, PlaneScene, Renderer, Shadows};
-use displace_render::{Scene, SceneOptions};
+use displace_scene::{SceneOptions, World};
 use golden::{assert_percentile_catches_a_patch, Thresholds};
 use std::path::{Path, PathBuf};
 
@@ -60,7 +60,7 @@ fn scene_rgb(ctx: &GpuContext, name: &str) -> Vec<u8> {
         size: Some([SIZE, SIZE]),
         ..SceneOptions::default()
     };
-    let scene = Scene::load(&path, &options).unwrap();
+    let scene = World::load(&path, &options).unwrap();
     let draws = from_scene(ctx, &scene, DistanceTexture::R8Linear, Shadows::Hard).unwrap();
     rgb(&draws.render(ctx).unwrap())
 }

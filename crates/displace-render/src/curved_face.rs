@@ -34,6 +34,7 @@ use crate::texture::Texture;
 use displace_core::convention::CHORD_TOLERANCE;
 use displace_core::sphere_trace::HitKind;
 use displace_core::{DisplacementMap, MapRay, TraceOptions};
+use displace_scene::placed::CurvedDisplacement;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 use std::sync::Arc;
 
@@ -108,12 +109,40 @@ pub struct CurvedFace {
     pub normal_map: Option<Arc<Texture>>,
 }
 
+/// The face as the scene placed it, with its bounds and the height
+/// field's steepest slope found.
+impl From<&CurvedDisplacement> for CurvedFace {
+    fn from(c: &CurvedDisplacement) -> Self {
+        let shell = *c.shell();
+        let map = c.map().clone();
+        let [ax, ay] = map.aspect();
+        let aspect = DVec2::new(ax as f64, ay as f64);
+        let (corners, to_bary) = c.texture_frame();
+        let bounds = Aabb::from_points(shell.corners().map(|p| p.as_vec3()));
+        let [su, sv] = map.height.max_steps();
+        let texel = aspect / DVec2::new(map.height.width() as f64, map.height.height() as f64);
+        let slope = DVec2::new(su as f64 / texel.x, sv as f64 / texel.y).length();
+        Self {
+            shell,
+            corners,
+            to_bary,
+            aspect,
+            slope,
+            map,
+            trace: c.trace_options(),
+            uv_offset: c.uv_offset(),
+            shared: c.shared(),
+            bounds,
+            color: c.color.clone(),
+            normal_map: c.normal_map.clone(),
+        }
+    }
+}
+
 impl CurvedFace {
     /// The face over `shell`, whose corners have texture coordinates
-    /// `local_uv` (tiles, within `[0, trace.tiles]`); `uv_offset` is added
-    /// back to every hit's coordinate and `shared` says which sides a
-    /// neighbouring shell continues. `None` for degenerate texture
-    /// coordinates.
+    /// `local_uv`; `None` for degenerate texture coordinates
+    /// ([`CurvedDisplacement::new`], which says what the arguments are).
     pub fn new(
         shell: CurvedShell,
         map: Arc<DisplacementMap>,
@@ -122,33 +151,8 @@ impl CurvedFace {
         uv_offset: Vec2,
         shared: [bool; 3],
     ) -> Option<Self> {
-        let [ax, ay] = map.aspect();
-        let aspect = DVec2::new(ax as f64, ay as f64);
-        let corners = local_uv.map(|uv| uv.as_dvec2() * aspect);
-        let (c1, c2) = (corners[1] - corners[0], corners[2] - corners[0]);
-        let det = c1.x * c2.y - c2.x * c1.y;
-        if !(det.abs() > 1e-300 && det.is_finite()) {
-            return None;
-        }
-        let to_bary = [[c2.y / det, -c2.x / det], [-c1.y / det, c1.x / det]];
-        let bounds = Aabb::from_points(shell.corners().map(|c| c.as_vec3()));
-        let [su, sv] = map.height.max_steps();
-        let texel = aspect / DVec2::new(map.height.width() as f64, map.height.height() as f64);
-        let slope = DVec2::new(su as f64 / texel.x, sv as f64 / texel.y).length();
-        Some(Self {
-            shell,
-            corners,
-            to_bary,
-            aspect,
-            slope,
-            map,
-            trace,
-            uv_offset,
-            shared,
-            bounds,
-            color: None,
-            normal_map: None,
-        })
+        CurvedDisplacement::new(shell, map, trace, local_uv, uv_offset, shared)
+            .map(|c| Self::from(&c))
     }
 
     /// World bounds of the shell.

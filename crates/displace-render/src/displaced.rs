@@ -27,33 +27,10 @@ use crate::geometry::{Aabb, Ray};
 use crate::texture::Texture;
 use displace_core::sphere_trace::HitKind;
 use displace_core::{Address, DisplacementMap, MapHit, MapRay, TraceOptions};
+pub use displace_scene::placed::FaceFrame;
+use displace_scene::placed::FlatDisplacement;
 use glam::{Mat3, Vec2, Vec3};
 use std::sync::Arc;
-
-/// Where a face sits in the world: its base point at texture coordinate
-/// `(0, 0)`, how the world moves per tile of texture coordinate, its unit
-/// normal and its displacement depth.
-///
-/// The scene builder fills one in for each displaced quad and triangle;
-/// [`DisplacedFace::new`] turns it into the affine map-space frame of the
-/// module docs.
-#[derive(Clone, Copy, Debug)]
-pub struct FaceFrame {
-    /// World position of texture coordinate `(0, 0)` on the base surface
-    /// (the bottom of the shell, height 0).
-    pub origin: Vec3,
-    /// World displacement per unit of `u` (one tile along the face's first
-    /// edge): `dP/du`, the tangent.
-    pub dpdu: Vec3,
-    /// World displacement per unit of `v`: `dP/dv`, the bitangent. Need not
-    /// be orthogonal to [`Self::dpdu`]: sheared faces trace exactly.
-    pub dpdv: Vec3,
-    /// Unit normal of the base surface, the direction heights displace
-    /// along (the side the shell is extruded towards).
-    pub normal: Vec3,
-    /// World height of a height-map value of 1: the shell's thickness.
-    pub depth: f32,
-}
 
 /// A displaced parallelogram or triangle as the renderer's primitive: its
 /// shell's bounds for the BVH, its frame to and from map space, and the
@@ -179,43 +156,27 @@ pub struct DisplacedHit {
     pub wall: bool,
 }
 
-impl DisplacedFace {
-    /// The face over `frame`, traced through `map` with `trace`; `None`
-    /// when the frame is degenerate (zero or non-finite volume), since the
-    /// map-space transform could not be inverted.
-    ///
-    /// `trace.tiles` is how many tiles of the map the face spans; `prism_uv`
-    /// the triangle's texture coordinates (already in `[0, tiles]`) or
-    /// `None` for the full parallelogram; `uv_offset` is added back to every
-    /// hit's texture coordinate (triangles shifted by whole tiles into the
-    /// map's domain).
-    pub fn new(
-        frame: FaceFrame,
-        map: Arc<DisplacementMap>,
-        trace: TraceOptions,
-        prism_uv: Option<[Vec2; 3]>,
-        uv_offset: Vec2,
-    ) -> Option<Self> {
+/// The face as the scene placed it, with its map-space frame inverted
+/// and its shell's bounds found.
+impl From<&FlatDisplacement> for DisplacedFace {
+    fn from(f: &FlatDisplacement) -> Self {
+        let (origin, to_world) = f.frame();
+        let map = f.map().clone();
+        let trace = f.trace_options();
         let [ax, ay] = map.aspect();
-        let to_world =
-            Mat3::from_cols(frame.dpdu / ax, frame.dpdv / ay, frame.normal * frame.depth);
-        let det = to_world.determinant();
-        if !det.is_finite() || det.abs() <= 1e-30 {
-            return None;
-        }
         let to_map = to_world.inverse();
         let hi = Vec2::new(ax * trace.tiles[0], ay * trace.tiles[1]);
-        let prism = prism_uv.map(|t| t.map(|uv| uv * Vec2::new(ax, ay)));
+        let prism = f.prism_uv().map(|t| t.map(|uv| uv * Vec2::new(ax, ay)));
         let base: Vec<Vec2> = match prism {
             Some(t) => t.to_vec(),
             None => vec![Vec2::ZERO, Vec2::new(hi.x, 0.0), Vec2::new(0.0, hi.y), hi],
         };
         let bounds = Aabb::from_points(
             base.iter()
-                .flat_map(|b| [0.0, 1.0].map(|z| frame.origin + to_world * b.extend(z))),
+                .flat_map(|b| [0.0, 1.0].map(|z| origin + to_world * b.extend(z))),
         );
-        Some(Self {
-            origin: frame.origin,
+        Self {
+            origin,
             to_world,
             to_map,
             normal_to_world: to_map.transpose(),
@@ -223,10 +184,25 @@ impl DisplacedFace {
             trace,
             prism,
             bounds,
-            uv_offset,
-            color: None,
-            normal_map: None,
-        })
+            uv_offset: f.uv_offset(),
+            color: f.color.clone(),
+            normal_map: f.normal_map.clone(),
+        }
+    }
+}
+
+impl DisplacedFace {
+    /// The face over `frame`, traced through `map` with `trace`; `None`
+    /// when the frame is degenerate ([`FlatDisplacement::new`], which says
+    /// what the arguments are).
+    pub fn new(
+        frame: FaceFrame,
+        map: Arc<DisplacementMap>,
+        trace: TraceOptions,
+        prism_uv: Option<[Vec2; 3]>,
+        uv_offset: Vec2,
+    ) -> Option<Self> {
+        FlatDisplacement::new(frame, map, trace, prism_uv, uv_offset).map(|f| Self::from(&f))
     }
 
     /// World bounds of the whole shell (base and top, with the prism's or

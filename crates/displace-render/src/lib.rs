@@ -44,7 +44,6 @@ pub mod emitters;
 pub use displace_scene::environment;
 pub use displace_scene::error;
 pub use displace_scene::geometry;
-mod heights;
 pub mod integrator;
 pub use displace_scene::light;
 pub use displace_scene::material;

@@ -21,7 +21,7 @@ pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Res
         ..SceneOptions::default()
     };
     let loaded = Scene::load(scene, &opts)?;
-    crate::outputs::check_not_scene_inputs(output, &loaded, None)?;
+    crate::outputs::check_not_scene_inputs(output, loaded.sources(), None)?;
     let surfaces = loaded
         .meshes()
         .iter()

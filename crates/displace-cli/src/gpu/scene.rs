@@ -8,27 +8,27 @@
 
 use anyhow::{Context, Result};
 use displace_gpu::{from_scene, DistanceTexture, GpuContext, Image, SceneDraws, Shadows};
-use displace_render::{Scene, SceneOptions};
+use displace_scene::{SceneOptions, World};
 use std::path::Path;
 
 /// Loads `path` exactly as `displace render` does.
-pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<Scene> {
+pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<World> {
     let opts = SceneOptions {
         size,
         cache_dir: if no_cache {
             None
         } else {
-            displace_render::default_cache_dir()
+            displace_scene::default_cache_dir()
         },
         ..SceneOptions::default()
     };
-    Ok(Scene::load(path, &opts)?)
+    Ok(World::load(path, &opts)?)
 }
 
 /// The draws of `scene` and one frame of them.
 pub fn render(
     ctx: &GpuContext,
-    scene: &Scene,
+    scene: &World,
     texture: DistanceTexture,
     shadows: Shadows,
 ) -> Result<(SceneDraws, Image)> {

@@ -32,11 +32,10 @@ use crate::{
     Renderer, Result, Shadows, View,
 };
 use displace_core::{Method, TraceOptions};
-use displace_render::displaced::DisplacedFace;
-use displace_render::scene::{MeshDisplacement, Primitive, SceneMesh, Shape};
-use displace_render::Scene;
 use displace_scene::light::Light;
 use displace_scene::material::Material;
+use displace_scene::placed::{FlatDisplacement, MeshDisplacement, Placed, PlacedShape, SceneMesh};
+use displace_scene::World;
 use glam::Vec3;
 use shading::{material_shading, plain_material, Shading};
 use stage::Stage;
@@ -76,7 +75,7 @@ impl SceneDraws {
 /// faces' self-shadowing.
 pub fn from_scene(
     ctx: &GpuContext,
-    scene: &Scene,
+    scene: &World,
     texture: DistanceTexture,
     shadows: Shadows,
 ) -> Result<SceneDraws> {
@@ -91,21 +90,17 @@ pub fn from_scene(
         left_out,
     };
     // Triangles and meshes are drawn as meshes, not per primitive.
-    let meshed: HashSet<usize> = scene
-        .meshes()
-        .iter()
-        .flat_map(|m| m.prims.clone())
-        .collect();
-    for (k, prim) in scene.primitives().iter().enumerate() {
+    let meshed: HashSet<usize> = scene.meshes.iter().flat_map(|m| m.prims.clone()).collect();
+    for (k, prim) in scene.shapes.iter().enumerate() {
         if !meshed.contains(&k) {
             draws.primitive(scene, k, prim)?;
         }
     }
-    for (k, mesh) in scene.meshes().iter().enumerate() {
-        let material = &scene.materials()[mesh.material as usize];
+    for (k, mesh) in scene.meshes.iter().enumerate() {
+        let material = &scene.materials[mesh.material as usize];
         draws.mesh(k, mesh, material)?;
     }
-    let bg = scene.background();
+    let bg = scene.background;
     draws.finish([bg.x as f64, bg.y as f64, bg.z as f64])
 }
 
@@ -122,12 +117,12 @@ struct Draws<'a> {
 impl Draws<'_> {
     /// Primitive `k`: a displaced face drawn by its own renderer, any
     /// other shape added to the plain triangles.
-    fn primitive(&mut self, scene: &Scene, k: usize, prim: &Primitive) -> Result<()> {
-        let material = &scene.materials()[prim.material as usize];
-        let Shape::Displaced(face) = &prim.shape else {
+    fn primitive(&mut self, scene: &World, k: usize, prim: &PlacedShape) -> Result<()> {
+        let material = &scene.materials[prim.material as usize];
+        let Placed::Displaced(face) = &prim.shape else {
             let emission = prim
                 .emitter
-                .map_or(Vec3::ZERO, |e| match &scene.lights()[e as usize] {
+                .map_or(Vec3::ZERO, |e| match &scene.lights[e as usize] {
                     Light::Area { radiance, .. } => *radiance,
                     Light::Point { .. } => Vec3::ZERO,
                 });
@@ -139,7 +134,7 @@ impl Draws<'_> {
     }
 
     /// A displaced parallelogram or triangle: its shell box in its frame.
-    fn face(&mut self, k: usize, face: &DisplacedFace, material: &Material) -> Result<()> {
+    fn face(&mut self, k: usize, face: &FlatDisplacement, material: &Material) -> Result<()> {
         let trace = face.trace_options();
         check_trace(&trace, || format!("primitive {k}"))?;
         if face.color.is_some() || face.normal_map.is_some() {

@@ -5,17 +5,17 @@
 
 use crate::{MeshTriangle, PlainMaterial, PlainMesh, Result, ShellMesh};
 use displace_core::Address;
-use displace_render::scene::{SceneMesh, Shape};
+use displace_scene::placed::{Placed, SceneMesh};
 use glam::Vec3;
 
 /// Appends a non-displaced primitive's triangles: a quad (a box is six)
 /// as two, a sphere tessellated. Triangles are drawn from their scene mesh
 /// ([`add_mesh`]), displaced faces by their own renderers.
-pub(super) fn add_plain(plain: &mut PlainMesh, shape: &Shape, m: &PlainMaterial) {
+pub(super) fn add_plain(plain: &mut PlainMesh, shape: &Placed, m: &PlainMaterial) {
     match shape {
-        Shape::Quad(q) => plain.quad(q.origin, q.edge_u, q.edge_v, m),
-        Shape::Sphere(s) => plain.sphere(s.center, s.radius, m),
-        Shape::Triangle { .. } | Shape::Displaced(_) | Shape::Curved(_) => {}
+        Placed::Quad(q) => plain.quad(q.origin, q.edge_u, q.edge_v, m),
+        Placed::Sphere(s) => plain.sphere(s.center, s.radius, m),
+        Placed::Triangle { .. } | Placed::Displaced(_) | Placed::Curved(_) => {}
     }
 }
 

@@ -4,8 +4,8 @@
 
 use crate::{Draw, DrawShape, Error, Result, Shadows, View};
 use displace_core::Method;
-use displace_render::Scene;
 use displace_scene::light::Light;
+use displace_scene::World;
 use glam::Vec3;
 
 use super::shading::Shading;
@@ -27,26 +27,26 @@ pub(super) struct Stage {
 impl Stage {
     /// The stage of `scene`; what of its camera and lights is not drawn is
     /// added to `left_out` (depth of field, every light but the strongest).
-    pub(super) fn of(scene: &Scene, shadows: Shadows, left_out: &mut Vec<String>) -> Result<Self> {
-        let camera = scene.camera();
+    pub(super) fn of(scene: &World, shadows: Shadows, left_out: &mut Vec<String>) -> Result<Self> {
+        let camera = &scene.camera;
         let (forward, _, up, tan_half) = camera.basis();
         if camera.lens_radius() > 0.0 {
             left_out.push("depth of field (drawn as a pinhole)".to_string());
         }
-        let Some((light, intensity)) = pick_light(scene.lights()) else {
+        let Some((light, intensity)) = pick_light(&scene.lights) else {
             return Err(Error::Scene(
                 "the scene has no light; gpu-render lights with its strongest point or area light"
                     .into(),
             ));
         };
-        if scene.lights().len() > 1 {
+        if scene.lights.len() > 1 {
             left_out.push(format!(
                 "{} lights besides the strongest",
-                scene.lights().len() - 1
+                scene.lights.len() - 1
             ));
         }
         Ok(Self {
-            size: [scene.width(), scene.height()],
+            size: [scene.width, scene.height],
             eye: camera.position(),
             forward,
             up,
@@ -122,7 +122,7 @@ fn pick_light(lights: &[Light]) -> Option<(Vec3, Vec3)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use displace_render::SceneOptions;
+    use displace_scene::SceneOptions;
     use std::path::Path;
 
     fn lights(toml: &str) -> Option<(Vec3, Vec3)> {
@@ -131,14 +131,14 @@ mod tests {
              [materials.m]\ntype = \"lambert\"\ncolor = [0.5, 0.5, 0.5]\n\n\
              [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n\n{toml}"
         );
-        let scene = Scene::from_toml(
+        let scene = World::from_toml(
             &text,
             Path::new("t.toml"),
             Path::new("."),
             &SceneOptions::default(),
         )
         .expect("scene");
-        pick_light(scene.lights())
+        pick_light(&scene.lights)
     }
 
     /// The strongest light wins, an area light counting as `L A` at its

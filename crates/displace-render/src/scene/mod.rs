@@ -1,55 +1,31 @@
-//! Scenes: parsed from TOML ([`spec`]), validated and built (`build`) into
-//! primitives under one BVH, with materials, lights and a camera.
+//! Scenes for the CPU renderer: the scene as placed in the world
+//! ([`displace_scene::World`], read, checked and built from its TOML file
+//! there) turned into primitives under one BVH, with the path tracer's
+//! emitters (`build`), and the queries the integrators ask of them
+//! ([`world`]).
 
-pub mod animation;
 pub mod batch;
 mod build;
-mod content;
-mod locate;
-pub mod spec;
 pub(crate) mod world;
 
-pub use build::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
-pub use world::{Interaction, MeshDisplacement, Primitive, SceneMesh, Shape, TriAttr};
+pub use displace_scene::placed::{MeshDisplacement, SceneMesh, TriAttr};
+pub use displace_scene::{animation, spec};
+pub use displace_scene::{SceneOptions, World, DEFAULT_SCENE, DEFAULT_SCENE_NAME};
+pub use displace_scene::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
+pub use world::{Interaction, Primitive, Shape};
 
 use crate::bake_cache::CacheStats;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::emitters::Emitters;
 use crate::environment::Environment;
-use crate::error::{line_column, Error, Result};
+use crate::error::Result;
 use crate::light::Light;
 use crate::material::Material;
 use crate::sampler::SamplerKind;
 use crate::settings::{Integrator, Sampling};
-use displace_core::Method;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
-
-/// The built-in default scene: the studded Cornell box with soft shadows.
-pub const DEFAULT_SCENE: &str = include_str!("../../../../scenes/cornell_studded_shadows.toml");
-/// The name errors give the built-in scene, which has no file.
-pub const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
-
-/// What a caller may change about a scene without editing its file.
-#[derive(Clone, Debug, Default)]
-pub struct SceneOptions {
-    /// Overrides `image.spp` (`--spp`).
-    pub spp: Option<u32>,
-    /// Overrides `image.width` and `image.height` (`--size`).
-    pub size: Option<[u32; 2]>,
-    /// Overrides every displaced face's tracing method (tests compare
-    /// sphere tracing with the exact reference this way).
-    pub method: Option<Method>,
-    /// Where bakes are cached on disk; `None` keeps them in memory only.
-    pub cache_dir: Option<PathBuf>,
-    /// The frame of an `[animation]` to build (`None`: frame 0).
-    pub frame: Option<u32>,
-    /// Overrides `image.integrator` (`--integrator`).
-    pub integrator: Option<Integrator>,
-    /// Overrides `image.sampler` (`--sampler`).
-    pub sampler: Option<SamplerKind>,
-}
 
 /// A built scene: primitives under one BVH, materials, lights, camera and
 /// environment, ready for [`crate::render()`].
@@ -90,41 +66,24 @@ impl Scene {
     /// Reads and builds the scene file at `path`; relative paths inside it
     /// are relative to its directory.
     pub fn load(path: &Path, opts: &SceneOptions) -> Result<Self> {
-        let text = read_text(path)?;
-        let base = path.parent().unwrap_or(Path::new("."));
-        Self::from_toml(&text, path, base, opts)
+        World::load(path, opts).map(build::build)
     }
 
-    /// The frame count of the `[animation]` of the scene at `path` (the
-    /// built-in scene without one), checked, without building the scene:
-    /// `--frames` is checked against it before any frame is rendered.
+    /// The frame count of the `[animation]` of the scene at `path`
+    /// ([`World::animation_frames`]).
     pub fn animation_frames(path: Option<&Path>) -> Result<Option<u32>> {
-        let (text, name) = match path {
-            Some(p) => (read_text(p)?, p),
-            None => (DEFAULT_SCENE.to_string(), Path::new(DEFAULT_SCENE_NAME)),
-        };
-        animation::frame_count(&parse(&text, name)?, name).map_err(|e| locate::located(e, &text))
+        World::animation_frames(path)
     }
 
     /// The built-in default scene.
     pub fn default_scene(opts: &SceneOptions) -> Result<Self> {
-        Self::from_toml(
-            DEFAULT_SCENE,
-            Path::new(DEFAULT_SCENE_NAME),
-            Path::new("."),
-            opts,
-        )
+        World::default_scene(opts).map(build::build)
     }
 
     /// Builds a scene from TOML `text`; `name` is used in messages, `base`
     /// resolves relative file names.
     pub fn from_toml(text: &str, name: &Path, base: &Path, opts: &SceneOptions) -> Result<Self> {
-        let spec = parse(text, name)?;
-        let at = |e| locate::located(e, text);
-        let spec = animation::at_frame(spec, opts.frame, name).map_err(at)?;
-        let mut scene = build::build(spec, name, base, opts).map_err(at)?;
-        scene.content_hash = content::content_hash(text, &scene.sources, opts)?;
-        Ok(scene)
+        World::from_toml(text, name, base, opts).map(build::build)
     }
 
     /// Image width in pixels.
@@ -210,39 +169,4 @@ impl Scene {
     pub fn meshes(&self) -> &[SceneMesh] {
         &self.meshes
     }
-}
-
-/// The scene file at `path` as text, held to the scene file limits.
-fn read_text(path: &Path) -> Result<String> {
-    use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
-    check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    String::from_utf8(bytes).map_err(|e| {
-        // Where the bad byte is, as for a TOML error.
-        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let good = std::str::from_utf8(good).unwrap_or_default();
-        let (line, column) = line_column(good, good.len());
-        Error::Parse {
-            path: path.to_path_buf(),
-            line,
-            column,
-            message: "invalid UTF-8: a scene file is UTF-8 text".into(),
-        }
-    })
-}
-
-/// The scene file's TOML, parsed (not yet checked).
-fn parse(text: &str, name: &Path) -> Result<spec::SceneSpec> {
-    toml::from_str(text).map_err(|e| {
-        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-        Error::Parse {
-            path: name.to_path_buf(),
-            line,
-            column,
-            message: e.message().trim().to_string(),
-        }
-    })
 }

@@ -5,60 +5,11 @@ use super::Scene;
 use crate::curved_face::{CurvedFace, CurvedHit};
 use crate::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
-use crate::mesh::MeshTriangle;
-use crate::mesh_shells::MeshShells;
 use crate::shapes::{Quad, Sphere, Triangle};
-use displace_core::{DisplacementMap, MapHit, TraceOptions};
+use displace_core::{DisplacementMap, MapHit};
+pub use displace_scene::placed::NO_ATTR;
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
-
-/// Per-triangle attributes of meshes and textured triangles.
-#[derive(Clone, Copy, Debug)]
-pub struct TriAttr {
-    /// Vertex normals for smooth shading, when the mesh has them.
-    pub normals: Option<[Vec3; 3]>,
-    /// Texture coordinates of the corners.
-    pub uvs: [Vec2; 3],
-}
-
-/// A `mesh` or `triangle` of the scene file as placed in the world: the
-/// scene's one description of it (pbrt-v4's `TriangleMesh` in its
-/// `BasicScene`), from which the CPU made its primitives (`prims`) and from
-/// which a rasteriser derives its own draws (the GPU path's shells follow
-/// the vertex normals, which the CPU's per-triangle prisms do not keep).
-/// World-space triangles, none of zero area, with their vertex normals as
-/// the file gives them (unit, turned with the mesh; zero where the file's
-/// is zero, `None` where it gives none: the flat normal is meant) and their
-/// texture coordinates in tiles (a mesh's scaled by its displacement's
-/// `tiles`).
-#[derive(Clone, Debug)]
-pub struct SceneMesh {
-    /// World-space triangles, in the file's order.
-    pub triangles: Vec<MeshTriangle>,
-    /// Index into [`Scene::materials`].
-    pub material: u32,
-    /// The displacement, for a displaced mesh.
-    pub displacement: Option<MeshDisplacement>,
-    /// The range of [`Scene::primitives`] the CPU built of it.
-    pub prims: std::ops::Range<usize>,
-}
-
-/// The displacement shared by every triangle of a [`SceneMesh`].
-#[derive(Clone, Debug)]
-pub struct MeshDisplacement {
-    /// The baked maps (shared through the bake cache).
-    pub map: Arc<DisplacementMap>,
-    /// World units along the normal.
-    pub depth: f32,
-    /// The scene's method and iterations (`tiles` as the file gave them).
-    pub trace: TraceOptions,
-    /// The displacement has its own colour texture or normal map.
-    pub textured: bool,
-    /// Which triangles are curved, their shells' top level and each side's
-    /// neighbour: the answer the CPU's primitives were built from, for any
-    /// other renderer to draw the same shells.
-    pub shells: MeshShells,
-}
 
 /// The geometry of a primitive.
 #[derive(Clone, Debug)]
@@ -89,10 +40,6 @@ pub enum Shape {
 /// the same tree (its floor in a box of its own, 7% fewer instructions for
 /// a path-traced render than with the floor in the walls' leaf).
 const TRACED_TEST_COST: f32 = 2.0;
-
-/// A triangle without per-vertex attributes (flat normal, no texture
-/// coordinates).
-pub const NO_ATTR: u32 = u32::MAX;
 
 /// One shape with its material: what the BVH holds.
 #[derive(Clone, Debug)]

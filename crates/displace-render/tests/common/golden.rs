@@ -14,8 +14,17 @@
 
 #![allow(dead_code)]
 
-use displace_render::output::write_png_rgb8;
 use std::path::Path;
+
+/// A PNG of 8-bit RGB pixels, as the renderers write them (the PNG encoder
+/// of `image` with its defaults): references and the failure's pictures.
+fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> std::io::Result<()> {
+    use image::ImageEncoder;
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    image::codecs::png::PngEncoder::new(file)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(std::io::Error::other)
+}
 
 /// What a suite allows: the mean and the 99th-percentile FLIP.
 #[derive(Clone, Copy, Debug)]

@@ -4,12 +4,12 @@
 //! the CPU's shapes; the dispatch pushes them as primitives.
 
 use super::super::spec::{DisplacementSpec, ShapeSpec, V3};
-use super::super::world::{Primitive, SceneMesh, Shape, TriAttr};
 use super::ctx::Ctx;
 use super::displacement::{displacement_of, DispBuild};
 use super::triangles;
-use crate::displaced::{DisplacedFace, FaceFrame};
 use crate::error::Result;
+use crate::placed::{FaceFrame, FlatDisplacement};
+use crate::placed::{Placed, PlacedShape, SceneMesh, TriAttr};
 use crate::shapes::{box_faces, Quad, Sphere};
 use glam::Vec2;
 use std::collections::HashMap;
@@ -19,7 +19,7 @@ use std::collections::HashMap;
 /// of every triangle and mesh shape ([`SceneMesh`]).
 #[derive(Default)]
 pub(super) struct Geometry {
-    pub(super) prims: Vec<Primitive>,
+    pub(super) prims: Vec<PlacedShape>,
     pub(super) attrs: Vec<TriAttr>,
     pub(super) meshes: Vec<SceneMesh>,
 }
@@ -28,12 +28,12 @@ impl Geometry {
     /// Adds one primitive.
     pub(super) fn push(
         &mut self,
-        shape: Shape,
+        shape: Placed,
         material: u32,
         emitter: Option<u32>,
         shape_index: Option<u32>,
     ) {
-        self.prims.push(Primitive {
+        self.prims.push(PlacedShape {
             shape,
             material,
             emitter,
@@ -128,11 +128,11 @@ fn quad_shape(
     [origin, edge_u, edge_v]: [V3; 3],
     displacement: &Option<DisplacementSpec>,
     what: &str,
-) -> Result<Shape> {
+) -> Result<Placed> {
     let q = quad(cx, origin, edge_u, edge_v, what)?;
     Ok(match displacement_of(cx, displacement, what)? {
-        None => Shape::Quad(q),
-        Some(d) => Shape::Displaced(Box::new(displaced_quad(cx, &q, d, what)?)),
+        None => Placed::Quad(q),
+        Some(d) => Placed::Displaced(Box::new(displaced_quad(cx, &q, d, what)?)),
     })
 }
 
@@ -143,7 +143,7 @@ fn displaced_quad(
     q: &Quad,
     d: &DisplacementSpec,
     what: &str,
-) -> Result<DisplacedFace> {
+) -> Result<FlatDisplacement> {
     let tiles = Vec2::from_array(d.tiles);
     let tile = Vec2::new(q.edge_u.length(), q.edge_v.length()) / tiles.max(Vec2::splat(1e-30));
     let b = DispBuild::new(cx, d, tile, what)?;
@@ -160,22 +160,22 @@ fn displaced_quad(
         normal: q.normal,
         depth: b.depth,
     };
-    let face = DisplacedFace::new(frame, b.map.clone(), b.trace, None, Vec2::ZERO);
+    let face = FlatDisplacement::new(frame, b.map.clone(), b.trace, None, Vec2::ZERO);
     b.finish(face, cx, what)
 }
 
 /// A sphere of positive radius.
-fn sphere(cx: &Ctx, center: V3, radius: f32, what: &str) -> Result<Shape> {
+fn sphere(cx: &Ctx, center: V3, radius: f32, what: &str) -> Result<Placed> {
     let center = cx.vec(center, &format!("{what}.center"))?;
     if !(radius > 0.0 && radius.is_finite()) {
         return Err(cx.err(format!("{what}.radius must be positive, got {radius}")));
     }
-    Ok(Shape::Sphere(Sphere { center, radius }))
+    Ok(Placed::Sphere(Sphere { center, radius }))
 }
 
 /// The six quads of a box turned `rotate_y` degrees about its vertical
 /// centre line.
-fn box_shapes(cx: &Ctx, min: V3, max: V3, rotate_y: f32, what: &str) -> Result<Vec<Shape>> {
+fn box_shapes(cx: &Ctx, min: V3, max: V3, rotate_y: f32, what: &str) -> Result<Vec<Placed>> {
     let lo = cx.vec(min, &format!("{what}.min"))?;
     let hi = cx.vec(max, &format!("{what}.max"))?;
     if !(hi.cmpgt(lo).all()) || !rotate_y.is_finite() {
@@ -185,6 +185,6 @@ fn box_shapes(cx: &Ctx, min: V3, max: V3, rotate_y: f32, what: &str) -> Result<V
     }
     Ok(box_faces(lo, hi, rotate_y)
         .into_iter()
-        .map(Shape::Quad)
+        .map(Placed::Quad)
         .collect())
 }

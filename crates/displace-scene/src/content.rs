@@ -95,7 +95,7 @@ mod tests {
                 ..SceneOptions::default()
             },
             SceneOptions {
-                integrator: Some(crate::Integrator::Path),
+                integrator: Some(crate::settings::Integrator::Path),
                 ..SceneOptions::default()
             },
             SceneOptions {

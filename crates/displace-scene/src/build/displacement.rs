@@ -5,14 +5,13 @@
 //! triangle's partial derivatives (section 6.5).
 
 use super::super::spec::{DisplacementSpec, HeightRangeSpec};
-use super::super::world::MeshDisplacement;
 use super::ctx::Ctx;
-use crate::curved_face::CurvedFace;
 use crate::curved_shell::CurvedShell;
-use crate::displaced::{DisplacedFace, FaceFrame};
 use crate::error::{Error, Result};
 use crate::mesh::MeshTriangle;
 use crate::mesh_shells::MeshShells;
+use crate::placed::MeshDisplacement;
+use crate::placed::{CurvedDisplacement, FaceFrame, FlatDisplacement};
 use crate::shapes::Triangle;
 use crate::texture::Texture;
 use displace_core::convention::MAX_TRACE_ITERATIONS;
@@ -180,10 +179,10 @@ impl DispBuild {
 
     pub(super) fn finish(
         &self,
-        face: Option<DisplacedFace>,
+        face: Option<FlatDisplacement>,
         cx: &Ctx,
         what: &str,
-    ) -> Result<DisplacedFace> {
+    ) -> Result<FlatDisplacement> {
         let mut face =
             face.ok_or_else(|| cx.err(format!("{what}: the displaced face is degenerate")))?;
         face.color = self.color.clone();
@@ -197,7 +196,7 @@ impl DispBuild {
         tri: &Triangle,
         uv: &[Vec2; 3],
         what: &str,
-    ) -> Result<DisplacedFace> {
+    ) -> Result<FlatDisplacement> {
         let (_, (dpdu, dpdv)) = triangle_frame(tri, uv)
             .ok_or_else(|| cx.err(format!("{what}: degenerate texture coordinates")))?;
         let (trace, shift, local) = self.window(cx, uv, what)?;
@@ -208,7 +207,7 @@ impl DispBuild {
             normal: tri.normal(),
             depth: self.depth,
         };
-        let face = DisplacedFace::new(frame, self.map.clone(), trace, Some(local), shift);
+        let face = FlatDisplacement::new(frame, self.map.clone(), trace, Some(local), shift);
         self.finish(face, cx, what)
     }
 
@@ -266,7 +265,7 @@ impl DispBuild {
         top: f64,
         shared: [bool; 3],
         what: &str,
-    ) -> Result<CurvedFace> {
+    ) -> Result<CurvedDisplacement> {
         let (corners, uv) = (t.positions, &t.uvs);
         let normals = t
             .normals
@@ -274,8 +273,9 @@ impl DispBuild {
         let (trace, shift, local) = self.window(cx, uv, what)?;
         let shell = CurvedShell::new(corners, normals, self.depth, top)
             .ok_or_else(|| cx.err(format!("{what}: the displaced triangle is degenerate")))?;
-        let mut face = CurvedFace::new(shell, self.map.clone(), trace, local, shift, shared)
-            .ok_or_else(|| cx.err(format!("{what}: degenerate texture coordinates")))?;
+        let mut face =
+            CurvedDisplacement::new(shell, self.map.clone(), trace, local, shift, shared)
+                .ok_or_else(|| cx.err(format!("{what}: degenerate texture coordinates")))?;
         face.color = self.color.clone();
         face.normal_map = self.normal_map.clone();
         Ok(face)

@@ -13,7 +13,6 @@
 //! `e * a / a`, can differ from them in the last bit, and with it the bake).
 
 use super::super::spec::{DisplacementSpec, V3};
-use super::super::world::{SceneMesh, Shape, TriAttr};
 use super::ctx::Ctx;
 use super::displacement::{displacement_of, triangle_frame, DispBuild};
 use super::shapes::Geometry;
@@ -21,13 +20,14 @@ use crate::builtin_mesh;
 use crate::error::{Error, Result};
 use crate::mesh::MeshTriangle;
 use crate::mesh_shells::MeshShells;
+use crate::placed::{Placed, SceneMesh, TriAttr};
 use crate::shapes::Triangle;
 use glam::{Mat3, Vec2, Vec3};
 use std::path::PathBuf;
 
 /// World-space triangles, none of zero area, each with its index in the
 /// shape (errors name it), and their displacement.
-pub(super) struct Placed {
+pub(super) struct PlacedMesh {
     triangles: Vec<(usize, MeshTriangle)>,
     displacement: Option<DispBuild>,
     /// What an error at triangle `k` of shape `what` calls it.
@@ -49,7 +49,7 @@ pub(super) fn lone(
     uvs: &Option<[[f32; 2]; 3]>,
     displacement: &Option<DisplacementSpec>,
     what: &str,
-) -> Result<Placed> {
+) -> Result<PlacedMesh> {
     let p: Vec<Vec3> = vertices
         .iter()
         .enumerate()
@@ -81,7 +81,7 @@ pub(super) fn lone(
             Some(DispBuild::new(cx, d, map_extent, what)?)
         }
     };
-    Ok(Placed {
+    Ok(PlacedMesh {
         triangles: vec![(
             0,
             MeshTriangle {
@@ -107,7 +107,7 @@ pub(super) fn mesh(
     crease_degrees: f32,
     displacement: &Option<DisplacementSpec>,
     what: &str,
-) -> Result<Placed> {
+) -> Result<PlacedMesh> {
     let Placement {
         translate,
         scale,
@@ -196,7 +196,7 @@ pub(super) fn mesh(
             ),
         });
     }
-    Ok(Placed {
+    Ok(PlacedMesh {
         triangles,
         displacement: builder,
         name: |what, k| format!("{what} triangle {k}"),
@@ -208,7 +208,7 @@ pub(super) fn mesh(
 /// texture coordinates, or the prism over it in its texture frame.
 pub(super) fn add(
     cx: &Ctx,
-    placed: Placed,
+    placed: PlacedMesh,
     what: &str,
     material: u32,
     index: u32,
@@ -228,16 +228,16 @@ pub(super) fn add(
             (Some(b), Some(c)) => match c.top {
                 Some(top) if c.curved[m] => {
                     let face = b.curved_triangle(cx, t, top, c.shared(m), &name())?;
-                    Shape::Curved(Box::new(face))
+                    Placed::Curved(Box::new(face))
                 }
-                _ => Shape::Displaced(Box::new(b.triangle(cx, &tri, &t.uvs, &name())?)),
+                _ => Placed::Displaced(Box::new(b.triangle(cx, &tri, &t.uvs, &name())?)),
             },
             _ => {
                 geo.attrs.push(TriAttr {
                     normals: t.normals,
                     uvs: t.uvs,
                 });
-                Shape::Triangle {
+                Placed::Triangle {
                     tri,
                     attr: geo.attrs.len() as u32 - 1,
                 }

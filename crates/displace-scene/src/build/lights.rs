@@ -3,11 +3,11 @@
 //! radiance (as pbrt-v4 attaches a `DiffuseAreaLight` to its shape).
 
 use super::super::spec::LightSpec;
-use super::super::world::Shape;
 use super::ctx::Ctx;
 use super::shapes::{quad, Geometry};
 use crate::error::Result;
 use crate::light::Light;
+use crate::placed::Placed;
 
 /// The scene's lights in file order, and which are fill lights (the path
 /// integrator leaves those out); a visible area light's quad is pushed onto
@@ -52,7 +52,7 @@ pub(super) fn lights(
                 let radiance = cx.color(*radiance, &format!("{what}.radiance"))?;
                 if *visible {
                     geo.push(
-                        Shape::Quad(quad),
+                        Placed::Quad(quad),
                         light_material,
                         Some(lights.len() as u32),
                         None,

@@ -1,0 +1,91 @@
+//! The CPU renderer's scene from the scene placed in the world: each
+//! placed shape as a primitive (its displaced faces with their map-space
+//! frames and shells ready to trace), all of them under one BVH (pbrt-v4
+//! section 7.3) weighted by their test costs, the path tracer's emitters,
+//! and the offset of secondary rays for the scene's size.
+
+use super::world::{Primitive, Shape};
+use super::Scene;
+use crate::bvh::Bvh;
+use crate::curved_face::CurvedFace;
+use crate::displaced::DisplacedFace;
+use crate::emitters::Emitters;
+use crate::geometry::Aabb;
+use displace_scene::placed::{Placed, PlacedShape};
+use displace_scene::World;
+
+/// The primitive of a placed shape, in the same place of the list.
+fn primitive(p: PlacedShape) -> Primitive {
+    let shape = match p.shape {
+        Placed::Quad(q) => Shape::Quad(q),
+        Placed::Triangle { tri, attr } => Shape::Triangle { tri, attr },
+        Placed::Sphere(s) => Shape::Sphere(s),
+        Placed::Displaced(f) => Shape::Displaced(Box::new(DisplacedFace::from(&*f))),
+        Placed::Curved(c) => Shape::Curved(Box::new(CurvedFace::from(&*c))),
+    };
+    Primitive {
+        shape,
+        material: p.material,
+        emitter: p.emitter,
+        shape_index: p.shape_index,
+    }
+}
+
+/// The CPU scene of `world`.
+pub fn build(world: World) -> Scene {
+    let World {
+        camera,
+        width,
+        height,
+        settings,
+        background,
+        environment,
+        materials,
+        lights,
+        fill,
+        shapes,
+        attrs,
+        meshes,
+        cache_stats,
+        sources,
+        content_hash,
+        warnings,
+    } = world;
+    let prims: Vec<Primitive> = shapes.into_iter().map(primitive).collect();
+    let bounds: Vec<Aabb> = prims.iter().map(Primitive::bounds).collect();
+    let costs: Vec<f32> = prims.iter().map(Primitive::test_cost).collect();
+    let bvh = Bvh::build_weighted(&bounds, &costs);
+    let extent = bvh.bounds();
+    let diag = if extent.is_empty() {
+        1.0
+    } else {
+        (extent.max - extent.min).length()
+    };
+    let emitters = Emitters::new(&lights, &fill, &prims, &materials, &environment, 0.5 * diag);
+    Scene {
+        camera,
+        width,
+        height,
+        spp: settings.spp,
+        max_depth: settings.max_depth,
+        seed: settings.seed,
+        shadow_samples: settings.shadow_samples,
+        background,
+        environment,
+        integrator: settings.integrator,
+        sampling: settings.sampling,
+        sampler: settings.sampler,
+        emitters,
+        prims,
+        attrs,
+        bvh,
+        materials,
+        lights,
+        epsilon: 5e-5 * diag.max(1e-3),
+        meshes,
+        cache_stats,
+        sources,
+        content_hash,
+        warnings,
+    }
+}
