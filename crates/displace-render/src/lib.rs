@@ -14,8 +14,8 @@
 //! construction), [`camera`], [`shapes`], [`displaced`],
 //! [`displaced_surface`] (a displaced mesh tessellated: the curved
 //! surface's ground truth), [`bvh`],
-//! [`material`], [`light`], [`sampler`], [`integrator`] (Whitted), [`path`]
-//! (path tracing with MIS) with [`bsdf`], [`emitters`], [`environment`] and
+//! [`material`], [`light`], [`sampler`], [`integrators`] (Whitted, and
+//! path tracing with MIS) with [`bsdf`], [`emitters`], [`environment`] and
 //! [`distribution`], [`render`](mod@render) (tiles,
 //! threads, crops, AOVs), [`probe`] (ray sets for benchmarks), [`output`]
 //! (PNG/EXR/npy, atomic), [`bake_cache`].
@@ -35,6 +35,7 @@ pub mod bsdf;
 pub use displace_scene::builtin_mesh;
 pub mod bvh;
 pub use displace_scene::camera;
+mod camera_sample;
 pub mod curved_face;
 pub use displace_scene::curved_shell;
 pub mod displaced;
@@ -44,14 +45,13 @@ pub mod emitters;
 pub use displace_scene::environment;
 pub use displace_scene::error;
 pub use displace_scene::geometry;
-pub mod integrator;
+pub mod integrators;
 pub use displace_scene::light;
 pub use displace_scene::material;
 pub mod merge;
 pub use displace_scene::mesh;
 pub use displace_scene::mesh_shells;
 pub mod output;
-pub mod path;
 pub mod probe;
 pub mod render;
 pub mod sampler;

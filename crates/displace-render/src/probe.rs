@@ -1,16 +1,16 @@
 //! Ray sets for throughput benchmarks (BENCHMARKS.md): the camera
 //! rays of a render whose nearest hit lies on a displaced face, and the
 //! shadow rays those hits cast, generated exactly as [`crate::render()`] and
-//! [`crate::integrator`] generate them (same jitter, same light strata, same
+//! [`crate::integrators::whitted`] generate them (same jitter, same light strata, same
 //! offsets). Timing [`Scene::intersect`] and [`Scene::occluded`] on them
 //! apart from shading gives the speed of the intersection routine on
 //! displaced surfaces, as rays per second (the ray-tracer paper reports only
 //! whole rendering times, its section 4).
 
+use crate::camera_sample::camera_sample;
 use crate::error::{Error, Result};
 use crate::geometry::Ray;
-use crate::integrator::{facing, shadow_query};
-use crate::render::camera_sample;
+use crate::integrators::whitted::{facing, shadow_query};
 use crate::scene::Scene;
 use rayon::prelude::*;
 

@@ -4,13 +4,8 @@
 //! cancellation flag for the CLI.
 
 use crate::error::{Error, Result};
-use crate::geometry::Ray;
-use crate::integrator::{radiance_deferred, Deferred, PixelSample, Term};
-use crate::sampler::{jittered, Rng, SampleStream, SamplerKind};
-use crate::scene::batch::Batch;
-use crate::scene::Interaction;
+use crate::integrators::{pixel, Scratch};
 use crate::scene::Scene;
-use crate::settings::Integrator;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -193,8 +188,8 @@ pub const TILE: u32 = 16;
 /// Tiles of [`TILE`] pixels are shaded in parallel; each pixel's samples
 /// are seeded from the scene's seed and the pixel alone, so the result is
 /// the same for any thread count and a crop's pixels are the full image's.
-/// The integrator is the scene's (Whitted, [`crate::integrator`], or path
-/// tracing, [`crate::path`]).
+/// The integrator is the scene's ([`crate::integrators`]: Whitted or path
+/// tracing).
 ///
 /// # Errors
 ///
@@ -238,7 +233,7 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
                 .iter()
                 .map(|a| Vec::with_capacity((w * h) as usize * a.channels()))
                 .collect();
-            let mut scratch = PixelScratch::default();
+            let mut scratch = Scratch::default();
             for y in 0..h {
                 for x in 0..w {
                     let (gx, gy) = (crop.x + tx + x, crop.y + ty + y);
@@ -290,139 +285,6 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
     })
 }
 
-/// The camera ray of sample `s` of pixel `(x, y)` and the generator the
-/// rest of that sample's path draws from; [`crate::probe`] replays it.
-pub(crate) fn camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, Rng) {
-    let mut rng = Rng::for_sample(scene.seed, x, y, s);
-    let j = jittered(s, scene.spp, &mut rng);
-    let lens = rng.next_2d();
-    (camera_ray(scene, x, y, j, lens), rng)
-}
-
-/// The camera ray through offset `jitter` (in `[0, 1)^2`) of pixel `(x, y)`
-/// and point `lens` of the lens.
-fn camera_ray(scene: &Scene, x: u32, y: u32, jitter: Vec2, lens: Vec2) -> Ray {
-    let film = Vec2::new(
-        (x as f32 + jitter.x) / scene.width as f32,
-        (y as f32 + jitter.y) / scene.height as f32,
-    );
-    scene.camera.ray(film, lens)
-}
-
-/// The camera ray of sample `s` of pixel `(x, y)` under the path
-/// integrator and the stream the rest of its path draws from: with
-/// independent numbers [`camera_sample`]'s, with Sobol points the film and
-/// lens positions are the stream's first two dimensions.
-fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStream) {
-    match scene.sampler {
-        SamplerKind::Independent => {
-            let (ray, rng) = camera_sample(scene, x, y, s);
-            (ray, SampleStream::independent(rng))
-        }
-        SamplerKind::Sobol => {
-            let mut st = SampleStream::sobol(scene.seed, x, y, s);
-            let jitter = st.next_2d();
-            let lens = st.next_2d();
-            (camera_ray(scene, x, y, jitter, lens), st)
-        }
-    }
-}
-
-/// What one tile's pixels reuse from pixel to pixel: the batch queries'
-/// buffers and the pixel's rays, hits and held-back shadow rays.
-#[derive(Default)]
-struct PixelScratch {
-    batch: Batch,
-    rays: Vec<Ray>,
-    rngs: Vec<Rng>,
-    limits: Vec<f32>,
-    hits: Vec<Option<(u32, Interaction)>>,
-    shaded: Vec<Deferred>,
-    terms: Vec<Term>,
-    shadow_rays: Vec<Ray>,
-    shadow_limits: Vec<f32>,
-    blocked: Vec<bool>,
-}
-
-/// Camera samples traced together: a pixel's at most, so that what a
-/// sample sees never depends on its neighbours' (the packet tracer's hits
-/// are the one-ray tracer's anyway).
-const SAMPLES_PER_BATCH: u32 = 64;
-
-/// The mean of the pixel's stratified samples. Its camera rays are traced
-/// together (the displaced faces' eight at a time), then shaded one by
-/// one with their shadow rays held back, which are then traced together
-/// too and summed as [`crate::integrator::radiance`] sums them: the same image as tracing
-/// each sample on its own.
-fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
-    if scene.integrator == Integrator::Path {
-        return path_pixel(scene, x, y);
-    }
-    let mut sum = Vec3::ZERO;
-    let mut s0 = 0;
-    while s0 < scene.spp {
-        let s1 = (s0 + SAMPLES_PER_BATCH).min(scene.spp);
-        let sc = &mut *scratch;
-        sc.rays.clear();
-        sc.rngs.clear();
-        for s in s0..s1 {
-            let (ray, rng) = camera_sample(scene, x, y, s);
-            sc.rays.push(ray);
-            sc.rngs.push(rng);
-        }
-        sc.limits.clear();
-        sc.limits.resize(sc.rays.len(), f32::INFINITY);
-        scene.intersect_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
-        sc.terms.clear();
-        sc.shaded.clear();
-        for (k, s) in (s0..s1).enumerate() {
-            let sample = PixelSample {
-                index: s,
-                count: scene.spp,
-            };
-            let hit = sc.hits[k].as_ref().map(|(_, h)| h);
-            let d = radiance_deferred(
-                scene,
-                &sc.rays[k],
-                hit,
-                Some(sample),
-                &mut sc.rngs[k],
-                &mut sc.terms,
-            );
-            sc.shaded.push(d);
-        }
-        sc.shadow_rays.clear();
-        sc.shadow_rays.extend(sc.terms.iter().map(|t| t.query.ray));
-        sc.shadow_limits.clear();
-        sc.shadow_limits
-            .extend(sc.terms.iter().map(|t| t.query.t_max));
-        scene.occluded_many(
-            &sc.shadow_rays,
-            0.0,
-            &sc.shadow_limits,
-            &mut sc.batch,
-            &mut sc.blocked,
-        );
-        for d in &sc.shaded {
-            sum += d.finish(scene, &sc.terms, &sc.blocked);
-        }
-        s0 = s1;
-    }
-    sum / scene.spp as f32
-}
-
-/// The mean of the pixel's samples under the path integrator
-/// ([`crate::path`]), each sample's path traced on its own from its
-/// [`path_camera_sample`].
-fn path_pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
-    let mut sum = Vec3::ZERO;
-    for s in 0..scene.spp {
-        let (ray, mut rng) = path_camera_sample(scene, x, y, s);
-        sum += crate::path::radiance(scene, &ray, &mut rng);
-    }
-    sum / scene.spp as f32
-}
-
 fn aov_pixel(scene: &Scene, x: u32, y: u32, aovs: &[Aov], out: &mut [Vec<f32>]) {
     let film = Vec2::new(
         (x as f32 + 0.5) / scene.width as f32,
@@ -441,59 +303,6 @@ fn aov_pixel(scene: &Scene, x: u32, y: u32, aovs: &[Aov], out: &mut [Vec<f32>]) 
             (Aov::Uv, None) => o.extend([0.0; 2]),
             (Aov::Iterations, Some(h)) => o.push(h.iterations as f32),
             (Aov::Iterations, None) => o.push(0.0),
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::integrator::radiance;
-    use crate::SceneOptions;
-    use std::path::Path;
-
-    /// A pixel as the one-ray integrator computes it: each sample's camera
-    /// ray traced, shaded and its shadow rays traced on their own.
-    fn pixel_one_ray(scene: &Scene, x: u32, y: u32) -> Vec3 {
-        let mut sum = Vec3::ZERO;
-        for s in 0..scene.spp {
-            let (ray, mut rng) = camera_sample(scene, x, y, s);
-            let sample = PixelSample {
-                index: s,
-                count: scene.spp,
-            };
-            sum += radiance(scene, &ray, 0, Some(sample), &mut rng);
-        }
-        sum / scene.spp as f32
-    }
-
-    #[test]
-    fn batched_pixels_are_the_one_ray_pixels_bit_for_bit() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-        // Soft shadows from an area light, a mirror, a gaussian floor, and
-        // meshes: every kind of term the batch holds back.
-        for name in [
-            "cornell_studded_shadows.toml",
-            "cornell_stud_reflection.toml",
-            "cornell_gaussian.toml",
-            "gpu_meshes.toml",
-        ] {
-            let opts = SceneOptions {
-                size: Some([24, 24]),
-                spp: Some(5),
-                ..SceneOptions::default()
-            };
-            let scene = Scene::load(&dir.join(name), &opts).unwrap();
-            let mut scratch = PixelScratch::default();
-            let mut lit = 0;
-            for y in 0..24 {
-                for x in 0..24 {
-                    let batched = pixel(&scene, x, y, &mut scratch);
-                    assert_eq!(batched, pixel_one_ray(&scene, x, y), "{name} ({x}, {y})");
-                    lit += usize::from(batched != Vec3::ZERO);
-                }
-            }
-            assert!(lit > 100, "{name}: only {lit} pixels lit");
         }
     }
 }

@@ -11,10 +11,10 @@ use displace_core::names::parse_known;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Integrator {
     /// The seed's Whitted ray tracer with distributed effects
-    /// ([`crate::integrator`]).
+    /// (displace-render's `integrators::whitted`).
     #[default]
     Whitted,
-    /// Path tracing with next-event estimation and MIS ([`crate::path`]).
+    /// Path tracing with next-event estimation and MIS (displace-render's `integrators::path`).
     Path,
 }
 

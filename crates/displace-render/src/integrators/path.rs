@@ -21,10 +21,12 @@
 //! light sampling alone or BSDF sampling alone instead of both (each
 //! unbiased by itself; Veach 1997, figure 9.2's comparison).
 
+use super::whitted::{emitted, facing, shadow_query};
 use crate::bsdf::Bsdf;
+use crate::camera_sample::{camera_ray, camera_sample};
 use crate::geometry::Ray;
-use crate::integrator::{emitted, facing, shadow_query};
 use crate::sampler::SampleStream;
+use crate::sampler::SamplerKind;
 use crate::scene::{Interaction, Scene};
 use crate::settings::Sampling;
 use glam::Vec3;
@@ -230,6 +232,36 @@ fn direct(
         1.0
     };
     f * ls.radiance * (cos * w / ls.pdf)
+}
+
+/// The camera ray of sample `s` of pixel `(x, y)` under the path
+/// integrator and the stream the rest of its path draws from: with
+/// independent numbers [`camera_sample`]'s, with Sobol points the film and
+/// lens positions are the stream's first two dimensions.
+fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStream) {
+    match scene.sampler {
+        SamplerKind::Independent => {
+            let (ray, rng) = camera_sample(scene, x, y, s);
+            (ray, SampleStream::independent(rng))
+        }
+        SamplerKind::Sobol => {
+            let mut st = SampleStream::sobol(scene.seed, x, y, s);
+            let jitter = st.next_2d();
+            let lens = st.next_2d();
+            (camera_ray(scene, x, y, jitter, lens), st)
+        }
+    }
+}
+
+/// The mean of the pixel's samples under the path integrator, each sample's path traced on its own from its
+/// [`path_camera_sample`].
+pub(crate) fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    for s in 0..scene.spp {
+        let (ray, mut rng) = path_camera_sample(scene, x, y, s);
+        sum += radiance(scene, &ray, &mut rng);
+    }
+    sum / scene.spp as f32
 }
 
 #[cfg(test)]
