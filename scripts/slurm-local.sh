@@ -10,7 +10,7 @@
 # both jobs, checks that every task and the merge completed, and stops every
 # daemon it started, by the pids in their pid files, whatever happens.
 #
-# Needs root (munged and slurmd run as root, as SLURM.md describes).
+# Needs root (munged and slurmd run as root).
 # DISPLACE names the binary (default: target/release/displace if built,
 # else `displace` on PATH); DISPLACE_ARGS adds render options;
 # SLURM_LOCAL_TIMEOUT bounds the wait (seconds, default 900);

@@ -1,6 +1,6 @@
 //! Headless device setup: one instance, adapter, device and queue that every
-//! path of this crate shares. Creating a device costs 55-100 ms on lavapipe
-//! (`shared/WGPU.md`), so callers keep one [`GpuContext`] alive.
+//! path of this crate shares. Creating a device costs 55-100 ms on lavapipe,
+//! so callers keep one [`GpuContext`] alive.
 
 use crate::{Error, Result};
 
