@@ -1,5 +1,5 @@
-//! `displace gpu-render SCENE` and `displace view SCENE`: the CPU
-//! renderer's scene file loaded exactly as `displace render` loads it, and
+//! `displace gpu-render SCENE` and `displace view SCENE`: the scene file
+//! loaded and placed in the world exactly as `displace render` loads it, and
 //! drawn by the GPU raster path ("the same scene TOML as the CPU renderer,
 //! with the same camera conventions, so one scene renders on both and can
 //! be compared"). What is drawn of it and what is left out is

@@ -1,12 +1,12 @@
-//! A `displace_render` scene as draws of the raster path: the one scene
-//! description both renderers are built from, as pbrt-v4 builds its CPU and
-//! GPU aggregates from one `BasicScene`. `displace gpu-render SCENE` draws
-//! them once, `displace view` every frame.
+//! A scene placed in the world ([`displace_scene::World`]) as draws of the
+//! raster path: the one scene description both renderers are built from,
+//! as pbrt-v4 builds its CPU and GPU aggregates from one `BasicScene`.
+//! `displace gpu-render SCENE` draws them once, `displace view` every frame.
 //!
-//! The scene is loaded and validated by `displace_render` itself, so every
-//! error (file:line:column, unknown keys, missing height files) is the CPU
-//! renderer's, and every displaced face gets the bake the CPU renderer
-//! uses. What the GPU draws of it: each displaced parallelogram (tiled or
+//! The scene is loaded and validated by `displace_scene`, as for the CPU
+//! renderer, so every error (file:line:column, unknown keys, missing height
+//! files) is the same, and every displaced face gets the bake the CPU
+//! renderer uses. What the GPU draws of it: each displaced parallelogram (tiled or
 //! not) as its own shell box with Donnelly's shaders (GPU Gems 2 ch. 8,
 //! listings 8-1 and 8-2), and each displaced triangle and mesh (OBJ or
 //! built-in) as the shells of its triangles in their MikkTSpace frames
