@@ -8,7 +8,7 @@
 //! the surface), over map space as [`crate::convention`] defines it.
 //!
 //! # Why the stored values are safe
-//! The bake ([`crate::displacement::bake`]) proves it in two steps:
+//! The bake ([`crate::bake::bake`]) proves it in two steps:
 //! 1. **Lower bound at voxel centres.** Column `(i, j)` of the map covers a
 //!    footprint of `hx x hy`; over it the surface spans exactly
 //!    `[hmin, hmax]` ([`crate::HeightMap::range`]). The transform gives the exact

@@ -45,13 +45,12 @@ pub mod random;
 pub mod sphere_trace;
 pub mod techniques;
 
-mod displacement;
+pub mod bake;
+mod displacement_map;
 
+pub use bake::{bake, bake_streamed, BakeLayout, BakeOptions, CodedSlab, Slab, SlabSink};
 pub use convention::{Address, Extent};
-pub use displacement::{
-    bake, bake_streamed, check_iterations, BakeLayout, BakeOptions, CodedSlab, DisplacementMap,
-    Slab, SlabSink,
-};
+pub use displacement_map::{check_iterations, DisplacementMap};
 pub use distance_map::DistanceMap;
 pub use error::Error;
 pub use heightmap::HeightMap;

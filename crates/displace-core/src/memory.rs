@@ -89,7 +89,7 @@ pub fn writer_slices(plane: usize) -> usize {
 pub fn stream_encoded_slices(slab_slices: usize, map: [usize; 3]) -> u128 {
     let plane = map[0] * map[1];
     let filled = if small_slices(plane) {
-        crate::displacement::coded::window(slab_slices)
+        crate::bake::coded::window(slab_slices)
     } else {
         1
     };

@@ -33,8 +33,8 @@
 
 use super::linear::{bisect, Bracket, BINARY_STEPS};
 use super::{Segment, Traced};
+use crate::bake::Progress;
 use crate::convention::texel_centre;
-use crate::displacement::Progress;
 use crate::HeightMap;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;

@@ -11,10 +11,13 @@
 //! A thread may run at most one slice ahead of the oldest unfinished one
 //! (the window), so that the codes held stay a few slices.
 
-use super::{check_promise, is_cancelled, BakePlan, CodedSlab, RowSource};
+use super::options::BakeOptions;
+use super::plan::{check_promise, is_cancelled, BakePlan};
+use super::ranges::RowSource;
+use super::sink::{CodedSlab, SlabSink};
 use crate::distance_map::R8Encoder;
 use crate::edt::SliceScratch;
-use crate::{BakeOptions, Error, Result, SlabSink};
+use crate::{Error, Result};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
