@@ -21,12 +21,10 @@ Mitsuba's, after its JIT compile), with the ratios.
 """
 
 import argparse
-import glob
 import json
 import os
 import re
 import sys
-import tempfile
 
 import numpy as np
 
@@ -78,15 +76,7 @@ def main():
     if a.worker == "mitsuba":
         return peers.worker_mitsuba(a.ply, a.size, a.spp, VIEW, LIGHT, ALBEDO)
 
-    env = dict(os.environ)
-    llvm = sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/*/libLLVM-19*.so*"))
-    if llvm and "DRJIT_LIBLLVM_PATH" not in env:
-        env["DRJIT_LIBLLVM_PATH"] = llvm[0]
-    exe = os.path.abspath(a.displace)
-    if not os.access(exe, os.X_OK):
-        sys.exit(f"{exe}: not built (cargo build --release -p displace-cli)")
-    work = a.workdir or tempfile.mkdtemp(prefix="displace-curved-")
-    os.makedirs(work, exist_ok=True)
+    env, exe, work = peers.setup(a.displace, a.workdir, "displace-curved-")
     toml = os.path.join(work, "sphere.toml")
     with open(toml, "w") as f:
         f.write(scene_toml(a.size, a.spp))

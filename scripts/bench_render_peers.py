@@ -339,6 +339,24 @@ def shadow_rays(hits_path, rays_path, out_path, light_pos=LIGHT_POS):
     return len(out)
 
 
+def setup(displace, workdir, prefix):
+    """What a benchmark's main starts from: the environment (with Mitsuba's
+    LLVM, `DRJIT_LIBLLVM_PATH`, where one is installed and none is set),
+    the absolute path of the built `displace` binary (exits if it is not
+    there) and the work folder (`workdir`, or a new temporary one named
+    `prefix...`), created."""
+    env = dict(os.environ)
+    llvm = sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/*/libLLVM-19*.so*"))
+    if llvm and "DRJIT_LIBLLVM_PATH" not in env:
+        env["DRJIT_LIBLLVM_PATH"] = llvm[0]
+    exe = os.path.abspath(displace)
+    if not os.access(exe, os.X_OK):
+        sys.exit(f"{exe}: not built (cargo build --release -p displace-cli)")
+    work = workdir or tempfile.mkdtemp(prefix=prefix)
+    os.makedirs(work, exist_ok=True)
+    return env, exe, work
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--displace", default="target/release/displace")
@@ -361,15 +379,7 @@ def main():
     if a.worker == "mitsuba":
         return worker_mitsuba(a.ply, a.size, a.spp)
 
-    env = dict(os.environ)
-    llvm = sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/*/libLLVM-19*.so*"))
-    if llvm and "DRJIT_LIBLLVM_PATH" not in env:
-        env["DRJIT_LIBLLVM_PATH"] = llvm[0]
-    exe = os.path.abspath(a.displace)
-    if not os.access(exe, os.X_OK):
-        sys.exit(f"{exe}: not built (cargo build --release -p displace-cli)")
-    work = a.workdir or tempfile.mkdtemp(prefix="displace-peers-")
-    os.makedirs(work, exist_ok=True)
+    env, exe, work = setup(a.displace, a.workdir, "displace-peers-")
     me = [sys.executable, os.path.abspath(__file__)]
     rows = []
     for m in a.maps.split(","):

@@ -355,20 +355,38 @@ fn hit_frame(map: &DisplacementMap, scene: &PlaneScene) -> Option<Vec<u8>> {
 /// the frame at least, the plugin's displaced uv agrees on >= 99% of the
 /// pixels both cover, and the plugin covers at most 1% more.
 fn assert_uv_agreement(other: &str, agree: usize, both: usize, only_bevy: usize) {
+    let only = format!("pixels covered by Bevy and not by {other}");
+    assert_agreement(
+        &format!("displaced uv against {other}"),
+        agree,
+        both,
+        &only,
+        only_bevy,
+    );
+}
+
+/// A comparison's verdict (`what`): the pixels `both` sides cover fill a
+/// quarter of the frame at least, `agree` of them (>= 99%) agree, and the
+/// `off` pixels (`off_what`: covered by one side only) are at most 1% of
+/// `both`.
+fn assert_agreement(what: &str, agree: usize, both: usize, off_what: &str, off: usize) {
     let ratio = agree as f64 / both as f64;
     eprintln!(
-        "uv against {other}: {agree}/{both} agree ({:.3}%); covered by Bevy only {only_bevy}",
+        "{what}: {agree}/{both} agree ({:.3}%); {off_what}: {off}",
         100.0 * ratio
     );
-    assert!(both > (W * H / 4) as usize, "the face covers {both} pixels");
+    assert!(
+        both > (W * H / 4) as usize,
+        "{what}: both cover {both} pixels"
+    );
     assert!(
         ratio >= 0.99,
-        "displaced uv agrees with {other} on {:.3}% of the pixels both cover",
+        "{what}: agrees on {:.3}% of the pixels both cover",
         100.0 * ratio
     );
     assert!(
-        only_bevy as f64 <= 0.01 * both as f64,
-        "{only_bevy} pixels covered by Bevy and not by {other}"
+        off as f64 <= 0.01 * both as f64,
+        "{what}: {off_what}: {off}"
     );
 }
 
@@ -758,20 +776,12 @@ fn prepass_depth_is_the_depth_of_the_displaced_point() {
             }
         }
     }
-    let ratio = close as f64 / both as f64;
-    eprintln!(
-        "prepass depth: {close}/{both} within 1e-3 shell depths ({:.3}%), coverage differs on {coverage_differs}",
-        100.0 * ratio
-    );
-    assert!(both > (W * H / 4) as usize, "{both} pixels hit");
-    assert!(
-        ratio >= 0.99,
-        "{:.3}% within 1e-3 shell depths",
-        100.0 * ratio
-    );
-    assert!(
-        coverage_differs as f64 <= 0.01 * both as f64,
-        "coverage differs on {coverage_differs}"
+    assert_agreement(
+        "prepass depth within 1e-3 shell depths",
+        close,
+        both,
+        "pixels whose coverage differs",
+        coverage_differs,
     );
 }
 

@@ -4,8 +4,11 @@
 //! non-zero, name the problem, not panic and leave nothing behind.
 
 mod cli_common;
+#[path = "../../displace-render/tests/common/elevation.rs"]
+mod elevation;
 
 use cli_common::{failed, files, replaced, stderr, words, SPHERE_SCENE};
+use elevation::{normalised, sampled, write_float_tiff};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -850,15 +853,6 @@ fn ignored_or_repeated_options_are_refused() {
     }
 }
 
-/// Writes a one-band 32-bit float TIFF, as GDAL writes a DEM.
-fn write_float_tiff(path: &Path, [w, h]: [u32; 2], values: &[f32]) {
-    let file = std::fs::File::create(path).unwrap();
-    tiff::encoder::TiffEncoder::new(file)
-        .unwrap()
-        .write_image::<tiff::encoder::colortype::Gray32Float>(w, h, values)
-        .unwrap();
-}
-
 /// An elevation model in metres is refused as heights (they must lie in
 /// [0, 1]) with the option that maps it, and nothing is written; with
 /// `--height-range auto` it bakes, byte for byte, the map of the same
@@ -867,30 +861,18 @@ fn write_float_tiff(path: &Path, [w, h]: [u32; 2], values: &[f32]) {
 fn an_elevation_model_bakes_through_its_height_range() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (w, h) = (24u32, 20u32);
-    let dem: Vec<f32> = (0..w * h)
-        .map(|k| {
-            let (x, y) = ((k % w) as f32, (k / w) as f32);
-            1200.0 + 300.0 * (x * 0.4).sin() * (y * 0.3).cos() + 7.0 * y
-        })
-        .collect();
-    write_float_tiff(&d.join("dem.tif"), [w, h], &dem);
+    let size = [24u32, 20u32];
+    let dem = sampled(size, |x, y| {
+        1200.0 + 300.0 * (x * 0.4).sin() * (y * 0.3).cos() + 7.0 * y
+    });
+    write_float_tiff(&d.join("dem.tif"), size, &dem);
     refuses(
         d,
         &words("bake dem.tif --size 24x20x8 -o m.npy"),
         &["dem.tif", "[0, 1]", "--height-range auto"],
         &[],
     );
-    let (lo, hi) = dem
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let unit: Vec<f32> = dem
-        .iter()
-        .map(|&v| ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32)
-        .collect();
-    write_float_tiff(&d.join("unit.tif"), [w, h], &unit);
+    write_float_tiff(&d.join("unit.tif"), size, &normalised(&dem));
     for (args, out) in [
         (
             "bake dem.tif --height-range auto --size 24x20x8 -o a.npy",

@@ -110,6 +110,20 @@ impl Agreement {
     fn colour_mean(&self) -> f32 {
         self.colour_sum / self.both_hit.max(1) as f32
     }
+
+    /// The share of the pixels both hit whose UVs agree within 1e-3, and
+    /// the share of all pixels that one hits and the other misses; both
+    /// printed with the colour difference under `label`.
+    fn shares(&self, label: &str) -> (f64, f64) {
+        let uv = self.uv_close as f64 / self.both_hit as f64;
+        let coverage = self.coverage_differs as f64 / self.pixels as f64;
+        eprintln!(
+            "{label}: uv within 1e-3 on {uv:.4} of {} pixels both hit; hit/miss differs on {coverage:.4}; colour mean |diff| {:.2}/255",
+            self.both_hit,
+            self.colour_mean()
+        );
+        (uv, coverage)
+    }
 }
 
 fn measure_scene(text: &str) -> Agreement {
@@ -261,13 +275,7 @@ rotate_y = 15
 material = "clay"
 displacement = { height = "gen:studded?period=8", height_size = [64, 64], depth = 0.08, map_size = [64, 64, 8] }"#,
     ));
-    let uv = m.uv_close as f64 / m.both_hit as f64;
-    let coverage = m.coverage_differs as f64 / m.pixels as f64;
-    eprintln!(
-        "cube: uv within 1e-3 on {uv:.4} of {} pixels both hit; hit/miss differs on {coverage:.4}; colour mean |diff| {:.2}/255",
-        m.both_hit,
-        m.colour_mean()
-    );
+    let (uv, coverage) = m.shares("cube");
     assert!(m.both_hit > 1000, "{}", m.both_hit);
     assert!(uv >= 0.995, "uv agrees on {uv}");
     assert!(coverage <= 0.005, "hit/miss differs on {coverage}");
@@ -284,17 +292,15 @@ displacement = { height = "gen:studded?period=8", height_size = [64, 64], depth 
 /// within 1e-3 tile on at least 99.5% of the pixels both hit, hit/miss
 /// differing on at most 1% (silhouette pixels, where the CPU's jittered
 /// sample and the GPU's pixel centre see different sides of an edge).
+/// Nothing to check where there is no GPU (`test_context`).
 fn curved_mesh_matches(path: &str, displacement: &str) {
+    if test_context().is_none() {
+        return;
+    }
     let m = measure_scene(&mesh_scene(&format!(
         "[[shapes]]\ntype = \"mesh\"\npath = \"{path}\"\nmaterial = \"clay\"\ndisplacement = {{ {displacement} }}"
     )));
-    let uv = m.uv_close as f64 / m.both_hit as f64;
-    let coverage = m.coverage_differs as f64 / m.pixels as f64;
-    eprintln!(
-        "{path}: uv within 1e-3 on {uv:.4} of {} pixels both hit; hit/miss differs on {coverage:.4}; colour mean |diff| {:.2}/255",
-        m.both_hit,
-        m.colour_mean()
-    );
+    let (uv, coverage) = m.shares(path);
     assert!(m.both_hit > 500, "{}", m.both_hit);
     assert!(uv >= 0.995, "{path}: uv agrees on {uv}");
     assert!(coverage <= 0.01, "{path}: hit/miss differs on {coverage}");
@@ -302,9 +308,6 @@ fn curved_mesh_matches(path: &str, displacement: &str) {
 
 #[test]
 fn a_displaced_sphere_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
     curved_mesh_matches(
         "builtin:sphere",
         r#"height = "gen:noise", height_size = [32, 32], depth = 0.12, map_size = [32, 32, 8], address = "repeat", tiles = [2, 1]"#,
@@ -313,9 +316,6 @@ fn a_displaced_sphere_matches_the_cpu_renderer() {
 
 #[test]
 fn a_displaced_torus_matches_the_cpu_renderer() {
-    if test_context().is_none() {
-        return;
-    }
     curved_mesh_matches(
         "builtin:torus",
         r#"height = "gen:studded?period=8", height_size = [32, 32], depth = 0.06, map_size = [32, 32, 8], address = "repeat", tiles = [6, 2]"#,
@@ -370,12 +370,7 @@ material = "clay"
 displacement = {{ height = "gen:gaussian", height_size = [64, 64], depth = 0.2, map_size = [64, 64, 16] }}"#,
         obj.display()
     )));
-    let uv = m.uv_close as f64 / m.both_hit as f64;
-    let coverage = m.coverage_differs as f64 / m.pixels as f64;
-    eprintln!(
-        "obj quad: uv within 1e-3 on {uv:.4} of {} pixels both hit; hit/miss differs on {coverage:.4}",
-        m.both_hit
-    );
+    let (uv, coverage) = m.shares("obj quad");
     assert!(m.both_hit > 1000, "{}", m.both_hit);
     assert!(uv >= 0.995, "uv agrees on {uv}");
     assert!(coverage <= 0.005, "hit/miss differs on {coverage}");

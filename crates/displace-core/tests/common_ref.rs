@@ -7,6 +7,7 @@
 
 use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightMap};
 use glam::{DVec2, DVec3, Vec3};
+use proptest::prelude::{any, Strategy};
 
 /// Surface point of cell `(ci, cj)` at local coordinates `(fx, fy)`, map
 /// space (depth units).
@@ -169,18 +170,59 @@ pub fn bake_map(height: &HeightMap, size: [usize; 3], [sx, sy, sz]: [f32; 3]) ->
     .unwrap()
 }
 
+/// What a face of the tracer's property tests is made of ([`random_face`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FaceCase {
+    /// The kind of random height map ([`random_height`]).
+    pub kind: u8,
+    /// Height-map texels `[W, H]`.
+    pub height: [usize; 2],
+    /// Distance-map voxels `[W, H, D]`.
+    pub size: [usize; 3],
+    /// The face's width `sx` and depth `sz`.
+    pub scale: [f32; 2],
+    /// Repeating, or clamped.
+    pub repeat: bool,
+}
+
+/// Random [`FaceCase`]s: height maps and distance maps of 2 and 4 to
+/// `side - 1` texels or voxels a side, maps 2 to `depth - 1` voxels deep,
+/// faces 0.5 to 4 wide and 0.05 to 1 deep, clamped or repeating. Drawn
+/// one after the other in that order, as the tests' own parameters were
+/// (so that their persisted regression seeds replay the same faces).
+pub fn face_case(side: usize, depth: usize) -> impl Strategy<Value = FaceCase> {
+    (
+        0u8..3,
+        2usize..side,
+        2usize..side,
+        4usize..side,
+        4usize..side,
+        2usize..depth,
+        0.5f32..4.0,
+        0.05f32..1.0,
+        any::<bool>(),
+    )
+        .prop_map(|(kind, hw, hh, dw, dh, dd, sx, sz, repeat)| FaceCase {
+            kind,
+            height: [hw, hh],
+            size: [dw, dh, dd],
+            scale: [sx, sz],
+            repeat,
+        })
+}
+
 /// The face of the tracer's property tests: a random height map of `kind`
 /// (see [`random_height`]) baked to `size` on a face `sx` wide, `0.75 sx`
 /// high and `sz` deep; clamped, or repeating and traced over 2 x 2 tiles.
 /// Returns the map, its tiles and what they span in map space.
-pub fn random_face(
-    kind: u8,
-    [hw, hh]: [usize; 2],
-    size: [usize; 3],
-    [sx, sz]: [f32; 2],
-    repeat: bool,
-    seed: u64,
-) -> (DisplacementMap, [f32; 2], [f32; 2]) {
+pub fn random_face(face: &FaceCase, seed: u64) -> (DisplacementMap, [f32; 2], [f32; 2]) {
+    let FaceCase {
+        kind,
+        height: [hw, hh],
+        size,
+        scale: [sx, sz],
+        repeat,
+    } = *face;
     let address = if repeat {
         Address::Repeat
     } else {

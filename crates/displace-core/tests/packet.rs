@@ -5,7 +5,7 @@
 
 mod common_ref;
 
-use common_ref::{random_face, Rng};
+use common_ref::{face_case, random_face, Rng};
 use displace_core::{MapRay, Method, TraceOptions};
 use glam::Vec3;
 use proptest::prelude::*;
@@ -37,15 +37,11 @@ proptest! {
 
     #[test]
     fn packets_agree_with_the_scalar_tracer_bit_for_bit(
-        kind in 0u8..3,
-        hw in 2usize..40, hh in 2usize..40,
-        dw in 4usize..40, dh in 4usize..40, dd in 2usize..16,
-        sx in 0.5f32..4.0, sz in 0.05f32..1.0,
-        repeat: bool,
+        face in face_case(40, 16),
         n in 1usize..70,
         seed in any::<u64>(),
     ) {
-        let (map, tiles, span) = random_face(kind, [hw, hh], [dw, dh, dd], [sx, sz], repeat, seed);
+        let (map, tiles, span) = random_face(&face, seed);
         let mut rng = Rng(seed ^ 0x2545_f491_4f6c_dd1d);
         let rays: Vec<MapRay> = (0..n).map(|_| random_ray(&mut rng, span)).collect();
         let opts: Vec<TraceOptions> = (0..n)

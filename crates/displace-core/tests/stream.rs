@@ -175,16 +175,21 @@ impl SlabSink for Coded {
     }
 }
 
+/// A pool of `threads` worker threads, whatever the machine's cores.
+fn thread_pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
 #[test]
 fn r8_codes_reach_the_file_in_order_from_many_threads() {
     // More threads than cores, so that slices finish out of order and wait
     // their turn; KTX2 settles its range after the first slab, DDS knows it
     // from the start.
     let dir = tempfile::tempdir().unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(5)
-        .build()
-        .unwrap();
+    let pool = thread_pool(5);
     for (spec, size) in [("gen:studded", [37, 29, 23]), ("gen:noise", [64, 48, 17])] {
         let height = generate(spec, 50, 44, Address::Clamp).unwrap();
         let extent = Extent::new(1.0, 0.8, 0.06).unwrap();
@@ -223,10 +228,7 @@ fn r8_codes_reach_the_file_in_order_from_many_threads() {
 #[test]
 fn a_coded_bake_that_fails_or_is_interrupted_stops_and_leaves_no_file() {
     let dir = tempfile::tempdir().unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(3)
-        .build()
-        .unwrap();
+    let pool = thread_pool(3);
     let height = generate("gen:studded", 32, 32, Address::Clamp).unwrap();
     let size = [24, 24, 40];
     let path = dir.path().join("m.ktx2");

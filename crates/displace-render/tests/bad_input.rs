@@ -5,6 +5,7 @@
 
 mod common;
 
+use common::elevation;
 use common::scene_toml::SceneToml;
 use common::*;
 use displace_render::scene::{Scene, MAX_DEPTH, MAX_SHADOW_SAMPLES, MAX_SPP};
@@ -355,31 +356,14 @@ fn displaced_meshes_too_large_or_small_to_measure_are_refused() {
 fn elevation_models_render_through_their_height_range() {
     let dir = tempfile::tempdir().unwrap();
     let base = dir.path();
-    let (w, h) = (16u32, 16u32);
-    let dem: Vec<f32> = (0..w * h)
-        .map(|k| {
-            let (x, y) = ((k % w) as f32, (k / w) as f32);
-            850.0 + 40.0 * (x * 0.7).sin() + 25.0 * (y * 0.5).cos()
-        })
-        .collect();
-    let (lo, hi) = dem
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let unit: Vec<f32> = dem
-        .iter()
-        .map(|&v| ((f64::from(v) - f64::from(lo)) / (f64::from(hi) - f64::from(lo))) as f32)
-        .collect();
-    let write = |name: &str, values: &[f32]| {
-        let file = std::fs::File::create(base.join(name)).unwrap();
-        tiff::encoder::TiffEncoder::new(file)
-            .unwrap()
-            .write_image::<tiff::encoder::colortype::Gray32Float>(w, h, values)
-            .unwrap();
-    };
-    write("dem.tif", &dem);
-    write("unit.tif", &unit);
+    let size = [16u32, 16u32];
+    let dem = elevation::sampled(size, |x, y| {
+        850.0 + 40.0 * (x * 0.7).sin() + 25.0 * (y * 0.5).cos()
+    });
+    let (lo, hi) = elevation::extremes(&dem);
+    let unit = elevation::normalised(&dem);
+    elevation::write_float_tiff(&base.join("dem.tif"), size, &dem);
+    elevation::write_float_tiff(&base.join("unit.tif"), size, &unit);
     let text = |height: &str, range: &str| {
         SceneToml::new(12, 12, 1)
             .camera("[0.3, 2.5, -1.5]", 50.0)

@@ -49,17 +49,21 @@ fn mean(img: &Image) -> f64 {
 /// converged pixel, `(x1 - xN)^2 ~ sigma^2 (1 + 1 / N)`.
 fn standard_error(one: &Image, img: &Image, spp: u32) -> f64 {
     let n = img.pixels.len() as f64;
-    let var: f64 = one
-        .pixels
+    let var = squared_differences(one, img) / (1.0 + 1.0 / spp as f64);
+    (var / spp as f64).sqrt() / n
+}
+
+/// The sum over the pixels of the squared difference of `a`'s and `b`'s
+/// channel means.
+fn squared_differences(a: &Image, b: &Image) -> f64 {
+    a.pixels
         .iter()
-        .zip(&img.pixels)
-        .map(|(a, b)| {
-            let d = (a.element_sum() - b.element_sum()) as f64 / 3.0;
+        .zip(&b.pixels)
+        .map(|(p, q)| {
+            let d = (p.element_sum() - q.element_sum()) as f64 / 3.0;
             d * d
         })
-        .sum::<f64>()
-        / (1.0 + 1.0 / spp as f64);
-    (var / spp as f64).sqrt() / n
+        .sum()
 }
 
 /// `text` with `spp = N` replaced, and a seed.
@@ -315,21 +319,36 @@ color = [0.3, 0.25, 0.2]
         + &area_light("[0, 2.5, -1]", "[2, 0, 0]", "[0, 0, 2]", "[1.5, 1.5, 1.5]")
 }
 
+/// The means and standard errors of `scene(sampling)` rendered from `base`
+/// with MIS, light sampling alone and BSDF sampling alone, at `spp`
+/// samples each in that order ([`converged`]); asserts that light and
+/// BSDF sampling agree with MIS within 1% ([`agree`], as `{what}light vs
+/// mis` and `{what}bsdf vs mis`). Returns MIS's and BSDF sampling's.
+fn sampling_agrees(
+    what: &str,
+    scene: impl Fn(&str) -> String,
+    spp: [u32; 3],
+    base: &Path,
+) -> [(f64, f64); 2] {
+    let run = |s: &str, n| {
+        let (_, m, se) = converged(&scene(s), n, base);
+        (m, se)
+    };
+    let mis = run("mis", spp[0]);
+    let light = run("light", spp[1]);
+    let bsdf = run("bsdf", spp[2]);
+    agree(&format!("{what}light vs mis"), light, mis, 0.01);
+    agree(&format!("{what}bsdf vs mis"), bsdf, mis, 0.01);
+    [mis, bsdf]
+}
+
 /// Light sampling alone, BSDF sampling alone and their MIS combination are
 /// three unbiased estimators of the same image (Veach 1997, figure 9.2):
 /// their means agree within 1%.
 #[test]
 fn light_bsdf_and_mis_sampling_agree() {
     let base = Path::new(".");
-    let run = |s: &str, spp| {
-        let (_, m, se) = converged(&two_lights(s), spp, base);
-        (m, se)
-    };
-    let mis = run("mis", 2048);
-    let light = run("light", 4096);
-    let bsdf = run("bsdf", 16384);
-    agree("light vs mis", light, mis, 0.01);
-    agree("bsdf vs mis", bsdf, mis, 0.01);
+    let [mis, bsdf] = sampling_agrees("", two_lights, [2048, 4096, 16384], base);
     // BSDF sampling alone is the noisiest by far at equal samples (it ran
     // at 8x MIS's samples, so at MIS's count its standard error would be
     // 2.8x the one measured): small lights are what it cannot find.
@@ -461,15 +480,12 @@ fn environment_map_sampling_is_unbiased() {
         }
     });
     let sky = "environment = \"sun.exr\"";
-    let run = |s: &str, spp| {
-        let (_, m, se) = converged(&sky_scene("path", s, sky), spp, dir.path());
-        (m, se)
-    };
-    let mis = run("mis", 1024);
-    let light = run("light", 1024);
-    let bsdf = run("bsdf", 8192);
-    agree("env light vs mis", light, mis, 0.01);
-    agree("env bsdf vs mis", bsdf, mis, 0.01);
+    sampling_agrees(
+        "env ",
+        |s| sky_scene("path", s, sky),
+        [1024, 1024, 8192],
+        dir.path(),
+    );
 }
 
 /// A quad that glows (`emission`, both sides) lights a floor as the same
@@ -662,16 +678,7 @@ fn bad_path_input_is_refused_clearly() {
 /// Root mean square difference of two images' pixels (channel means).
 fn rmse(a: &Image, b: &Image) -> f64 {
     let n = a.pixels.len() as f64;
-    let s: f64 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .map(|(p, q)| {
-            let d = (p.element_sum() - q.element_sum()) as f64 / 3.0;
-            d * d
-        })
-        .sum();
-    (s / n).sqrt()
+    (squared_differences(a, b) / n).sqrt()
 }
 
 /// Owen-scrambled Sobol points (`sampler = "sobol"`, the default) against

@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod elevation;
 pub mod golden;
 pub mod scene_toml;
 
