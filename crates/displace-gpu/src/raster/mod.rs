@@ -28,6 +28,7 @@ mod vertex;
 pub use camera::View;
 pub use passes::{encode_faces, render_faces, shared_depth_range};
 pub use pipelines::Renderer;
+pub(crate) use pipelines::{Colour, Shape as RasterShape};
 pub use scene::{Draw, DrawShape, Face, PlaneScene, Shadows, MAX_IMAGE_EDGE};
 pub(crate) use targets::copy_to_readback;
 pub use targets::{Image, Targets, COLOR_FORMAT};

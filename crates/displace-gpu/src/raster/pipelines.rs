@@ -70,7 +70,7 @@ pub(super) struct MapShading {
 
 /// The surface colour of a displaced draw.
 #[derive(Clone, Copy)]
-enum Colour {
+pub(crate) enum Colour {
     /// Donnelly's checkerboard ([`checker_mips`]).
     Checker,
     /// One constant linear colour.
@@ -79,9 +79,13 @@ enum Colour {
 
 /// What [`Renderer::with_colour`] builds a pipeline for.
 #[derive(Clone, Copy)]
-enum Shape<'a> {
+pub(crate) enum Shape<'a> {
+    /// A face's shell box, of the given handedness.
     Box { mirrored: bool },
+    /// A mesh's shell in its per-vertex frames.
     Mesh(&'a ShellMesh),
+    /// A curved mesh's shells, walked prism to prism per fragment
+    /// (`curved.wgsl`).
     Curved(&'a CurvedShells),
 }
 
@@ -101,32 +105,6 @@ impl Renderer {
         mesh: &ShellMesh,
     ) -> Result<Self> {
         Self::with_colour(ctx, map, texture, Colour::Checker, Shape::Mesh(mesh))
-    }
-
-    /// A renderer of `mesh`'s shell in the constant linear `albedo` (as
-    /// [`Renderer::with_albedo`]).
-    pub fn for_mesh(
-        ctx: &GpuContext,
-        map: &DisplacementMap,
-        texture: DistanceTexture,
-        albedo: [f32; 3],
-        mesh: &ShellMesh,
-    ) -> Result<Self> {
-        Self::with_colour(ctx, map, texture, Colour::Albedo(albedo), Shape::Mesh(mesh))
-    }
-
-    /// A renderer of a curved mesh's shells in the constant linear
-    /// `albedo` (as [`Renderer::with_albedo`]), walked prism to prism per
-    /// fragment (`shaders/curved.wgsl`).
-    pub fn for_curved(
-        ctx: &GpuContext,
-        map: &DisplacementMap,
-        texture: DistanceTexture,
-        albedo: [f32; 3],
-        shells: &CurvedShells,
-    ) -> Result<Self> {
-        let shape = Shape::Curved(shells);
-        Self::with_colour(ctx, map, texture, Colour::Albedo(albedo), shape)
     }
 
     /// A renderer whose surface colour is the constant linear `albedo`
@@ -194,7 +172,8 @@ impl Renderer {
         })
     }
 
-    fn with_colour(
+    /// A renderer of `shape` in `colour`: what every constructor builds.
+    pub(crate) fn with_colour(
         ctx: &GpuContext,
         map: &DisplacementMap,
         texture: DistanceTexture,

@@ -26,7 +26,7 @@ mod shapes;
 mod stage;
 
 use crate::convention::check_iterations;
-use crate::raster::{render_faces, shared_depth_range};
+use crate::raster::{render_faces, shared_depth_range, Colour, RasterShape};
 use crate::{
     CurvedShells, DistanceTexture, Draw, DrawShape, Error, Face, GpuContext, Image, PlainMesh,
     Renderer, Result, Shadows, View,
@@ -216,14 +216,26 @@ impl Draws<'_> {
         let (bounds, renderer) = match &curved {
             Some(shells) => (
                 shells.bounds,
-                Renderer::for_curved(self.ctx, &disp.map, self.texture, albedo, shells),
+                Renderer::with_colour(
+                    self.ctx,
+                    &disp.map,
+                    self.texture,
+                    Colour::Albedo(albedo),
+                    RasterShape::Curved(shells),
+                ),
             ),
             None => {
                 let shell = shapes::shell_of(mesh, disp.map.address())
                     .map_err(step(format!("preparing the shell of mesh {k}")))?;
                 (
                     shapes::bounds(mesh),
-                    Renderer::for_mesh(self.ctx, &disp.map, self.texture, albedo, &shell),
+                    Renderer::with_colour(
+                        self.ctx,
+                        &disp.map,
+                        self.texture,
+                        Colour::Albedo(albedo),
+                        RasterShape::Mesh(&shell),
+                    ),
                 )
             }
         };
