@@ -247,8 +247,8 @@ fn trace_agrees_with_the_exact_reference() {
     }
 }
 
-/// `--backend gpu` answers the CPU's question with the CPU's records (issue
-/// 4): on random rays against random height maps, for every method, the
+/// `--backend gpu` answers the CPU's question with the CPU's records: on
+/// random rays against random height maps, for every method, the
 /// same hit or miss on >= 99.9% of rays and, where both hit, the hit point
 /// within 1e-3 shell depths on >= 99.9% of them (99% for `sphere-fixed`).
 #[cfg(feature = "gpu")]
