@@ -140,21 +140,6 @@ impl From<&CurvedDisplacement> for CurvedFace {
 }
 
 impl CurvedFace {
-    /// The face over `shell`, whose corners have texture coordinates
-    /// `local_uv`; `None` for degenerate texture coordinates
-    /// ([`CurvedDisplacement::new`], which says what the arguments are).
-    pub fn new(
-        shell: CurvedShell,
-        map: Arc<DisplacementMap>,
-        trace: TraceOptions,
-        local_uv: [Vec2; 3],
-        uv_offset: Vec2,
-        shared: [bool; 3],
-    ) -> Option<Self> {
-        CurvedDisplacement::new(shell, map, trace, local_uv, uv_offset, shared)
-            .map(|c| Self::from(&c))
-    }
-
     /// World bounds of the shell.
     pub fn bounds(&self) -> Aabb {
         self.bounds

@@ -192,19 +192,6 @@ impl From<&FlatDisplacement> for DisplacedFace {
 }
 
 impl DisplacedFace {
-    /// The face over `frame`, traced through `map` with `trace`; `None`
-    /// when the frame is degenerate ([`FlatDisplacement::new`], which says
-    /// what the arguments are).
-    pub fn new(
-        frame: FaceFrame,
-        map: Arc<DisplacementMap>,
-        trace: TraceOptions,
-        prism_uv: Option<[Vec2; 3]>,
-        uv_offset: Vec2,
-    ) -> Option<Self> {
-        FlatDisplacement::new(frame, map, trace, prism_uv, uv_offset).map(|f| Self::from(&f))
-    }
-
     /// World bounds of the whole shell (base and top, with the prism's or
     /// box's corners), which the BVH (pbrt-v4 section 7.3) culls with:
     /// the ray-tracer paper's bounding box (section 2.4) as an AABB.

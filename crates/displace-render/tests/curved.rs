@@ -12,6 +12,7 @@ use displace_render::displaced_surface::{DisplacedSurface, REFERENCE_EDGE_TEXELS
 use displace_render::geometry::Ray;
 use displace_render::scene::Shape;
 use displace_render::{Scene, SceneOptions};
+use displace_scene::placed::CurvedDisplacement;
 use glam::{DVec2, Vec2, Vec3};
 use proptest::prelude::*;
 use std::fmt::Write as _;
@@ -360,7 +361,7 @@ fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
         Vec2::new(0.95, 0.2),
         Vec2::new(0.2, 0.9),
     ];
-    let face = CurvedFace::new(
+    let face = CurvedDisplacement::new(
         shell,
         map.clone(),
         TraceOptions::default(),
@@ -368,6 +369,7 @@ fn random_face(seed: u64) -> (CurvedFace, Arc<displace_core::DisplacementMap>) {
         Vec2::ZERO,
         [false; 3],
     )
+    .map(|c| CurvedFace::from(&c))
     .unwrap();
     (face, map)
 }
