@@ -121,6 +121,19 @@ pub fn min_normal_length(n: &[Vec3; 3]) -> Option<f64> {
 /// shell, two heights at once, so no trace of it can be right. Such a
 /// triangle keeps the flat prism ([`crate::mesh_shells`]).
 pub fn shell_folds(p: &[Vec3; 3], n: &[Vec3; 3], top: f64) -> bool {
+    let (_, n, _, _, c) = frame(p, n);
+    folds(&n, &c, top)
+}
+
+/// The corners `p` and unit normals `n` in double precision, the edges
+/// `e` and normal differences `f` from corner 0, and the coefficients `c`
+/// of a level's triangle normal `c0 + l c1 + l^2 c2` (`(e0 + l f0) x (e1 +
+/// l f1)`): what [`CurvedShell::new`] keeps and [`shell_folds`] checks.
+#[allow(clippy::type_complexity)]
+fn frame(
+    p: &[Vec3; 3],
+    n: &[Vec3; 3],
+) -> ([DVec3; 3], [DVec3; 3], [DVec3; 2], [DVec3; 2], [DVec3; 3]) {
     let p = p.map(|v| v.as_dvec3());
     let n = n.map(|v| v.as_dvec3().normalize());
     let e = [p[1] - p[0], p[2] - p[0]];
@@ -130,7 +143,7 @@ pub fn shell_folds(p: &[Vec3; 3], n: &[Vec3; 3], top: f64) -> bool {
         e[0].cross(f[1]) + f[0].cross(e[1]),
         f[0].cross(f[1]),
     ];
-    folds(&n, &c, top)
+    (p, n, e, f, c)
 }
 
 /// [`shell_folds`] from the unit normals and the coefficients `c` of the
@@ -229,19 +242,11 @@ impl CurvedShell {
     /// ([`min_normal_length`], [`shell_folds`]).
     pub fn new(p: [Vec3; 3], n: [Vec3; 3], depth: f32, top: f64) -> Option<Self> {
         min_normal_length(&n)?;
-        let p = p.map(|v| v.as_dvec3());
-        let n = n.map(|v| v.as_dvec3().normalize());
-        let e = [p[1] - p[0], p[2] - p[0]];
-        let f = [n[1] - n[0], n[2] - n[0]];
-        let area = e[0].cross(e[1]).length();
+        let (p, n, e, f, c) = frame(&p, &n);
+        let area = c[0].length();
         if !(area > 0.0 && area.is_finite() && depth > 0.0 && top > 0.0) {
             return None;
         }
-        let c = [
-            e[0].cross(e[1]),
-            e[0].cross(f[1]) + f[0].cross(e[1]),
-            f[0].cross(f[1]),
-        ];
         if folds(&n, &c, top) {
             return None;
         }
