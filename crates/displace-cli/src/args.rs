@@ -33,6 +33,22 @@ pub struct HeightArgs {
     pub height_range: Option<HeightRange>,
 }
 
+/// A displaced face given by its height map's reading and its extent, for
+/// the commands that take either a face or a scene (`trace`,
+/// `export-mesh`): with `--scene`, neither is needed. The height source
+/// itself stays each command's own argument (a flag of `trace`, the
+/// positional input of `export-mesh`).
+#[derive(Args, Debug, Clone)]
+pub struct FaceArgs {
+    // How the height source is read.
+    #[command(flatten)]
+    pub height: HeightArgs,
+    /// Physical width, height and displacement depth of the face
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true,
+          required_unless_present = "scene")]
+    pub extent: Option<Extent>,
+}
+
 impl HeightArgs {
     /// The core's options for these arguments, `size` texels for a
     /// generated map.

@@ -112,82 +112,33 @@ fn frames_equal_single_frames_and_keys_are_hit_exactly() {
 fn bad_animations_and_frames_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    // A whole scene or an animation appended to a still, the arguments, and
+    // what the refusal must say.
+    let anim = |from: &str, to: &str| ANIMATION.replace(from, to);
+    let key = "position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0]";
+    let degenerate = "position = [0.1, 0.2, 0], look_at = [0.1, 0.2, 0]";
+    #[rustfmt::skip]
     let cases: &[(&str, &[&str], &str)] = &[
         (&still(), &["--frame", "0"], "no [animation]"),
         (ANIMATION, &["--frame", "6"], "has 6 frames"),
         (ANIMATION, &["--frames", "4..9"], "has 6 frames"),
-        (
-            ANIMATION,
-            &["--frame", "auto"],
-            "neither SLURM_ARRAY_TASK_ID",
-        ),
-        (
-            &ANIMATION.replace("catmull-rom", "cubic"),
-            &[],
-            "animation.interpolation = \"cubic\"",
-        ),
-        (
-            &ANIMATION.replace(
-                "{ frame = 2, position = [1.3",
-                "{ frame = 7, position = [1.3",
-            ),
-            &[],
-            "animation.camera (position)[1].frame = 7",
-        ),
-        (
-            &ANIMATION.replace(
-                "{ frame = 5, position = [2.5",
-                "{ frame = 1, position = [2.5",
-            ),
-            &[],
-            "increasing frame order",
-        ),
-        (
-            &ANIMATION.replace("frames = 6", "frames = 0"),
-            &[],
-            "animation.frames",
-        ),
-        (
-            &ANIMATION.replace("fps = 12", "fps = -1"),
-            &[],
-            "animation.fps",
-        ),
-        (
-            &ANIMATION.replace("light_path = [", "light = 3\nlight_path = ["),
-            &[],
-            "animation.light = 3",
-        ),
-        (
-            &ANIMATION.replace("fps = 12", "fps = 12\nspeed = 2"),
-            &[],
-            "speed",
-        ),
+        (ANIMATION, &["--frame", "auto"], "neither SLURM_ARRAY_TASK_ID"),
+        (&anim("catmull-rom", "cubic"), &[], "animation.interpolation = \"cubic\""),
+        (&anim("{ frame = 2, position = [1.3", "{ frame = 7, position = [1.3"), &[],
+            "animation.camera (position)[1].frame = 7"),
+        (&anim("{ frame = 5, position = [2.5", "{ frame = 1, position = [2.5"), &[],
+            "increasing frame order"),
+        (&anim("frames = 6", "frames = 0"), &[], "animation.frames"),
+        (&anim("fps = 12", "fps = -1"), &[], "animation.fps"),
+        (&anim("light_path = [", "light = 3\nlight_path = ["), &[], "animation.light = 3"),
+        (&anim("fps = 12", "fps = 12\nspeed = 2"), &[], "speed"),
         // A key half way that puts the camera on the point it looks at:
         // found before frame 0 is written, and named by its frame.
-        (
-            &ANIMATION.replace(
-                "position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0]",
-                "position = [0.1, 0.2, 0], look_at = [0.1, 0.2, 0]",
-            ),
-            &["--frames", "0..6"],
-            "animation frame 2: the camera's position and look_at",
-        ),
-        (
-            &ANIMATION.replace(
-                "position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0]",
-                "position = [0.1, 0.2, 0], look_at = [0.1, 0.2, 0]",
-            ),
-            &["--frame", "2"],
-            "animation frame 2",
-        ),
-        (
-            &ANIMATION.replace(
-                "{ frame = 2, position = [1.3, 0.7, -2.6], look_at = [0.1, 0.2, 0] }",
-                "{ frame = 2 }",
-            ),
-            &[],
-            "animation.camera[1] (frame 2) sets neither position nor look_at",
-        ),
+        (&anim(key, degenerate), &["--frames", "0..6"],
+            "animation frame 2: the camera's position and look_at"),
+        (&anim(key, degenerate), &["--frame", "2"], "animation frame 2"),
+        (&anim(&format!("{{ frame = 2, {key} }}"), "{ frame = 2 }"), &[],
+            "animation.camera[1] (frame 2) sets neither position nor look_at"),
     ];
     for (anim, args, expect) in cases {
         let text = if anim.contains("[image]") {

@@ -83,82 +83,41 @@ const GOOD: &str = SPHERE_SCENE;
 
 #[test]
 fn bad_input_is_refused_with_nothing_written() {
-    refuses(&GOOD.replace("spp = 1", "spp = 1 2"), &[], &["s.toml:5:"]);
-    refuses(
-        &GOOD.replace("radius = 1", "radius = 1\nradius2 = 1"),
-        &[],
-        &["s.toml:", "radius2"],
-    );
-    refuses(
-        &GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 1, -3]"),
-        &[],
-        &["looks nowhere"],
-    );
-    refuses(
-        &GOOD.replace("width = 8", "width = 0"),
-        &[],
-        &["image.width"],
-    );
-    refuses(
-        &GOOD.replace("spp = 1", "spp = -3"),
-        &[],
-        &["image.spp", "-3"],
-    );
-    refuses(
-        &GOOD.replace("center = [0, 0, 0]", "center = [0, nan, 0]"),
-        &[],
-        &["center", "finite"],
-    );
-    refuses(
-        &GOOD.replace(
-            "color = [0.5, 0.5, 0.5]",
-            "color = [0.5, 0.5, 0.5]\ntexture = \"missing/wood.png\"",
-        ),
-        &[],
-        &["missing/wood.png"],
-    );
-    refuses(GOOD, &["--size", "0x4"], &["--size"]);
-    refuses(GOOD, &["--crop", "4,4,10,10"], &["crop"]);
-    refuses(GOOD, &["--aov", "depth,colour"], &["colour"]);
-    refuses(
-        GOOD,
-        &["--integrator", "bogus"],
-        &[
-            "--integrator",
-            "unknown integrator `bogus` (known: whitted, path)",
-        ],
-    );
-    refuses(
-        &GOOD.replace("spp = 1", "spp = 1\nintegrator = \"bogus\""),
-        &[],
-        &["s.toml", "image.integrator", "bogus"],
-    );
-    refuses(
-        GOOD,
-        &["--sampler", "halton"],
-        &[
-            "--sampler",
-            "unknown sampler `halton` (known: independent, sobol)",
-        ],
-    );
-    refuses(
-        &GOOD.replace("spp = 1", "spp = 1\nsampler = \"halton\""),
-        &[],
-        &["s.toml", "image.sampler", "halton"],
-    );
-    refuses(
-        &GOOD.replace("spp = 1", "spp = 1\nenvironment = \"sky.exr\""),
-        &[],
-        &["s.toml", "image.environment", "sky.exr"],
-    );
-    refuses(
-        &GOOD.replace(
-            "color = [0.5, 0.5, 0.5]",
-            "color = [0.5, 0.5, 0.5]\nemission = [1, nan, 1]",
-        ),
-        &[],
-        &["materials.m.emission", "finite"],
-    );
+    // An edit of the scene (what, by what), the arguments, and what the
+    // refusal must say.
+    let grey = "color = [0.5, 0.5, 0.5]";
+    let with = |key: &str| format!("{grey}\n{key}");
+    let image = |key: &str| format!("spp = 1\n{key}");
+    #[rustfmt::skip]
+    let cases: &[(&str, &str, &[&str], &[&str])] = &[
+        ("spp = 1", "spp = 1 2", &[], &["s.toml:5:"]),
+        ("radius = 1", "radius = 1\nradius2 = 1", &[], &["s.toml:", "radius2"]),
+        ("look_at = [0, 0, 0]", "look_at = [0, 1, -3]", &[], &["looks nowhere"]),
+        ("width = 8", "width = 0", &[], &["image.width"]),
+        ("spp = 1", "spp = -3", &[], &["image.spp", "-3"]),
+        ("center = [0, 0, 0]", "center = [0, nan, 0]", &[], &["center", "finite"]),
+        (grey, &with("texture = \"missing/wood.png\""), &[], &["missing/wood.png"]),
+        ("", "", &["--size", "0x4"], &["--size"]),
+        ("", "", &["--crop", "4,4,10,10"], &["crop"]),
+        ("", "", &["--aov", "depth,colour"], &["colour"]),
+        ("", "", &["--integrator", "bogus"],
+            &["--integrator", "unknown integrator `bogus` (known: whitted, path)"]),
+        ("spp = 1", &image("integrator = \"bogus\""), &[], &["s.toml", "image.integrator", "bogus"]),
+        ("", "", &["--sampler", "halton"],
+            &["--sampler", "unknown sampler `halton` (known: independent, sobol)"]),
+        ("spp = 1", &image("sampler = \"halton\""), &[], &["s.toml", "image.sampler", "halton"]),
+        ("spp = 1", &image("environment = \"sky.exr\""), &[],
+            &["s.toml", "image.environment", "sky.exr"]),
+        (grey, &with("emission = [1, nan, 1]"), &[], &["materials.m.emission", "finite"]),
+    ];
+    for &(from, to, args, expect) in cases {
+        let scene = GOOD.replace(from, to);
+        assert!(
+            from.is_empty() || scene != GOOD,
+            "{expect:?}: the edit changes nothing"
+        );
+        refuses(&scene, args, expect);
+    }
     let dir = tempfile::tempdir().unwrap();
     let o = displace(&["render", "-q", "-o", "out.jpg"], dir.path());
     assert!(

@@ -70,27 +70,24 @@ fn envelope_lines(c: &mut Criterion) {
                 }
             })
         });
-        group.bench_function(BenchmarkId::new("lanes", name), |b| {
-            let mut s = LaneScratch::default();
-            let mut work = lanes.clone();
-            b.iter(|| {
-                work.copy_from_slice(&lanes);
-                for group in work.chunks_exact_mut(n * LANES) {
-                    transform_lanes(black_box(group), LANES, n, spacing, false, &mut s);
-                }
-            })
-        });
-        // Sixteen lanes: one AVX-512 register, or two AVX2 groups.
-        group.bench_function(BenchmarkId::new("wide", name), |b| {
-            let mut s = LaneScratch::default();
-            let mut work = wide.clone();
-            b.iter(|| {
-                work.copy_from_slice(&wide);
-                for group in work.chunks_exact_mut(n * WIDE) {
-                    transform_wide(black_box(group), WIDE, n, spacing, false, &mut s);
-                }
-            })
-        });
+        // Eight lanes, and sixteen: one AVX-512 register, or two AVX2 groups.
+        type Kernel = fn(&mut [f32], usize, usize, f32, bool, &mut LaneScratch);
+        let kernels: [(&str, &[f32], usize, Kernel); 2] = [
+            ("lanes", &lanes, LANES, transform_lanes),
+            ("wide", &wide, WIDE, transform_wide),
+        ];
+        for (id, input, width, kernel) in kernels {
+            group.bench_function(BenchmarkId::new(id, name), |b| {
+                let mut s = LaneScratch::default();
+                let mut work = input.to_vec();
+                b.iter(|| {
+                    work.copy_from_slice(input);
+                    for group in work.chunks_exact_mut(n * width) {
+                        kernel(black_box(group), width, n, spacing, false, &mut s);
+                    }
+                })
+            });
+        }
     }
     group.finish();
 }

@@ -120,29 +120,7 @@ fn trace_rays(c: &mut Criterion) {
                     .count()
             })
         });
-        // One ray at a time against eight at a time, on the same rays.
-        let all = vec![opts; rays.len()];
-        let mut hits = vec![None; rays.len()];
-        let mut blocked = vec![false; rays.len()];
-        group.bench_with_input(BenchmarkId::new("sphere-packet", name), &rays, |b, rays| {
-            b.iter(|| {
-                map.trace_many(black_box(rays), &all, &mut hits);
-                hits.iter().flatten().count()
-            })
-        });
-        group.bench_with_input(
-            BenchmarkId::new("any-hit-packet", name),
-            &rays,
-            |b, rays| {
-                b.iter(|| {
-                    map.occluded_many(black_box(rays), &all, &mut blocked);
-                    blocked.iter().filter(|&&b| b).count()
-                })
-            },
-        );
         let camera = camera_rays(map.aspect());
-        let all = vec![opts; camera.len()];
-        let mut hits = vec![None; camera.len()];
         group.bench_with_input(BenchmarkId::new("camera", name), &camera, |b, rays| {
             b.iter(|| {
                 rays.iter()
@@ -150,16 +128,26 @@ fn trace_rays(c: &mut Criterion) {
                     .count()
             })
         });
-        group.bench_with_input(
-            BenchmarkId::new("camera-packet", name),
-            &camera,
-            |b, rays| {
+        // One ray at a time against eight at a time, on the same rays.
+        for (id, rays) in [("sphere-packet", &rays), ("camera-packet", &camera)] {
+            let all = vec![opts; rays.len()];
+            let mut hits = vec![None; rays.len()];
+            group.bench_with_input(BenchmarkId::new(id, name), rays, |b, rays| {
                 b.iter(|| {
                     map.trace_many(black_box(rays), &all, &mut hits);
                     hits.iter().flatten().count()
                 })
-            },
-        );
+            });
+        }
+        let all = vec![opts; rays.len()];
+        let mut blocked = vec![false; rays.len()];
+        let id = BenchmarkId::new("any-hit-packet", name);
+        group.bench_with_input(id, &rays, |b, rays| {
+            b.iter(|| {
+                map.occluded_many(black_box(rays), &all, &mut blocked);
+                blocked.iter().filter(|&&b| b).count()
+            })
+        });
     }
     group.finish();
 }

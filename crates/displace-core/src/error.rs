@@ -123,6 +123,15 @@ pub enum Error {
 const GIB: f64 = (1u64 << 30) as f64;
 
 impl Error {
+    /// [`Error::Io`] for the file at `path`: one spelling of the most common
+    /// error, for every crate that reads or writes files.
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
     /// [`Error::Image`] for the file at `path`: what a height map's or an
     /// image's decoder found wrong with it, whichever loader read it.
     pub fn image(path: &Path, what: impl std::fmt::Display) -> Self {

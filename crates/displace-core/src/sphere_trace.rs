@@ -183,18 +183,9 @@ pub fn clip(ray: &MapRay, hi: Vec3, t_min: f32, t_max: f32) -> Option<Clip> {
 }
 
 /// Traces `ray` against the displaced surface of `height` (aspect `aspect`),
-/// with `distance` as the conservative distance map.
-pub fn trace(
-    height: &HeightMap,
-    distance: &DistanceMap,
-    ray: &MapRay,
-    opts: &TraceOptions,
-) -> Option<MapHit> {
-    trace_counted(height, distance, ray, opts).0
-}
-
-/// [`trace`], also returning the fetches it made (distance samples plus
-/// patches walked) on a miss as on a hit: what `displace compare` charges.
+/// with `distance` as the conservative distance map; also returns the
+/// fetches it made (distance samples plus patches walked) on a miss as on a
+/// hit: what `displace compare` charges.
 pub fn trace_counted(
     height: &HeightMap,
     distance: &DistanceMap,
@@ -213,6 +204,15 @@ pub fn trace_counted(
     };
     let wall = |t: f32, iterations: u32| wall_hit(ray, aspect, &clip, t, iterations);
     let walk = |t0: f32, t1: f32| exact::walk(height, aspect, ray.origin, ray.dir, t0, t1);
+    // A hit where the ray stands, shaded by the height field's own normal.
+    let here = |t: f32, iterations: u32, converged: bool| {
+        surface(
+            t as f64,
+            shading_normal(height, aspect, at(t)),
+            iterations,
+            converged,
+        )
+    };
 
     // Under the surface where the ray enters: the wall of the slab.
     let entry = at(clip.t_in);
@@ -249,32 +249,15 @@ pub fn trace_counted(
                 // resolve, and accept an unconverged hit otherwise.
                 return match walk(t, (t + band).min(clip.t_out)) {
                     Walk::Hit(h) => hit(surface(h.t, h.normal, iterations + h.cells, true)),
-                    Walk::StartsInside { cells } => hit(surface(
-                        t as f64,
-                        shading_normal(height, aspect, at(t)),
-                        iterations + cells,
-                        false,
-                    )),
-                    Walk::Miss { cells } => {
-                        let p = at(t);
-                        hit(surface(
-                            t as f64,
-                            shading_normal(height, aspect, p),
-                            iterations + cells,
-                            false,
-                        ))
+                    Walk::StartsInside { cells } | Walk::Miss { cells } => {
+                        hit(here(t, iterations + cells, false))
                     }
                 };
             }
             // Out of steps: finish exactly, which is always right.
             return match walk(t, clip.t_out) {
                 Walk::Hit(h) => hit(surface(h.t, h.normal, iterations + h.cells, true)),
-                Walk::StartsInside { cells } => hit(surface(
-                    t as f64,
-                    shading_normal(height, aspect, at(t)),
-                    iterations + cells,
-                    true,
-                )),
+                Walk::StartsInside { cells } => hit(here(t, iterations + cells, true)),
                 Walk::Miss { cells } => (None, iterations + cells),
             };
         }
@@ -285,14 +268,7 @@ pub fn trace_counted(
             let t1 = (t + band).min(clip.t_out);
             match walk(t, t1) {
                 Walk::Hit(h) => return hit(surface(h.t, h.normal, iterations + h.cells, true)),
-                Walk::StartsInside { cells } => {
-                    return hit(surface(
-                        t as f64,
-                        shading_normal(height, aspect, at(t)),
-                        iterations + cells,
-                        true,
-                    ))
-                }
+                Walk::StartsInside { cells } => return hit(here(t, iterations + cells, true)),
                 Walk::Miss { cells } => {
                     iterations += cells;
                     if t1 >= clip.t_out {
@@ -335,16 +311,14 @@ pub(crate) fn surface_hit(
     iterations: u32,
     converged: bool,
 ) -> MapHit {
-    let p = ray.origin + ray.dir * t;
-    MapHit {
+    hit_at(
+        ray,
+        aspect,
         t,
-        position: p,
-        uv: Vec2::new(p.x / aspect[0], p.y / aspect[1]),
-        normal,
-        kind: HitKind::Surface,
+        (normal, HitKind::Surface),
         iterations,
         converged,
-    }
+    )
 }
 
 /// The hit on the shell's side or bottom at `t`, entered under the
@@ -357,19 +331,33 @@ pub(crate) fn wall_hit(
     t: f32,
     iterations: u32,
 ) -> MapHit {
-    let p = ray.origin + ray.dir * t;
+    let normal = if clip.entry_normal == Vec3::ZERO {
+        -ray.dir
+    } else {
+        clip.entry_normal
+    };
+    hit_at(ray, aspect, t, (normal, HitKind::Wall), iterations, true)
+}
+
+/// The hit at `t` along `ray`, its map coordinates from the position.
+fn hit_at(
+    ray: &MapRay,
+    aspect: [f32; 2],
+    t: f32,
+    (normal, kind): (Vec3, HitKind),
+    iterations: u32,
+    converged: bool,
+) -> MapHit {
+    let position = ray.origin + ray.dir * t;
+    let uv = Vec2::new(position.x / aspect[0], position.y / aspect[1]);
     MapHit {
         t,
-        position: p,
-        uv: Vec2::new(p.x / aspect[0], p.y / aspect[1]),
-        normal: if clip.entry_normal == Vec3::ZERO {
-            -ray.dir
-        } else {
-            clip.entry_normal
-        },
-        kind: HitKind::Wall,
+        position,
+        uv,
+        normal,
+        kind,
         iterations,
-        converged: true,
+        converged,
     }
 }
 

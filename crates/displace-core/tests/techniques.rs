@@ -241,6 +241,22 @@ fn fixed_step_searches_miss_a_thin_wall() {
     }
 }
 
+/// The cone maps report what they are and how big.
+#[test]
+fn cone_maps_and_pyramid_sizes() {
+    let height = generators::generate("gen:studded", 32, 16, Address::Clamp).unwrap();
+    let cones = ConeMap::build(&height, [10.0, 5.0], ConeKind::Conservative);
+    assert_eq!(
+        (cones.width(), cones.height(), cones.bytes()),
+        (32, 16, 32 * 16 * 4)
+    );
+    assert!(cones.data().iter().all(|&c| c > 0.0 && c.is_finite()));
+    let pyramid = MaxPyramid::build(&height);
+    // 33 x 17 cells, then 17 x 9, 9 x 5, 5 x 3, 3 x 2, 2 x 1, 1 x 1.
+    assert_eq!(pyramid.levels(), 7);
+    assert_eq!(pyramid.node(pyramid.levels() - 1, 0, 0), 1.0);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(32)))]
 
@@ -264,26 +280,6 @@ proptest! {
             }
         }
     }
-}
-
-/// The cone maps report what they are and how big.
-#[test]
-fn cone_maps_and_pyramid_sizes() {
-    let height = generators::generate("gen:studded", 32, 16, Address::Clamp).unwrap();
-    let cones = ConeMap::build(&height, [10.0, 5.0], ConeKind::Conservative);
-    assert_eq!(
-        (cones.width(), cones.height(), cones.bytes()),
-        (32, 16, 32 * 16 * 4)
-    );
-    assert!(cones.data().iter().all(|&c| c > 0.0 && c.is_finite()));
-    let pyramid = MaxPyramid::build(&height);
-    // 33 x 17 cells, then 17 x 9, 9 x 5, 5 x 3, 3 x 2, 2 x 1, 1 x 1.
-    assert_eq!(pyramid.levels(), 7);
-    assert_eq!(pyramid.node(pyramid.levels() - 1, 0, 0), 1.0);
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(displace_core::random::property_cases(24)))]
 
     /// The two exact techniques on random maps (sharp ones included): with
     /// budget to spare, maximum mipmaps and distance mapping return the

@@ -16,10 +16,10 @@ pub(crate) const WORKGROUP: u32 = 64;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub(crate) struct RayIn {
-    origin: [f32; 3],
-    pad_origin: f32,
-    dir: [f32; 3],
-    pad_dir: f32,
+    pub(crate) origin: [f32; 3],
+    pub(crate) pad_origin: f32,
+    pub(crate) dir: [f32; 3],
+    pub(crate) pad_dir: f32,
 }
 
 impl RayIn {
@@ -296,26 +296,5 @@ impl BatchQuery {
             rays,
             extra,
         )
-    }
-}
-
-#[cfg(test)]
-mod layout_tests {
-    #[test]
-    fn ray_records_match_wgsl() {
-        use super::RayIn;
-        use crate::shaders::{assert_layout, compute_trace_source, offsets, DistanceTexture};
-        let src = compute_trace_source(DistanceTexture::R32Load);
-        assert_layout(
-            &src,
-            "RayIn",
-            std::mem::size_of::<RayIn>(),
-            offsets!(RayIn {
-                origin,
-                pad_origin,
-                dir,
-                pad_dir
-            }),
-        );
     }
 }

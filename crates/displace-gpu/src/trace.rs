@@ -162,11 +162,24 @@ pub fn trace_rays(
 
 #[cfg(test)]
 mod layout_tests {
+    /// The batch query's records, in (rays) and out (hits).
     #[test]
-    fn hit_records_match_wgsl() {
+    fn ray_and_hit_records_match_wgsl() {
         use super::HitOut;
+        use crate::batch::RayIn;
         use crate::shaders::{assert_layout, compute_trace_source, offsets, DistanceTexture};
         let src = compute_trace_source(DistanceTexture::R32Load);
+        assert_layout(
+            &src,
+            "RayIn",
+            std::mem::size_of::<RayIn>(),
+            offsets!(RayIn {
+                origin,
+                pad_origin,
+                dir,
+                pad_dir
+            }),
+        );
         assert_layout(
             &src,
             "HitOut",

@@ -441,10 +441,15 @@ mod tests {
         assert!(ns.dot(wi) > 0.0);
         assert_eq!(b.f(wi), Vec3::ZERO);
         assert_eq!(b.pdf(wi), 0.0);
-        let mut rng = Rng::new(1, 2);
+        samples_stay_above(&b, ns, Rng::new(1, 2));
+    }
+
+    /// Every direction `b` samples lies above both the geometric surface
+    /// (`z > 0`) and the shading plane of normal `n`.
+    fn samples_stay_above(b: &Bsdf, n: Vec3, mut rng: Rng) {
         for _ in 0..10_000 {
             if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
-                assert!(s.wi.z > 0.0 && ns.dot(s.wi) > 0.0);
+                assert!(s.wi.z > 0.0 && n.dot(s.wi) > 0.0, "{:?}", s.wi);
             }
         }
     }
@@ -474,12 +479,7 @@ mod tests {
         let wi = Vec3::new(-0.9, 0.0, 0.3).normalize();
         assert!(turned.dot(wi) > 0.0 && wi.z > 0.0);
         assert_eq!(b.f(wi), m.diffuse * FRAC_1_PI);
-        let mut rng = Rng::new(3, 4);
-        for _ in 0..10_000 {
-            if let Some(s) = b.sample(rng.next_f32(), rng.next_2d()) {
-                assert!(s.wi.z > 0.0 && turned.dot(s.wi) > 0.0);
-            }
-        }
+        samples_stay_above(&b, turned, Rng::new(3, 4));
     }
 
     #[test]

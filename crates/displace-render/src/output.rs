@@ -30,19 +30,16 @@ impl ImageFile {
         {
             Some("png") => Ok(ImageFile::Png),
             Some("exr") => Ok(ImageFile::Exr),
-            _ => Err(Error::Image {
-                path: path.to_path_buf(),
-                message: "unknown image type (expected .png or .exr)".into(),
-            }),
+            _ => Err(image_err(
+                path,
+                "unknown image type (expected .png or .exr)",
+            )),
         }
     }
 }
 
 fn image_err(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Image {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    }
+    displace_core::Error::image(path, e).into()
 }
 
 /// 8-bit sRGB bytes of a linear image (clamped to `[0, 1]`).

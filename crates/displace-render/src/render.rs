@@ -112,11 +112,8 @@ impl Aov {
 impl std::str::FromStr for Aov {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        Aov::ALL.into_iter().find(|a| a.name() == s).ok_or_else(|| {
-            Error::Option(format!(
-                "unknown AOV `{s}` (known: depth, normal, uv, position, iterations)"
-            ))
-        })
+        let choices = Aov::ALL.map(|a| (a.name(), a));
+        displace_core::names::parse_known("AOV", s, &choices).map_err(Error::Option)
     }
 }
 

@@ -6,6 +6,7 @@
 pub use displace_scene::sampler::*;
 
 // SplitMix64's finaliser (Steele et al. 2014) hashes the words together.
+use crate::sobol::{sample_1d, sample_2d, to_unit};
 use displace_core::random::mix64 as mix;
 use glam::Vec2;
 
@@ -73,10 +74,7 @@ impl SampleStream {
     pub fn next_1d(&mut self) -> f32 {
         match self.source {
             Source::Independent(ref mut rng) => rng.next_f32(),
-            Source::Sobol { pixel, index } => {
-                let seed = self.seed(pixel);
-                crate::sobol::to_unit(crate::sobol::sample_1d(index, seed))
-            }
+            Source::Sobol { pixel, index } => to_unit(sample_1d(index, self.seed(pixel))),
         }
     }
 
@@ -102,9 +100,8 @@ impl SampleStream {
         match self.source {
             Source::Independent(ref mut rng) => rng.next_2d(),
             Source::Sobol { pixel, index } => {
-                let seed = self.seed(pixel);
-                let (x, y) = crate::sobol::sample_2d(index, seed);
-                Vec2::new(crate::sobol::to_unit(x), crate::sobol::to_unit(y))
+                let (x, y) = sample_2d(index, self.seed(pixel));
+                Vec2::new(to_unit(x), to_unit(y))
             }
         }
     }

@@ -51,10 +51,7 @@ pub struct TileImage {
 }
 
 fn bad(path: &Path, message: impl Into<String>) -> Error {
-    Error::Image {
-        path: path.to_path_buf(),
-        message: message.into(),
-    }
+    displace_core::Error::image(path, message.into()).into()
 }
 
 /// Writes `image` (the pixels of `meta.rect`) to `path` atomically.
@@ -137,10 +134,7 @@ fn text_attribute(
 /// channels other than 32-bit float R, G, B are errors naming the file.
 pub fn read_tile(path: &Path) -> Result<TileImage> {
     displace_core::io::check_input(path, "tile file", MAX_TILE_FILE_BYTES)?;
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(|e| displace_core::Error::io(path, e))?;
     let unreadable = |e: exr::error::Error| {
         bad(
             path,

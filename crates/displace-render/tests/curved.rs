@@ -38,16 +38,18 @@ color = [0.5, 0.5, 0.5]
 /// A scene of one displaced mesh (`path`, with `extra` keys on the shape)
 /// whose displacement reads `height`.
 fn mesh_scene(dir: &Path, path: &str, extra: &str, displacement: &str) -> Scene {
+    let shape = format!("{extra}\n[shapes.displacement]\n{displacement}\n");
+    lit_mesh(dir, path, &shape)
+}
+
+/// The scene of [`LIGHT`] and the mesh at `path`, its shape table ending in
+/// `rest`.
+fn lit_mesh(dir: &Path, path: &str, rest: &str) -> Scene {
     let text = format!(
-        "{LIGHT}\n[[shapes]]\ntype = \"mesh\"\npath = \"{path}\"\nmaterial = \"m\"\n{extra}\n[shapes.displacement]\n{displacement}\n"
+        "{LIGHT}\n[[shapes]]\ntype = \"mesh\"\npath = \"{path}\"\nmaterial = \"m\"\n{rest}"
     );
-    Scene::from_toml(
-        &text,
-        Path::new("curved.toml"),
-        dir,
-        &SceneOptions::default(),
-    )
-    .unwrap()
+    let opts = SceneOptions::default();
+    Scene::from_toml(&text, Path::new("curved.toml"), dir, &opts).unwrap()
 }
 
 /// Sub-edges of the ground truth, in height texels: under the quarter
@@ -73,15 +75,7 @@ fn ground_truth(scene: &Scene, dir: &Path) -> Scene {
         writeln!(obj, "f {} {} {}", a + 1, b + 1, c + 1).unwrap();
     }
     std::fs::write(dir.join("truth.obj"), obj).unwrap();
-    let text =
-        format!("{LIGHT}\n[[shapes]]\ntype = \"mesh\"\npath = \"truth.obj\"\nmaterial = \"m\"\n");
-    Scene::from_toml(
-        &text,
-        Path::new("truth.toml"),
-        dir,
-        &SceneOptions::default(),
-    )
-    .unwrap()
+    lit_mesh(dir, "truth.obj", "")
 }
 
 /// One ray per pixel of an `n x n` pinhole view from `eye` towards the
@@ -187,53 +181,46 @@ fn check_against_truth(scene: &Scene, dir: &Path, eye: Vec3, half: f32, what: &s
     );
 }
 
+/// `mesh` displaced by `height` (32 x 32 texels, repeating `tiles` times,
+/// `depth` deep) agrees with its tessellated surface as seen from `eye`.
+fn matches_tessellation(
+    dir: &Path,
+    mesh: &str,
+    height: &str,
+    depth: f32,
+    tiles: [u32; 2],
+    eye: Vec3,
+) {
+    let displacement = format!(
+        "height = \"{height}\"\nheight_size = [32, 32]\ndepth = {depth}\n\
+         map_size = [32, 32, 8]\naddress = \"repeat\"\ntiles = {tiles:?}"
+    );
+    let scene = mesh_scene(dir, mesh, "", &displacement);
+    let half = if mesh == "builtin:torus" { 0.55 } else { 0.36 };
+    check_against_truth(&scene, dir, eye, half, mesh);
+}
+
 #[test]
 fn a_displaced_sphere_matches_its_tessellated_surface() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = mesh_scene(
-        dir.path(),
-        "builtin:sphere",
-        "",
-        "height = \"gen:noise\"\nheight_size = [32, 32]\ndepth = 0.1\nmap_size = [32, 32, 8]\naddress = \"repeat\"\ntiles = [2, 1]",
-    );
-    check_against_truth(
-        &scene,
-        dir.path(),
-        Vec3::new(0.3, 1.2, -3.5),
-        0.36,
-        "sphere",
-    );
+    let eye = Vec3::new(0.3, 1.2, -3.5);
+    matches_tessellation(dir.path(), "builtin:sphere", "gen:noise", 0.1, [2, 1], eye);
 }
 
 #[test]
 fn a_displaced_torus_matches_its_tessellated_surface() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = mesh_scene(
-        dir.path(),
-        "builtin:torus",
-        "",
-        "height = \"gen:studded?period=8\"\nheight_size = [32, 32]\ndepth = 0.06\nmap_size = [32, 32, 8]\naddress = \"repeat\"\ntiles = [6, 2]",
-    );
-    check_against_truth(&scene, dir.path(), Vec3::new(0.0, 2.5, -3.0), 0.55, "torus");
+    let eye = Vec3::new(0.0, 2.5, -3.0);
+    let studs = "gen:studded?period=8";
+    matches_tessellation(dir.path(), "builtin:torus", studs, 0.06, [6, 2], eye);
 }
 
 #[test]
 fn a_coarse_obj_sphere_matches_its_tessellated_surface() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("coarse.obj"), coarse_sphere_obj(12, 6)).unwrap();
-    let scene = mesh_scene(
-        dir.path(),
-        "coarse.obj",
-        "",
-        "height = \"gen:gaussian\"\nheight_size = [32, 32]\ndepth = 0.15\nmap_size = [32, 32, 8]\naddress = \"repeat\"\ntiles = [3, 2]",
-    );
-    check_against_truth(
-        &scene,
-        dir.path(),
-        Vec3::new(1.0, 0.8, -3.5),
-        0.36,
-        "coarse OBJ",
-    );
+    let eye = Vec3::new(1.0, 0.8, -3.5);
+    matches_tessellation(dir.path(), "coarse.obj", "gen:gaussian", 0.15, [3, 2], eye);
 }
 
 #[test]

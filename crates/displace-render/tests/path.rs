@@ -282,23 +282,12 @@ fn white_furnace_albedo_of_every_material() {
 }
 
 /// A room of a glossy floor and a Lambert wall, lit by a small bright and
-/// a large dim area light, both visible.
-/// The glossy floor and the wall lit by a small bright area light and a
-/// large dim one, with the path integrator's `sampling`.
+/// a large dim area light, both visible, with the path integrator's
+/// `sampling`.
 fn two_lights(sampling: &str) -> String {
-    format!(
-        "
-[image]
-width = 24
-height = 24
-spp = SPP
-max_depth = 3
-integrator = \"path\"
-sampling = \"{sampling}\"
-[camera]
-position = [0, 2, -4]
-look_at = [0, 0.4, 0]
-vfov = 50
+    let camera = "position = [0, 2, -4]\nlook_at = [0, 0.4, 0]\nvfov = 50";
+    image_and_camera([24, 24], "path", sampling, "", camera)
+        + "
 [materials.floor]
 type = \"glossy\"
 color = [0.6, 0.6, 0.6]
@@ -307,8 +296,7 @@ diffuse = [0.1, 0.1, 0.1]
 [materials.wall]
 type = \"lambert\"
 color = [0.3, 0.25, 0.2]
-"
-    ) + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
+" + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
         + &quad("[-3, 0, 2]", "[6, 0, 0]", "[0, 3, 0]", "wall")
         + &area_light(
             "[-1.2, 1.2, 0.5]",
@@ -396,20 +384,35 @@ fn write_exr(path: &Path, w: u32, h: u32, texel: impl Fn(u32, u32) -> [f32; 3]) 
     image::DynamicImage::ImageRgb32F(img).save(path).unwrap();
 }
 
-/// A Lambert sphere and a glossy floor under the sky `SKY`.
-const SKY_SCENE: &str = "
+/// The `[image]` and `[camera]` tables of the test scenes: `size` pixels,
+/// `SPP` samples (for [`with_spp`] to fill in), three bounces, `integrator`
+/// with `sampling` and the image's `extra` keys; the camera's keys.
+fn image_and_camera(
+    size: [u32; 2],
+    integrator: &str,
+    sampling: &str,
+    extra: &str,
+    camera: &str,
+) -> String {
+    let [width, height] = size;
+    format!(
+        "
 [image]
-width = 20
-height = 16
+width = {width}
+height = {height}
 spp = SPP
 max_depth = 3
-integrator = \"INTEGRATOR\"
-sampling = \"SAMPLING\"
-SKY
+integrator = \"{integrator}\"
+sampling = \"{sampling}\"
+{extra}
 [camera]
-position = [0, 1.2, -4]
-look_at = [0, 0.5, 0]
-vfov = 45
+{camera}
+"
+    )
+}
+
+/// A Lambert sphere and a glossy floor under the sky `SKY`.
+const SKY_OBJECTS: &str = "
 [materials.ball]
 type = \"lambert\"
 color = [0.7, 0.6, 0.5]
@@ -425,6 +428,12 @@ radius = 0.6
 material = \"ball\"
 ";
 
+/// The sky scene with placeholders `INTEGRATOR`, `SAMPLING` and `SKY`.
+fn sky_template() -> String {
+    let camera = "position = [0, 1.2, -4]\nlook_at = [0, 0.5, 0]\nvfov = 45";
+    image_and_camera([20, 16], "INTEGRATOR", "SAMPLING", "SKY", camera) + SKY_OBJECTS
+}
+
 fn sky_scene(integrator: &str, sampling: &str, sky: &str) -> String {
     // Each placeholder must be there, or a variant would quietly render
     // the template's own text.
@@ -438,7 +447,7 @@ fn sky_scene(integrator: &str, sampling: &str, sky: &str) -> String {
         ("SKY", sky),
     ]
     .into_iter()
-    .fold(SKY_SCENE.to_string(), fill)
+    .fold(sky_template(), fill)
         + &quad("[-3, 0, -3]", "[0, 0, 6]", "[6, 0, 0]", "floor")
 }
 

@@ -7,7 +7,7 @@
 //! change the image, so it is left out.
 
 use super::SceneOptions;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::sampler::hash_iter;
 use std::path::PathBuf;
 
@@ -31,10 +31,7 @@ fn bytes_hash(bytes: &[u8]) -> u64 {
 pub(crate) fn content_hash(text: &str, sources: &[PathBuf], opts: &SceneOptions) -> Result<u64> {
     let mut files = Vec::with_capacity(sources.len());
     for path in sources {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            path: path.clone(),
-            source,
-        })?;
+        let bytes = std::fs::read(path).map_err(|e| displace_core::Error::io(path, e))?;
         files.push(bytes_hash(&bytes));
     }
     // The order a scene lists its files in is already in its text.

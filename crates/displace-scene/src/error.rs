@@ -31,24 +31,6 @@ pub enum Error {
         /// `shapes[2].displacement.depth`) and why.
         message: String,
     },
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The system's error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// An image (texture, environment map, output) could not be decoded or
-    /// encoded.
-    #[error("{path}: {message}")]
-    Image {
-        /// The image file.
-        path: PathBuf,
-        /// What the codec says.
-        message: String,
-    },
     /// An OBJ mesh is malformed or too large.
     #[error("{path}: {message}")]
     Mesh {
@@ -57,7 +39,9 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
-    /// The height map, bake or trace refused its input.
+    /// The height map, bake or trace refused its input, or a file could not
+    /// be read, written, decoded or encoded (core's `Io` and `Image`: one
+    /// spelling of those for every crate).
     #[error(transparent)]
     Core(#[from] displace_core::Error),
     /// A render option out of range (crop outside the image, zero samples).

@@ -1,6 +1,7 @@
 //! Triangle meshes from Wavefront OBJ files (via `tobj`).
 
 use crate::error::{Error, Result};
+use displace_core::Error as CoreError;
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
@@ -40,10 +41,7 @@ pub fn load(path: &Path) -> Result<Mesh> {
         ..tobj::LoadOptions::default()
     };
     check_face_indices(path)?;
-    let file = std::fs::File::open(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let file = std::fs::File::open(path).map_err(|e| CoreError::io(path, e))?;
     // Material libraries (`mtllib`) are not read: materials come from the
     // scene, and a library path is one more file (a FIFO, `/dev/zero`)
     // that could be read for ever.
@@ -237,10 +235,7 @@ fn bad_corner<'a>(corners: &[&'a str], counts: &[usize; 3]) -> Option<&'a str> {
 /// the file, holding one line at a time.
 fn check_face_indices(path: &Path) -> Result<()> {
     use std::io::BufRead;
-    let io_err = |source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    };
+    let io_err = |e| Error::from(CoreError::io(path, e));
     let file = std::fs::File::open(path).map_err(io_err)?;
     let mut counts = [0usize; 3];
     for (n, line) in std::io::BufReader::new(file).split(b'\n').enumerate() {

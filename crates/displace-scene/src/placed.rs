@@ -214,9 +214,13 @@ impl CurvedDisplacement {
     }
 }
 
-/// The geometry of a placed shape.
+/// The geometry of a shape, over how a renderer holds its displaced faces:
+/// the scene places [`FlatDisplacement`] and [`CurvedDisplacement`]
+/// ([`Placed`]), and a renderer swaps in its own traceable faces with
+/// [`Shape::map_faces`] (pbrt-v4 likewise builds each renderer's shapes from
+/// one scene description), so the plain shapes are described once.
 #[derive(Clone, Debug)]
-pub enum Placed {
+pub enum Shape<D, C> {
     /// A plain parallelogram.
     Quad(Quad),
     /// A plain triangle; `attr` indexes its [`TriAttr`] ([`NO_ATTR`]: none).
@@ -228,19 +232,42 @@ pub enum Placed {
     },
     /// A sphere.
     Sphere(Sphere),
-    /// A displaced quad or triangle.
-    Displaced(Box<FlatDisplacement>),
-    /// A displaced triangle of a curved mesh.
-    Curved(Box<CurvedDisplacement>),
+    /// A displaced quad or triangle: the prism over it, traced in map space.
+    Displaced(Box<D>),
+    /// A displaced triangle of a curved mesh: the shell along its vertex
+    /// normals, traced through its texture space.
+    Curved(Box<C>),
 }
+
+impl<D, C> Shape<D, C> {
+    /// The same shape with its displaced faces made by `flat` and `curved`
+    /// (the plain shapes as they are).
+    pub fn map_faces<D2, C2>(
+        self,
+        flat: impl FnOnce(D) -> D2,
+        curved: impl FnOnce(C) -> C2,
+    ) -> Shape<D2, C2> {
+        match self {
+            Shape::Quad(q) => Shape::Quad(q),
+            Shape::Triangle { tri, attr } => Shape::Triangle { tri, attr },
+            Shape::Sphere(s) => Shape::Sphere(s),
+            Shape::Displaced(f) => Shape::Displaced(Box::new(flat(*f))),
+            Shape::Curved(c) => Shape::Curved(Box::new(curved(*c))),
+        }
+    }
+}
+
+/// The geometry the scene places.
+pub type Placed = Shape<FlatDisplacement, CurvedDisplacement>;
 
 /// One shape of the scene in the world, with its material: in file order
 /// (a mesh counts its triangles; a visible area light adds its quad), the
-/// order in which every renderer numbers them.
+/// order in which every renderer numbers them. `S` is the shape's geometry
+/// as the holder keeps it ([`Placed`] in the scene).
 #[derive(Clone, Debug)]
-pub struct PlacedShape {
+pub struct Primitive<S> {
     /// Its geometry.
-    pub shape: Placed,
+    pub shape: S,
     /// Index into [`crate::World::materials`].
     pub material: u32,
     /// Index of the light this shape is the visible emitter of.
@@ -249,6 +276,21 @@ pub struct PlacedShape {
     /// built from (`None` for a visible area light's quad).
     pub shape_index: Option<u32>,
 }
+
+impl<S> Primitive<S> {
+    /// The same primitive with its geometry made by `f`.
+    pub fn map_shape<T>(self, f: impl FnOnce(S) -> T) -> Primitive<T> {
+        Primitive {
+            shape: f(self.shape),
+            material: self.material,
+            emitter: self.emitter,
+            shape_index: self.shape_index,
+        }
+    }
+}
+
+/// A shape of the scene as placed.
+pub type PlacedShape = Primitive<Placed>;
 
 /// A triangle without per-vertex attributes (flat normal, no texture
 /// coordinates).

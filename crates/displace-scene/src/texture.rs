@@ -55,10 +55,7 @@ pub(crate) fn image_dimensions(
 }
 
 fn image_err(path: &Path, message: String) -> Error {
-    Error::Image {
-        path: path.to_path_buf(),
-        message,
-    }
+    displace_core::Error::image(path, message).into()
 }
 
 fn open_image(path: &Path) -> Result<image::ImageReader<std::io::BufReader<std::fs::File>>> {

@@ -157,10 +157,7 @@ impl World {
 fn read_text(path: &Path) -> Result<String> {
     use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
     check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(|e| displace_core::Error::io(path, e))?;
     String::from_utf8(bytes).map_err(|e| {
         // Where the bad byte is, as for a TOML error.
         let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];

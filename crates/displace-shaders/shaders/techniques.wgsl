@@ -327,20 +327,14 @@ fn trace_technique(o: vec3f, d: vec3f, technique: u32, budget_in: u32) -> Traced
         case TECH_POM: {
             return pom(s, budget);
         }
-        case TECH_BEVY_OCCLUSION: {
-            return bevy(s, budget, false);
-        }
-        case TECH_BEVY_RELIEF: {
-            return bevy(s, budget, true);
+        case TECH_BEVY_OCCLUSION, TECH_BEVY_RELIEF: {
+            return bevy(s, budget, technique == TECH_BEVY_RELIEF);
         }
         case TECH_RELIEF: {
             return relief(s, budget);
         }
-        case TECH_CONE: {
-            return cone_step(s, false, budget);
-        }
-        case TECH_RELAXED_CONE: {
-            return cone_step(s, true, budget);
+        case TECH_CONE, TECH_RELAXED_CONE: {
+            return cone_step(s, technique == TECH_RELAXED_CONE, budget);
         }
         case TECH_MAX_MIP: {
             return max_mip(s, budget);

@@ -28,7 +28,7 @@
 mod format;
 mod surface;
 
-use crate::args::{load_height, parse_extent, HeightArgs};
+use crate::args::{load_height, FaceArgs, HeightArgs};
 use crate::outputs::check_not_inputs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -57,11 +57,7 @@ pub struct ExportMeshArgs {
     #[arg(value_name = "HEIGHT", required_unless_present = "scene")]
     pub height: Option<String>,
     #[command(flatten)]
-    pub height_args: HeightArgs,
-    /// Physical width, height and displacement depth of the face
-    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true,
-          required_unless_present = "scene")]
-    pub extent: Option<Extent>,
+    pub face: FaceArgs,
     /// Vertices per height texel along each axis (1: the height map's own
     /// resolution; 4: sixteen times the triangles, sampled bilinearly)
     #[arg(long, default_value_t = 1)]
@@ -153,7 +149,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     if args.edge_texels.is_some() {
         bail!("--edge-texels sets the sub-edges of a --scene's meshes; a height field's grid is set by --scale");
     }
-    let (Some(source), Some(extent)) = (args.height.clone(), args.extent) else {
+    let (Some(source), Some(extent)) = (args.height.clone(), args.face.extent) else {
         bail!("give a HEIGHT map and its --extent, or a --scene");
     };
     if args.scale == 0 {
@@ -163,7 +159,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         &[("-o", &args.output)],
         &[("height map", Path::new(&source))],
     )?;
-    let [w, h] = check_memory(&source, &args.height_args)?;
+    let [w, h] = check_memory(&source, &args.face.height)?;
     let scale = args.scale as u64;
     // Checked: a large --scale times a long side overflows 64 bits.
     let side = |n: usize| (n as u64).checked_mul(scale).and_then(|m| m.checked_add(2));
@@ -178,7 +174,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         ),
     };
     displace_core::io::atomic::check_free_space(&args.output, least_bytes(kind, nu, nv))?;
-    let height = load_height(&source, &args.height_args, DEFAULT_HEIGHT_SIZE)?;
+    let height = load_height(&source, &args.face.height, DEFAULT_HEIGHT_SIZE)?;
     let normals = NormalMap::from_height(&height, extent);
     let grid = Grid {
         us: axis(height.width(), args.scale as usize),

@@ -14,11 +14,11 @@
 mod rays;
 mod scene;
 
-use crate::args::{load_height, parse_extent, parse_map_size, HeightArgs};
+use crate::args::{load_height, parse_map_size, FaceArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::{self as dio, npy};
-use displace_core::{DisplacementMap, Extent, MapRay, Method, NormalMap, TraceOptions};
+use displace_core::{DisplacementMap, MapRay, Method, NormalMap, TraceOptions};
 #[cfg(feature = "gpu")]
 use displace_gpu::{DistanceTexture, GpuContext};
 use glam::Vec3;
@@ -45,11 +45,7 @@ pub struct TraceArgs {
     #[arg(long, value_name = "HEIGHT", required_unless_present = "scene")]
     pub height: Option<String>,
     #[command(flatten)]
-    pub height_args: HeightArgs,
-    /// Physical width, height and displacement depth of the face
-    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_extent, allow_hyphen_values = true,
-          required_unless_present = "scene")]
-    pub extent: Option<Extent>,
+    pub face: FaceArgs,
     /// Bake a distance map of this many voxels [default: 256x256x16]
     #[arg(long, value_name = "WxHxD", conflicts_with = "map")]
     pub size: Option<String>,
@@ -127,7 +123,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
             if args.any_hit { "any-hit" } else { "no-cache" }
         );
     }
-    let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.extent) else {
+    let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.face.extent) else {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
     };
     crate::outputs::check_npy_output(&args.output)?;
@@ -147,13 +143,13 @@ pub fn run(args: TraceArgs) -> Result<()> {
             .context("--iterations with --backend gpu")?;
     }
     let rays = read_rays(&args.rays)?;
-    let address = args.height_args.address;
+    let address = args.face.height.address;
     let map = match &args.map {
         Some(path) => {
             let distance = dio::read_distance_map(path, extent, address)
                 .with_context(|| format!("reading distance map {}", path.display()))?;
             let [w, h, _] = distance.size();
-            let height = load_height(height_source, &args.height_args, [w, h])?;
+            let height = load_height(height_source, &args.face.height, [w, h])?;
             DisplacementMap {
                 normals: NormalMap::from_height(&height, extent),
                 height,
@@ -165,12 +161,12 @@ pub fn run(args: TraceArgs) -> Result<()> {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
             crate::bake::check_bake_memory(
                 height_source,
-                &args.height_args,
+                &args.face.height,
                 size,
                 false,
                 crate::bake::BakeHolds::Whole,
             )?;
-            let height = load_height(height_source, &args.height_args, [size[0], size[1]])?;
+            let height = load_height(height_source, &args.face.height, [size[0], size[1]])?;
             let opts = displace_core::BakeOptions {
                 size,
                 extent,

@@ -12,7 +12,7 @@
 //! (the window), so that the codes held stay a few slices.
 
 use super::options::BakeOptions;
-use super::plan::{check_promise, is_cancelled, BakePlan};
+use super::plan::{check_promise, is_cancelled, BakePlan, SliceJob};
 use super::ranges::RowSource;
 use super::sink::{CodedSlab, SlabSink};
 use crate::distance_map::R8Encoder;
@@ -154,13 +154,15 @@ impl<'s, S: SlabSink + Send> Pipeline<'_, 's, S> {
                 order.sink.code_buffer()
             };
             codes.resize(w * h, 0);
-            let min = plan.slice(
+            let codes_out = Some((self.encoder, &mut codes[..]));
+            let job = SliceJob {
                 k,
                 slice,
-                Some((self.encoder, &mut codes)),
-                &mut scratch,
-                &mut source,
-            );
+                codes: codes_out,
+                scratch: &mut scratch,
+                source: &mut source,
+            };
+            let min = plan.slice(job);
             let n = self.done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(p) = &self.opts.progress {
                 p(n, d);

@@ -7,7 +7,7 @@ use super::options::BakeOptions;
 use super::ranges::{column_centres, column_ranges, Centres, RangeGrid, Ranges, RowSource};
 use crate::convention::{texel_centre, Extent};
 use crate::distance_map::{DistanceMap, R8Encoder};
-use crate::edt::{transform_2d_with, SliceScratch, BLOCK};
+use crate::edt::{transform_2d_with, Grid2, SliceScratch, BLOCK};
 use crate::{Address, Error, HeightMap, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -30,12 +30,34 @@ pub(super) struct BakePlan<'h> {
     pub(super) slack: f32,
 }
 
+/// One depth slice's work for [`BakePlan::slice`]: slice `k` into `slice`
+/// (or, given `codes`, its R8 codes into those, `slice` then being
+/// scratch), with the thread's scratch and its source of column ranges.
+pub(super) struct SliceJob<'a, 's> {
+    /// The slice's depth index.
+    pub(super) k: usize,
+    /// The slice's values (or scratch, with `codes`).
+    pub(super) slice: &'a mut [f32],
+    /// The encoder and the codes to write, for an R8 bake.
+    pub(super) codes: Option<(&'a R8Encoder, &'a mut [u8])>,
+    /// The 2D transform's scratch.
+    pub(super) scratch: &'a mut SliceScratch,
+    /// Where each row's height ranges come from.
+    pub(super) source: &'a mut RowSource<'s>,
+}
+
 /// The body of [`BakePlan::slice`]: the fill and finish of one depth slice
 /// around its 2D transform.
 macro_rules! slice_body {
-    ($plan:expr, $k:expr, $slice:expr, $scratch:expr, $source:expr, $codes:expr) => {{
-        let k: usize = $k;
-        let mut codes: Option<(&R8Encoder, &mut [u8])> = $codes;
+    ($plan:expr, $job:expr) => {{
+        let SliceJob {
+            k,
+            slice,
+            codes,
+            scratch,
+            source,
+        } = $job;
+        let mut codes: Option<(&R8Encoder, &mut [u8])> = codes;
         let [w, h, d] = $plan.size;
         let [hx, hy, _] = $plan.spacing;
         let periodic = $plan.address == Address::Repeat;
@@ -51,7 +73,7 @@ macro_rules! slice_body {
                 *g = dz * dz;
             }
         };
-        let fill = |j: usize, row: &mut [f32]| match $source {
+        let fill = |j: usize, row: &mut [f32]| match source {
             RowSource::Stored { lo, hi } => {
                 let span = j * w..(j + 1) * w;
                 squared(row, &lo[span.clone()], &hi[span]);
@@ -102,17 +124,13 @@ macro_rules! slice_body {
                 None => out.copy_from_slice(values),
             }
         };
-        transform_2d_with(
-            $slice,
+        let grid = Grid2 {
             w,
             h,
-            [hx, hy],
-            [periodic, periodic],
-            $scratch,
-            true,
-            fill,
-            finish,
-        );
+            spacing: [hx, hy],
+            periodic: [periodic; 2],
+        };
+        transform_2d_with(slice, grid, scratch, true, fill, finish);
         low.into_iter().fold(f32::INFINITY, f32::min)
     }};
 }
@@ -214,7 +232,14 @@ impl<'h> BakePlan<'h> {
                     if is_cancelled(opts) {
                         return Err(Error::Cancelled);
                     }
-                    *slice_min = self.slice(first + dk, slice, None, scratch, source);
+                    let k = first + dk;
+                    *slice_min = self.slice(SliceJob {
+                        k,
+                        slice,
+                        codes: None,
+                        scratch,
+                        source,
+                    });
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = &opts.progress {
                         p(n, self.size[2]);
@@ -230,20 +255,13 @@ impl<'h> BakePlan<'h> {
     /// into the transform's passes (squared band distances in, roots, signs
     /// and margins out) runs eight values an instruction instead of four,
     /// with the same operations and so the same bits.
-    pub(super) fn slice(
-        &self,
-        k: usize,
-        slice: &mut [f32],
-        codes: Option<(&R8Encoder, &mut [u8])>,
-        scratch: &mut SliceScratch,
-        source: &mut RowSource,
-    ) -> f32 {
+    pub(super) fn slice(&self, job: SliceJob) -> f32 {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 is present.
-            return unsafe { self.slice_avx2(k, slice, codes, scratch, source) };
+            return unsafe { self.slice_avx2(job) };
         }
-        slice_body!(self, k, slice, scratch, source, codes)
+        slice_body!(self, job)
     }
 
     /// [`Self::slice`] compiled for AVX2 (its closures too: a closure
@@ -254,15 +272,8 @@ impl<'h> BakePlan<'h> {
     /// The CPU has AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn slice_avx2(
-        &self,
-        k: usize,
-        slice: &mut [f32],
-        codes: Option<(&R8Encoder, &mut [u8])>,
-        scratch: &mut SliceScratch,
-        source: &mut RowSource,
-    ) -> f32 {
-        slice_body!(self, k, slice, scratch, source, codes)
+    unsafe fn slice_avx2(&self, job: SliceJob) -> f32 {
+        slice_body!(self, job)
     }
 }
 

@@ -31,7 +31,7 @@ use crate::{DistanceMap, HeightMap};
 use glam::Vec3;
 
 /// First hit of `ray` on the displaced surface, as
-/// [`crate::sphere_trace::trace`] finds it with [`Method::Sphere`] (other
+/// [`crate::sphere_trace::trace_counted`] finds it with [`Method::Sphere`] (other
 /// methods are traced there). `iterations` counts voxel steps plus patches
 /// visited.
 pub fn trace(
@@ -41,7 +41,7 @@ pub fn trace(
     opts: &TraceOptions,
 ) -> Option<MapHit> {
     if opts.method != Method::Sphere {
-        return crate::sphere_trace::trace(height, distance, ray, opts);
+        return crate::sphere_trace::trace_counted(height, distance, ray, opts).0;
     }
     match run::<false>(height, distance, ray, opts) {
         Outcome::Hit(h) => Some(h),
@@ -61,7 +61,9 @@ pub fn occluded(
     opts: &TraceOptions,
 ) -> bool {
     if opts.method != Method::Sphere {
-        return crate::sphere_trace::trace(height, distance, ray, opts).is_some();
+        return crate::sphere_trace::trace_counted(height, distance, ray, opts)
+            .0
+            .is_some();
     }
     !matches!(run::<true>(height, distance, ray, opts), Outcome::Miss)
 }
@@ -137,7 +139,7 @@ fn run_other(
     opts: &TraceOptions,
     any: bool,
 ) -> Outcome {
-    match crate::sphere_trace::trace(height, distance, ray, opts) {
+    match crate::sphere_trace::trace_counted(height, distance, ray, opts).0 {
         Some(_) if any => Outcome::Blocked,
         Some(h) => Outcome::Hit(h),
         None => Outcome::Miss,

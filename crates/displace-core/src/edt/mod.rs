@@ -149,27 +149,26 @@ pub struct SliceScratch {
     block: Vec<f32>,
 }
 
+/// The sampling of a 2D slice: its size in samples, the spacing between
+/// samples along each axis (the `hx`, `hy` of the transform) and whether each
+/// axis wraps around (a tiling height map's distance wraps too).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grid2 {
+    /// Samples per row.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+    /// Distance between neighbouring samples along x and y.
+    pub spacing: [f32; 2],
+    /// Whether x and y wrap around.
+    pub periodic: [bool; 2],
+}
+
 /// 2D transform of a sampled function `g` (`w x h`, row-major), in place:
 /// `g'(i, j) = min (hx (i - i'))^2 + (hy (j - j'))^2 + g(i', j')`.
-pub fn transform_2d(
-    g: &mut [f32],
-    w: usize,
-    h: usize,
-    spacing: [f32; 2],
-    periodic: [bool; 2],
-    s: &mut SliceScratch,
-) {
-    transform_2d_with(
-        g,
-        w,
-        h,
-        spacing,
-        periodic,
-        s,
-        false,
-        |_, _| {},
-        |_, _, results, out| out.copy_from_slice(results),
-    );
+pub fn transform_2d(g: &mut [f32], grid: Grid2, s: &mut SliceScratch) {
+    let copy = |_: usize, _: usize, results: &[f32], out: &mut [f32]| out.copy_from_slice(results);
+    transform_2d_with(g, grid, s, false, |_, _| {}, copy);
 }
 
 /// [`transform_2d`] with the producer and consumer of the slice fused in:
@@ -192,19 +191,21 @@ pub fn transform_2d(
 /// Always inlined, so that a caller compiled for a wider instruction set
 /// (the bake's slices, for AVX2) compiles `fill`, `finish` and the copies
 /// for it too.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn transform_2d_with(
     g: &mut [f32],
-    w: usize,
-    h: usize,
-    spacing: [f32; 2],
-    periodic: [bool; 2],
+    grid: Grid2,
     s: &mut SliceScratch,
     finite: bool,
     mut fill: impl FnMut(usize, &mut [f32]),
     mut finish: impl FnMut(usize, usize, &[f32], &mut [f32]),
 ) {
+    let Grid2 {
+        w,
+        h,
+        spacing,
+        periodic,
+    } = grid;
     debug_assert_eq!(g.len(), w * h);
     if w == 0 || h == 0 {
         return;
@@ -285,7 +286,17 @@ pub fn binary_edt_3d(site: &[bool], size: [usize; 3], spacing: [f32; 3]) -> Vec<
         .collect();
     vol.par_chunks_mut(plane.max(1))
         .for_each_init(SliceScratch::default, |s, slice| {
-            transform_2d(slice, w, h, [spacing[0], spacing[1]], [false, false], s)
+            let spacing = [spacing[0], spacing[1]];
+            transform_2d(
+                slice,
+                Grid2 {
+                    w,
+                    h,
+                    spacing,
+                    periodic: [false; 2],
+                },
+                s,
+            )
         });
     // Along z, in strips of columns so each thread owns disjoint memory.
     let columns: Vec<usize> = (0..plane).collect();
@@ -368,7 +379,8 @@ mod tests {
             let mut next = || { state ^= state << 13; state ^= state >> 7; state ^= state << 17; (state >> 11) as f32 / (1u64 << 53) as f32 };
             let g: Vec<f32> = (0..w * h).map(|_| next() * 20.0).collect();
             let mut got = g.clone();
-            transform_2d(&mut got, w, h, [sx, sy], [px, py], &mut SliceScratch::default());
+            let grid = Grid2 { w, h, spacing: [sx, sy], periodic: [px, py] };
+            transform_2d(&mut got, grid, &mut SliceScratch::default());
             let d = |a: usize, b: usize, n: usize, periodic: bool| {
                 let t = a.abs_diff(b);
                 if periodic { t.min(n - t) } else { t }

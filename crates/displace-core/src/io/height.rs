@@ -837,27 +837,17 @@ mod tests {
         // without the tag), and its holes found; so are the no-data values
         // an f32 does not hold exactly (UInt32's largest, a float -9999.99).
         let codes: Vec<u16> = vec![0, 1000, 65535, 30000];
-        let p = dir.path().join("u16.tif");
-        write_tiff::<tiff::encoder::colortype::Gray16>(&p, [2, 2], &codes, &[], None);
-        let plain = load_path(&p, &opts()).unwrap();
-        let p = dir.path().join("u16nd.tif");
-        write_tiff::<tiff::encoder::colortype::Gray16>(
-            &p,
-            [2, 2],
-            &codes,
-            &[(Tag::GdalNodata, "7")],
-            None,
-        );
-        assert_eq!(load_path(&p, &opts()).unwrap().data(), plain.data());
-        let p = dir.path().join("u16hole.tif");
-        write_tiff::<tiff::encoder::colortype::Gray16>(
-            &p,
-            [2, 2],
-            &codes,
-            &[(Tag::GdalNodata, "65535")],
-            None,
-        );
-        let e = load_path(&p, &opts()).unwrap_err().to_string();
+        let u16_model = |name: &str, tags: &[(Tag, &str)]| {
+            let p = dir.path().join(name);
+            write_tiff::<tiff::encoder::colortype::Gray16>(&p, [2, 2], &codes, tags, None);
+            load_path(&p, &opts())
+        };
+        let plain = u16_model("u16.tif", &[]).unwrap();
+        let tagged = u16_model("u16nd.tif", &[(Tag::GdalNodata, "7")]).unwrap();
+        assert_eq!(tagged.data(), plain.data());
+        let e = u16_model("u16hole.tif", &[(Tag::GdalNodata, "65535")])
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("(0, 1)") && e.contains("no-data"), "{e}");
         let p = dir.path().join("u32hole.tif");
         write_tiff::<tiff::encoder::colortype::Gray32>(

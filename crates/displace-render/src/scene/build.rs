@@ -4,31 +4,19 @@
 //! section 7.3) weighted by their test costs, the path tracer's emitters,
 //! and the offset of secondary rays for the scene's size.
 
-use super::world::{Primitive, Shape};
+use super::world::{bounds, test_cost, Primitive};
 use super::Scene;
 use crate::bvh::Bvh;
 use crate::curved_face::CurvedFace;
 use crate::displaced::DisplacedFace;
 use crate::emitters::Emitters;
 use crate::geometry::Aabb;
-use displace_scene::placed::{Placed, PlacedShape};
+use displace_scene::placed::PlacedShape;
 use displace_scene::World;
 
 /// The primitive of a placed shape, in the same place of the list.
 fn primitive(p: PlacedShape) -> Primitive {
-    let shape = match p.shape {
-        Placed::Quad(q) => Shape::Quad(q),
-        Placed::Triangle { tri, attr } => Shape::Triangle { tri, attr },
-        Placed::Sphere(s) => Shape::Sphere(s),
-        Placed::Displaced(f) => Shape::Displaced(Box::new(DisplacedFace::from(&*f))),
-        Placed::Curved(c) => Shape::Curved(Box::new(CurvedFace::from(&*c))),
-    };
-    Primitive {
-        shape,
-        material: p.material,
-        emitter: p.emitter,
-        shape_index: p.shape_index,
-    }
+    p.map_shape(|s| s.map_faces(|f| DisplacedFace::from(&f), |c| CurvedFace::from(&c)))
 }
 
 /// The CPU scene of `world`.
@@ -52,8 +40,8 @@ pub fn build(world: World) -> Scene {
         warnings,
     } = world;
     let prims: Vec<Primitive> = shapes.into_iter().map(primitive).collect();
-    let bounds: Vec<Aabb> = prims.iter().map(Primitive::bounds).collect();
-    let costs: Vec<f32> = prims.iter().map(Primitive::test_cost).collect();
+    let bounds: Vec<Aabb> = prims.iter().map(bounds).collect();
+    let costs: Vec<f32> = prims.iter().map(test_cost).collect();
     let bvh = Bvh::build_weighted(&bounds, &costs);
     let extent = bvh.bounds();
     let diag = if extent.is_empty() {

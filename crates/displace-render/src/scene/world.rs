@@ -5,34 +5,17 @@ use super::Scene;
 use crate::curved_face::{CurvedFace, CurvedHit};
 use crate::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
-use crate::shapes::{Quad, Sphere, Triangle};
+use crate::shapes::Sphere;
 use displace_core::{DisplacementMap, MapHit};
 pub use displace_scene::placed::NO_ATTR;
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
-/// The geometry of a primitive.
-#[derive(Clone, Debug)]
-pub enum Shape {
-    /// A plain parallelogram.
-    Quad(Quad),
-    /// A plain triangle; `attr` indexes its [`TriAttr`] (`NO_ATTR`: none).
-    Triangle {
-        /// The triangle.
-        tri: Triangle,
-        /// Index of its [`TriAttr`], or `NO_ATTR`.
-        attr: u32,
-    },
-    /// A sphere.
-    Sphere(Sphere),
-    /// A displaced quad or triangle: the prism over it, traced in map space.
-    Displaced(Box<DisplacedFace>),
-    /// A displaced triangle of a curved mesh: the shell along its vertex
-    /// normals, traced through its texture space.
-    Curved(Box<CurvedFace>),
-}
+/// The geometry of a primitive: the scene's shapes with their displaced
+/// faces ready to trace.
+pub type Shape = displace_scene::placed::Shape<DisplacedFace, CurvedFace>;
 
-/// [`Primitive::test_cost`] of a displaced or curved face, a lower bound:
+/// [`test_cost`] of a displaced or curved face, a lower bound:
 /// a ray that misses a displaced face still pays for its transform into
 /// map space and the shell clip (about 100 instructions in callgrind,
 /// where a quad's whole test is about 80), and one that enters the shell
@@ -42,38 +25,25 @@ pub enum Shape {
 const TRACED_TEST_COST: f32 = 2.0;
 
 /// One shape with its material: what the BVH holds.
-#[derive(Clone, Debug)]
-pub struct Primitive {
-    /// Its geometry.
-    pub shape: Shape,
-    /// Index into [`Scene::materials`].
-    pub material: u32,
-    /// Index of the light this primitive is the visible emitter of.
-    pub emitter: Option<u32>,
-    /// Index of the `[[shapes]]` entry of the scene file this primitive was
-    /// built from (`None` for a visible area light's quad).
-    pub shape_index: Option<u32>,
+pub type Primitive = displace_scene::placed::Primitive<Shape>;
+
+/// What testing a ray against `p`'s shape costs, in triangle tests, for the
+/// BVH's surface area heuristic ([`crate::bvh::Bvh::build_weighted`]).
+pub fn test_cost(p: &Primitive) -> f32 {
+    match &p.shape {
+        Shape::Displaced(_) | Shape::Curved(_) => TRACED_TEST_COST,
+        _ => 1.0,
+    }
 }
 
-impl Primitive {
-    /// What testing a ray against the shape costs, in triangle tests, for
-    /// the BVH's surface area heuristic ([`crate::bvh::Bvh::build_weighted`]).
-    pub fn test_cost(&self) -> f32 {
-        match &self.shape {
-            Shape::Displaced(_) | Shape::Curved(_) => TRACED_TEST_COST,
-            _ => 1.0,
-        }
-    }
-
-    /// The world box of the shape (a displaced face's whole shell).
-    pub fn bounds(&self) -> Aabb {
-        match &self.shape {
-            Shape::Quad(q) => q.bounds(),
-            Shape::Triangle { tri, .. } => tri.bounds(),
-            Shape::Sphere(s) => s.bounds(),
-            Shape::Displaced(d) => d.bounds(),
-            Shape::Curved(c) => c.bounds(),
-        }
+/// The world box of `p`'s shape (a displaced face's whole shell).
+pub fn bounds(p: &Primitive) -> Aabb {
+    match &p.shape {
+        Shape::Quad(q) => q.bounds(),
+        Shape::Triangle { tri, .. } => tri.bounds(),
+        Shape::Sphere(s) => s.bounds(),
+        Shape::Displaced(d) => d.bounds(),
+        Shape::Curved(c) => c.bounds(),
     }
 }
 
