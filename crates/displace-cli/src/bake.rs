@@ -237,7 +237,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(n) = &args.normals {
         let normals = NormalMap::from_height(&height, extent);
-        height::write_normal_map_png(n, &normals)
+        displace_core::io::png::write_normal_map_png(n, &normals)
             .with_context(|| format!("writing {}", n.display()))?;
     }
     let seconds = start.elapsed().as_secs_f64();

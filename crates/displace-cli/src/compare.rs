@@ -1,7 +1,7 @@
 //! `displace compare`: every technique of [`displace_core::techniques`]
 //! against the exact reference on seeded rays, over height maps, view
 //! elevations and budgets (BENCHMARKS.md), measured by
-//! [`displace_core::compare`]; this command reads the maps, times on the
+//! [`measure`]; this command reads the maps, times on the
 //! GPU when asked and writes the files. Writes `compare.csv` (one row per map,
 //! elevation, technique and budget), `precompute.csv` (time and memory of
 //! each technique's precomputation per map), one plot of error against cost
@@ -11,19 +11,18 @@
 #[cfg(feature = "gpu")]
 mod gpu_costs;
 mod grid;
+mod measure;
 mod plot;
 
 use crate::args::{load_height, parse_extent, HeightArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use displace_core::compare::{
-    csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan,
-};
 use displace_core::convention::parse_size;
 use displace_core::io::atomic::{write_atomic, Batch};
 use displace_core::io::height::{self, HeightOptions};
 use displace_core::techniques::Technique;
 use displace_core::{generators, Address, Extent, HeightMap};
+use measure::{csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

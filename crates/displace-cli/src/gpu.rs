@@ -18,7 +18,7 @@ use displace_core::{
 };
 use displace_gpu::bench::bench_config;
 use displace_gpu::{DistanceTexture, GpuContext, PlaneScene, RayTracer, Renderer, Shadows};
-use displace_render::output::ImageFile;
+use displace_render::film::output::ImageFile;
 use displace_render::texture::srgb_to_linear;
 use glam::Vec3;
 use std::path::PathBuf;
@@ -168,7 +168,7 @@ pub(crate) fn write_png_rgba8(
         .chunks_exact(4)
         .flat_map(|p| [p[0], p[1], p[2]])
         .collect();
-    displace_render::output::write_png_rgb8(path, width, height, &rgb)
+    displace_render::film::output::write_png_rgb8(path, width, height, &rgb)
 }
 
 fn open_gpu() -> Result<GpuContext> {
@@ -241,7 +241,7 @@ fn write_outputs(
                 height: image.height,
                 pixels,
             };
-            displace_render::output::write_image(output, &linear)
+            displace_render::film::output::write_image(output, &linear)
         }
     }
     .with_context(|| format!("writing {}", output.display()))?;

@@ -5,8 +5,8 @@
 //! and nothing is written.
 
 use anyhow::{Context, Result};
-use displace_render::merge::merge_files;
-use displace_render::output::{write_image, ImageFile};
+use displace_render::film::merge::merge_files;
+use displace_render::film::output::{write_image, ImageFile};
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -6,9 +6,9 @@
 
 use anyhow::{bail, Context, Result};
 use displace_core::io::atomic::Batch;
-use displace_render::output::{aov_paths, write_aov, write_image, ImageFile};
-use displace_render::tile_file::{write_tile, TileMeta};
-use displace_render::tiling::{tile_rect, TileArg, TileIndex};
+use displace_render::film::output::{aov_paths, write_aov, write_image, ImageFile};
+use displace_render::film::tile_file::{write_tile, TileMeta};
+use displace_render::film::tiling::{tile_rect, TileArg, TileIndex};
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;

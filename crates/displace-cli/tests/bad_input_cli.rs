@@ -4,11 +4,9 @@
 //! non-zero, name the problem, not panic and leave nothing behind.
 
 mod cli_common;
-#[path = "../../displace-render/tests/common/elevation.rs"]
-mod elevation;
 
 use cli_common::{failed, files, replaced, stderr, words, SPHERE_SCENE};
-use elevation::{normalised, sampled, write_float_tiff};
+use displace_testkit::elevation::{normalised, sampled, write_float_tiff};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};

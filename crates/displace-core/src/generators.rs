@@ -32,11 +32,6 @@ pub const PREFIX: &str = "gen:";
 /// The generators, as `gen:NAME` names them.
 pub const NAMES: [&str; 6] = ["flat", "gaussian", "studded", "grating", "text", "noise"];
 
-/// True when `spec` names a generator (`gen:...`) rather than a file.
-pub fn is_generator(spec: &str) -> bool {
-    spec.starts_with(PREFIX)
-}
-
 /// Builds the height map named by `spec` (`gen:studded?period=8`) at
 /// `width x height` texels with `address` addressing.
 ///

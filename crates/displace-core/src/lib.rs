@@ -29,7 +29,6 @@
 #![warn(missing_docs)]
 
 pub mod cell_trace;
-pub mod compare;
 pub mod convention;
 pub mod distance_map;
 pub mod edt;

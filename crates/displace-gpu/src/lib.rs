@@ -11,13 +11,14 @@
 //! shading, self-shadowing); the techniques engines ship, beside distance
 //! mapping, run on batches of rays ([`TechniqueTracer`]: parallax, POM,
 //! relief, cone stepping and maximum mipmaps, measured against the exact hit);
-//! GPU-timed benchmarks ([`bench`](mod@bench)); a `displace_render` scene as
+//! GPU-timed benchmarks (`bench`, with the feature of that name); a `displace_render` scene as
 //! draws of the raster path ([`scene_draws`]: the CPU's scene description
 //! is the GPU's too); and the interactive viewer ([`view`]).
 
 #![warn(missing_docs)]
 
 mod batch;
+#[cfg(feature = "bench")]
 pub mod bench;
 pub mod context;
 pub mod convention;
@@ -32,6 +33,7 @@ pub mod scene_draws;
 pub mod shaders;
 pub mod technique_maps;
 pub mod techniques;
+#[cfg(feature = "test-support")]
 pub mod test_support;
 pub mod timing;
 pub mod trace;

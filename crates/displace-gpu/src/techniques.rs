@@ -257,11 +257,6 @@ impl TechniqueCost {
     pub fn ms_per_mray(&self) -> f64 {
         self.timing.ms_per_frame * 1e6 / self.rays.max(1) as f64
     }
-
-    /// Milliseconds per 1280x1024 frame of such rays (one per pixel).
-    pub fn ms_per_frame_1280x1024(&self) -> f64 {
-        self.ms_per_mray() * (1280.0 * 1024.0) / 1e6
-    }
 }
 
 /// Times every `(technique, budget)` pair on `rays`, `frames` dispatches

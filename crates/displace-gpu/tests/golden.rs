@@ -2,8 +2,8 @@
 //! `displace gpu-render SCENE` draws them, through [`from_scene`]) and of
 //! the built-in displaced plane, compared with the stored references in
 //! `tests/golden` by mean and 99th-percentile FLIP, judged, stored and
-//! blessed as displace-render's golden test does (one definition, included
-//! from there). The agreement tests hold the GPU's ray queries to the CPU's
+//! blessed as displace-render's golden test does (one definition, in
+//! displace-testkit). The agreement tests hold the GPU's ray queries to the CPU's
 //! hit by hit; these hold what the whole path draws (shells, shading,
 //! shadows, plain shapes, depth between draws) to what it drew when the
 //! references were blessed.
@@ -12,15 +12,12 @@
 //! adapter CI has): regenerate them there, only on request, with
 //! `DISPLACE_BLESS=1 cargo test -p displace-gpu --test golden`.
 
-#[path = "../../displace-render/tests/common/golden.rs"]
-mod golden;
-
 use displace_core::generators::generate;
 use displace_core::{bake, Address, BakeOptions, Extent};
 use displace_gpu::test_support::test_context;
 use displace_gpu::{from_scene, DistanceTexture, GpuContext, Image, PlaneScene, Renderer, Shadows};
 use displace_scene::{SceneOptions, World};
-use golden::{assert_percentile_catches_a_patch, Thresholds};
+use displace_testkit::golden::{self, assert_percentile_catches_a_patch, Thresholds};
 use std::path::{Path, PathBuf};
 
 /// The FLIP allowed. lavapipe draws the same frame on every run and

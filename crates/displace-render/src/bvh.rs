@@ -299,7 +299,7 @@ fn partition(items: &mut [Item], pred: impl Fn(&Item) -> bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampler::Rng;
+    use crate::shading::sampler::Rng;
 
     /// The leaves holding primitive `i`, and their sizes.
     fn leaf_sizes_of(bvh: &Bvh, i: u32) -> Vec<u16> {

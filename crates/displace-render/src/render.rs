@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 ///
 /// A crop renders exactly the pixels the full render would have there
 /// (samples are seeded per pixel), which is what lets a render farm split
-/// an image into crops ([`crate::tiling`]) and merge them ([`crate::merge`])
+/// an image into crops ([`crate::film::tiling`]) and merge them ([`crate::film::merge`])
 /// seamlessly. Parsed from `x,y,w,h` (`--crop`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
@@ -137,7 +137,7 @@ pub struct RenderOptions<'a> {
 /// Linear RGB pixels, row-major, row 0 at the top.
 ///
 /// Kept linear and unclamped so that farm tiles (EXR) merge back into the
-/// same image and EXR output keeps the radiance; [`crate::output`] encodes
+/// same image and EXR output keeps the radiance; [`crate::film::output`] encodes
 /// sRGB only when writing a PNG.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -151,7 +151,7 @@ pub struct Image {
 
 /// An AOV as an `(height, width, channels)` float array.
 ///
-/// That is the layout [`crate::output`] writes as is, as `OUT.NAME.npy`
+/// That is the layout [`crate::film::output`] writes as is, as `OUT.NAME.npy`
 /// (with a false-colour PNG beside it).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AovImage {
@@ -177,7 +177,7 @@ pub struct Rendered {
 }
 
 /// The side of the square tiles the render loop hands to its threads; farm
-/// tiles ([`crate::tiling`]) are whole rows of them.
+/// tiles ([`crate::film::tiling`]) are whole rows of them.
 pub const TILE: u32 = 16;
 
 /// Renders `scene` in the current rayon pool.

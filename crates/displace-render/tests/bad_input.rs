@@ -5,10 +5,10 @@
 
 mod common;
 
-use common::elevation;
 use common::scene_toml::SceneToml;
 use common::*;
 use displace_render::scene::{Scene, MAX_DEPTH, MAX_SHADOW_SAMPLES, MAX_SPP};
+use displace_testkit::elevation;
 use std::path::Path;
 
 /// The sphere's `[[shapes]]` entry in [`sphere`].

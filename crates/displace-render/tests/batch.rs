@@ -1,5 +1,5 @@
 //! The batch queries (`Scene::intersect_many`, `occluded_many`) against the
-//! one-ray ones on the seed scenes: every ray's nearest hit (primitive,
+//! one-ray ones on the scenes of `scenes/`: every ray's nearest hit (primitive,
 //! distance, position, normals) and any-hit answer are the same.
 
 mod common;

@@ -6,9 +6,9 @@
 mod common;
 
 use displace_core::{bake, Address, BakeOptions, Extent, HeightMap, TraceOptions};
-use displace_render::curved_face::CurvedFace;
 use displace_render::curved_shell::{lambda_for_depth, min_normal_length, CurvedShell};
-use displace_render::displaced_surface::{DisplacedSurface, REFERENCE_EDGE_TEXELS};
+use displace_render::faces::curved_face::CurvedFace;
+use displace_render::faces::displaced_surface::{DisplacedSurface, REFERENCE_EDGE_TEXELS};
 use displace_render::geometry::Ray;
 use displace_render::scene::Shape;
 use displace_render::{Scene, SceneOptions};

@@ -304,7 +304,7 @@ fn mutated_inputs_never_panic() {
     // Height maps: a 16-bit PNG and an EXR written by our own writers.
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("h.png");
-    height::write_height_png16(&png, &map.height).unwrap();
+    displace_core::io::png::write_height_png16(&png, &map.height).unwrap();
     let exr = dir.path().join("h.exr");
     let img = displace_render::Image {
         width: 8,
@@ -313,7 +313,7 @@ fn mutated_inputs_never_panic() {
             .map(|k| glam::Vec3::splat(k as f32 / 64.0))
             .collect(),
     };
-    displace_render::output::write_image(&exr, &img).unwrap();
+    displace_render::film::output::write_image(&exr, &img).unwrap();
     // A photograph and a 16-bit terrain export: JPEG and TIFF.
     let jpg = dir.path().join("h.jpg");
     let tif = dir.path().join("h.tif");

@@ -1,16 +1,16 @@
 //! Golden images: small renders of seed scenes compared with the stored
 //! references in `tests/golden` by mean and 99th-percentile FLIP
-//! (`common::golden` says how they are judged, stored and blessed).
+//! (`displace_testkit::golden` says how they are judged, stored and blessed).
 //!
 //! The references are regenerated only on request:
 //! `DISPLACE_BLESS=1 cargo test -p displace-render --test golden`.
 
 mod common;
 
-use common::golden::{self, assert_percentile_catches_a_patch, Thresholds};
 use common::*;
-use displace_render::output::srgb8;
+use displace_render::film::output::srgb8;
 use displace_render::{render, RenderOptions, Scene, SceneOptions};
+use displace_testkit::golden::{self, assert_percentile_catches_a_patch, Thresholds};
 use std::path::Path;
 
 /// The FLIP allowed. Mean 0.01: renders are deterministic on one platform

@@ -352,7 +352,7 @@ fn every_scene_of_the_repository_loads() {
     for e in std::fs::read_dir(scenes_dir()).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|x| x == "toml") {
-            Scene::load(
+            let scene = Scene::load(
                 &p,
                 &SceneOptions {
                     size: Some([8, 8]),
@@ -360,10 +360,53 @@ fn every_scene_of_the_repository_loads() {
                 },
             )
             .unwrap_or_else(|e| panic!("{e}"));
+            // No area light faces away from its room.
+            assert!(
+                scene.warnings().is_empty(),
+                "{}: {:?}",
+                p.display(),
+                scene.warnings()
+            );
             n += 1;
         }
     }
     assert!(n >= 12, "{n} scenes");
+}
+
+/// An area light whose lit side (`edge_u x edge_v`) faces away from the
+/// scene is warned about, naming the light and the way to turn it, visible
+/// or not; the same light turned round is not, nor is the point light.
+#[test]
+fn an_area_light_facing_away_from_the_scene_is_warned_about() {
+    let room = |edges: &str, extra: &str| {
+        format!(
+            "[image]\nwidth = 8\nheight = 8\nspp = 1\n[camera]\nposition = [0, 1, -4]\nlook_at = [0, 1, 0]\n\
+             [materials.m]\ntype = \"lambert\"\ncolor = [0.5, 0.5, 0.5]\n\
+             [[shapes]]\ntype = \"quad\"\norigin = [-2, 0, -2]\nedge_u = [0, 0, 4]\nedge_v = [4, 0, 0]\nmaterial = \"m\"\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 0.5\nmaterial = \"m\"\n\
+             [[lights]]\ntype = \"point\"\nposition = [0, 1, -2]\nintensity = [1, 1, 1]\n\
+             [[lights]]\ntype = \"area\"\norigin = [-0.5, 3, -0.5]\n{edges}\nradiance = [4, 4, 4]\n{extra}"
+        )
+    };
+    // Emitting up, above everything: warned.
+    let up = scene(&room("edge_u = [0, 0, 1]\nedge_v = [1, 0, 0]", ""));
+    let w = up.warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("lights[1]")
+            && w[0].contains("faces away")
+            && w[0].contains("swap edge_u and edge_v"),
+        "{w:?}"
+    );
+    // Turned round, emitting down: not warned.
+    let down = scene(&room("edge_u = [1, 0, 0]\nedge_v = [0, 0, 1]", ""));
+    assert!(down.warnings().is_empty(), "{:?}", down.warnings());
+    // Invisible or not, the same test.
+    let hidden = scene(&room(
+        "edge_u = [0, 0, 1]\nedge_v = [1, 0, 0]",
+        "visible = false",
+    ));
+    assert_eq!(hidden.warnings().len(), 1, "{:?}", hidden.warnings());
 }
 
 /// The studded quad of `studded_scene` as two displaced triangles with

@@ -112,11 +112,6 @@ impl MeshShells {
     pub fn shared(&self, m: usize) -> [bool; 3] {
         self.neighbours[m].map(|n| n.is_some())
     }
-
-    /// Whether any triangle is curved.
-    pub fn any_curved(&self) -> bool {
-        self.top.is_some()
-    }
 }
 
 /// The normals a triangle's shell is extruded along: its vertex normals

@@ -108,6 +108,21 @@ impl FlatDisplacement {
         &self.map
     }
 
+    /// The world corners of the shell (the prism's six, or the box's
+    /// eight: base, then top), which bound the displaced surface.
+    pub fn shell_corners(&self) -> Vec<Vec3> {
+        let [ax, ay] = self.map.aspect();
+        let hi = Vec2::new(ax * self.trace.tiles[0], ay * self.trace.tiles[1]);
+        let base: Vec<Vec2> = match self.prism_uv {
+            Some(t) => t.map(|uv| uv * Vec2::new(ax, ay)).to_vec(),
+            None => vec![Vec2::ZERO, Vec2::new(hi.x, 0.0), Vec2::new(0.0, hi.y), hi],
+        };
+        let (origin, m) = (self.frame.origin, self.to_world);
+        base.iter()
+            .flat_map(|b| [0.0, 1.0].map(|z| origin + m * b.extend(z)))
+            .collect()
+    }
+
     /// The face's trace settings (method, step count, tiles), so that every
     /// renderer traces the face alike.
     pub fn trace_options(&self) -> TraceOptions {

@@ -2,6 +2,7 @@
 //! subcommand per subject.
 
 mod bake;
+mod probe;
 mod render;
 mod trace;
 

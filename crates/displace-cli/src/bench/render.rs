@@ -10,8 +10,8 @@
 //! on a machine other work shares. Setup is the scene build including the
 //! bake, with the disk cache off so it is timed every time.
 
+use super::probe::{displaced_rays, DisplacedRays};
 use anyhow::{bail, Context, Result};
-use displace_render::probe::{displaced_rays, DisplacedRays};
 use displace_render::{Scene, SceneOptions};
 use rayon::prelude::*;
 use rayon::ThreadPool;

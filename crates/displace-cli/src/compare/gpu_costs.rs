@@ -1,8 +1,8 @@
 //! `compare --gpu`: every technique and budget timed on the GPU's compute
 //! path, in a build with the `gpu` feature.
 
+use super::measure::Row;
 use anyhow::{Context, Result};
-use displace_core::compare::Row;
 use displace_core::techniques::{Maps, Technique};
 use displace_core::MapRay;
 use displace_gpu::{technique_costs, GpuContext};

@@ -7,10 +7,10 @@
 //! (an orthographic camera), shaded from the baked normal map at the uv
 //! each technique returns, tinted by height.
 
+use super::measure::{exact_hits, texel_error};
 use super::plot::{register_font, FAMILY};
 use anyhow::{anyhow, Result};
-use displace_core::compare::{exact_hits, texel_error};
-use displace_core::io::height::write_rgb8_png;
+use displace_core::io::png::write_rgb8_png;
 use displace_core::random::rays::downward;
 use displace_core::techniques::{Maps, Technique};
 use displace_core::MapRay;

@@ -2,9 +2,9 @@
 //! `plotters` into a pixel buffer (its ab_glyph text needs no system font:
 //! the project's bundled DejaVu Sans Bold is registered once).
 
+use super::measure::Row;
 use anyhow::{anyhow, Result};
-use displace_core::compare::Row;
-use displace_core::io::height::write_rgb8_png;
+use displace_core::io::png::write_rgb8_png;
 use displace_core::techniques::Technique;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};

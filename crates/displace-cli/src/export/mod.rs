@@ -20,7 +20,7 @@
 //! **A scene's displaced meshes** (`--scene`): each displaced mesh of the
 //! scene (built-in or OBJ, placed in the world as the scene places it) as
 //! its displaced surface `P + depth h(uv) N` tessellated finely
-//! ([`displace_render::displaced_surface`]), one OBJ object (or all in one
+//! ([`displace_render::faces::displaced_surface`]), one OBJ object (or all in one
 //! PLY) per mesh: the surface pbrt-v4 or Cycles draw when they subdivide
 //! the mesh and move its vertices along the interpolated normals, and the
 //! ground truth of curved displaced meshes.
@@ -143,7 +143,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         }
         let edge = args
             .edge_texels
-            .unwrap_or(displace_render::displaced_surface::REFERENCE_EDGE_TEXELS);
+            .unwrap_or(displace_render::faces::displaced_surface::REFERENCE_EDGE_TEXELS);
         return surface::run(scene, edge, kind, &args.output);
     }
     if args.edge_texels.is_some() {

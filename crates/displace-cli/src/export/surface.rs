@@ -1,5 +1,5 @@
 //! `displace export-mesh --scene`: every displaced mesh of a scene as its
-//! displaced surface, tessellated ([`displace_render::displaced_surface`]),
+//! displaced surface, tessellated ([`displace_render::faces::displaced_surface`]),
 //! for triangle ray tracers (Embree, Mitsuba 3) and as the ground truth of
 //! curved displaced meshes. Each mesh is in the world as the scene places
 //! it; its texture coordinates are those the height map is read at (the
@@ -8,7 +8,7 @@
 use super::format::MeshFile;
 use anyhow::{bail, Context, Result};
 use displace_core::io::atomic::write_atomic;
-use displace_render::displaced_surface::DisplacedSurface;
+use displace_render::faces::displaced_surface::DisplacedSurface;
 use displace_render::{Scene, SceneOptions};
 use std::io::Write;
 use std::path::Path;

@@ -11,7 +11,8 @@ use displace_gpu::{from_scene, DistanceTexture, GpuContext, Image, SceneDraws, S
 use displace_scene::{SceneOptions, World};
 use std::path::Path;
 
-/// Loads `path` exactly as `displace render` does.
+/// Loads `path` exactly as `displace render` does, and prints its warnings
+/// as it does.
 pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<World> {
     let opts = SceneOptions {
         size,
@@ -22,7 +23,11 @@ pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<World
         },
         ..SceneOptions::default()
     };
-    Ok(World::load(path, &opts)?)
+    let world = World::load(path, &opts)?;
+    for w in &world.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(world)
 }
 
 /// The draws of `scene` and one frame of them.

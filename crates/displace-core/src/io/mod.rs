@@ -11,7 +11,8 @@
 //! | npy    | [`npy`]  | float32 arrays of any shape (physical units)         |
 //! | KTX2   | [`ktx2`] | distance map + extent, addressing, encoding, bound   |
 //! | DDS    | [`dds`]  | distance map voxels only (extent given by the user)  |
-//! | PNG/JPEG/TIFF/EXR| [`height`] | height maps in, normal and height maps out |
+//! | PNG/JPEG/TIFF/EXR| [`height`] | height maps in                           |
+//! | PNG    | [`png`]  | normal maps, 16-bit heights and RGB images out       |
 //! | TIFF data rasters | `data_tiff` | elevation models in (float, signed samples) |
 
 pub mod atomic;
@@ -21,6 +22,7 @@ pub mod direct;
 pub mod height;
 pub mod ktx2;
 pub mod npy;
+pub mod png;
 pub mod stream;
 
 use crate::convention::MAX_ALLOCATION_BYTES;

@@ -98,7 +98,7 @@ impl Stage {
 /// The light the GPU path uses: position and radiant intensity (RGB) of
 /// the strongest of `lights`. An area light becomes a point at its centre
 /// with its on-axis intensity `L A` (radiance times area), so an area-lit
-/// scene with a dim point fill (the seed scenes' Cornell boxes) is lit by
+/// scene with a dim point fill (the Cornell boxes of `scenes/`) is lit by
 /// its area light, not by the fill.
 fn pick_light(lights: &[Light]) -> Option<(Vec3, Vec3)> {
     lights
@@ -142,7 +142,7 @@ mod tests {
     }
 
     /// The strongest light wins, an area light counting as `L A` at its
-    /// centre: the seed scenes' area light beats their dim point fill, and a
+    /// centre: the Cornell boxes' area light beats their dim point fill, and a
     /// bright point beats a small area light, whatever their order.
     #[test]
     fn the_strongest_light_is_the_one_drawn() {

@@ -1,7 +1,7 @@
 //! Unidirectional path tracing (Kajiya 1986) with next-event estimation and
 //! multiple importance sampling, after pbrt-v4's `PathIntegrator` (section
 //! 13.4): at every vertex one light is sampled (chosen by power, see
-//! [`crate::emitters`]) and one BSDF direction ([`crate::bsdf`]); the light
+//! [`crate::shading::emitters`]) and one BSDF direction ([`crate::shading::bsdf`]); the light
 //! that either finds is weighted by the power heuristic with exponent 2
 //! (Veach 1997, section 9.2.4), so small bright lights are found by light
 //! sampling and large ones, and glossy reflections of them, by BSDF
@@ -15,20 +15,20 @@
 //!
 //! Displaced faces are ordinary surfaces here: paths bounce off and under
 //! their bumps, and their shading normals are handled as every surface's
-//! are (see [`crate::bsdf`]).
+//! are (see [`crate::shading::bsdf`]).
 //!
 //! For testing the estimators one at a time, `image.sampling` chooses
 //! light sampling alone or BSDF sampling alone instead of both (each
 //! unbiased by itself; Veach 1997, figure 9.2's comparison).
 
 use super::whitted::{emitted, facing, shadow_query};
-use crate::bsdf::Bsdf;
 use crate::camera_sample::{camera_ray, camera_sample};
 use crate::geometry::Ray;
-use crate::sampler::SampleStream;
-use crate::sampler::SamplerKind;
 use crate::scene::{Interaction, Scene};
 use crate::settings::Sampling;
+use crate::shading::bsdf::Bsdf;
+use crate::shading::sampler::SampleStream;
+use crate::shading::sampler::SamplerKind;
 use glam::Vec3;
 
 /// Bounces before Russian roulette may end a path (pbrt-v3's choice; pbrt-v4

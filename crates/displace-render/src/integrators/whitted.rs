@@ -16,9 +16,9 @@
 use crate::camera_sample::camera_sample;
 use crate::geometry::Ray;
 use crate::light::Light;
-use crate::sampler::Rng;
 use crate::scene::batch::Batch;
 use crate::scene::{Interaction, Scene};
+use crate::shading::sampler::Rng;
 use glam::Vec3;
 
 /// Which of a pixel's `count` samples this is: at the first hit, area-light
@@ -63,7 +63,7 @@ pub fn radiance(
 ///
 /// Returns `(ng, ns, p)`. The offset by the scene's `epsilon` along `ng`
 /// keeps a secondary ray from hitting its own surface again; it is shared
-/// by both integrators and [`crate::probe`] so they start rays alike.
+/// by both integrators and the benchmarks' ray sets, so they start rays alike.
 pub fn facing(scene: &Scene, ray: &Ray, hit: &Interaction) -> (Vec3, Vec3, Vec3) {
     let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
     if ng.dot(ray.dir) > 0.0 {
@@ -94,7 +94,7 @@ pub struct ShadowQuery {
 /// normals `ng`, `ns` already facing the viewer) to light sample `target`,
 /// or `None` when the light is behind the surface and no ray is cast. The
 /// geometry is taken from the surface point itself; only the ray starts off
-/// the surface. Shared with [`crate::probe`], which benchmarks these rays.
+/// the surface. Shared with the benchmarks' ray sets, which time these rays.
 pub fn shadow_query(
     scene: &Scene,
     position: Vec3,

@@ -111,7 +111,7 @@ impl Scene {
     }
 
     /// Eight nearest hits on one displaced face, carried to the world
-    /// together ([`crate::displaced::DisplacedFace::world_geometry8`]);
+    /// together ([`crate::faces::displaced::DisplacedFace::world_geometry8`]);
     /// `None` unless `best` is eight such hits.
     fn displaced_geometry8(&self, best: &[Option<(u32, f32, Local)>]) -> Option<[GeometryHit; 8]> {
         let &Some((prim, _, _)) = best.first()? else {
@@ -316,7 +316,7 @@ impl Scene {
                     ..
                 } = batch;
                 map.trace_each(&batch.rays, &batch.opts, |q, hit| {
-                    let (t, hit) = crate::displaced::finish(entries[q], scales[q], hit);
+                    let (t, hit) = crate::faces::displaced::finish(entries[q], scales[q], hit);
                     let r = pending[owners[q] as usize].1 as usize;
                     if best[r].is_none_or(|(_, best, _)| t < best) {
                         best[r] = Some((prim, t, Local::Map(hit)));

@@ -7,10 +7,10 @@
 use super::world::{bounds, test_cost, Primitive};
 use super::Scene;
 use crate::bvh::Bvh;
-use crate::curved_face::CurvedFace;
-use crate::displaced::DisplacedFace;
-use crate::emitters::Emitters;
+use crate::faces::curved_face::CurvedFace;
+use crate::faces::displaced::DisplacedFace;
 use crate::geometry::Aabb;
+use crate::shading::emitters::Emitters;
 use displace_scene::placed::PlacedShape;
 use displace_scene::World;
 

@@ -17,13 +17,13 @@ pub use world::{Interaction, Primitive, Shape};
 use crate::bake_cache::CacheStats;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::emitters::Emitters;
 use crate::environment::Environment;
 use crate::error::Result;
 use crate::light::Light;
 use crate::material::Material;
-use crate::sampler::SamplerKind;
 use crate::settings::{Integrator, Sampling};
+use crate::shading::emitters::Emitters;
+use crate::shading::sampler::SamplerKind;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -97,6 +97,10 @@ impl Scene {
     /// Samples per pixel.
     pub fn spp(&self) -> u32 {
         self.spp
+    }
+    /// Shadow rays per area light and sample (Whitted's soft shadows).
+    pub fn shadow_samples(&self) -> u32 {
+        self.shadow_samples
     }
     /// Number of primitives (a mesh counts its triangles).
     pub fn primitive_count(&self) -> usize {

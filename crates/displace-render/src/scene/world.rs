@@ -2,8 +2,8 @@
 //! of them: nearest hit, and whether anything blocks a segment.
 
 use super::Scene;
-use crate::curved_face::{CurvedFace, CurvedHit};
-use crate::displaced::DisplacedFace;
+use crate::faces::curved_face::{CurvedFace, CurvedHit};
+use crate::faces::displaced::DisplacedFace;
 use crate::geometry::{Aabb, Ray};
 use crate::shapes::Sphere;
 use displace_core::{DisplacementMap, MapHit};

@@ -1,8 +1,6 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-pub mod elevation;
-pub mod golden;
 pub mod scene_toml;
 
 use displace_render::{render, Aov, Crop, Image, RenderOptions, Rendered, Scene, SceneOptions};

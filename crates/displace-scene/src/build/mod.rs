@@ -46,6 +46,8 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         attrs,
         meshes,
     } = geo;
+    let mut warnings = cx.cache.warnings();
+    warnings.extend(lights::facing_away(&lights, &prims));
     Ok(World {
         camera,
         width: film.width,
@@ -70,6 +72,6 @@ pub fn build(spec: SceneSpec, name: &Path, base: &Path, opts: &SceneOptions) -> 
         cache_stats: cx.cache.stats(),
         sources: cx.sources,
         content_hash: 0,
-        warnings: cx.cache.warnings(),
+        warnings,
     })
 }

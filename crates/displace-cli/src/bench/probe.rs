@@ -1,17 +1,17 @@
 //! Ray sets for throughput benchmarks (BENCHMARKS.md): the camera
 //! rays of a render whose nearest hit lies on a displaced face, and the
-//! shadow rays those hits cast, generated exactly as [`crate::render()`] and
-//! [`crate::integrators::whitted`] generate them (same jitter, same light strata, same
+//! shadow rays those hits cast, generated exactly as [`displace_render::render()`] and
+//! [`displace_render::integrators::whitted`] generate them (same jitter, same light strata, same
 //! offsets). Timing [`Scene::intersect`] and [`Scene::occluded`] on them
 //! apart from shading gives the speed of the intersection routine on
 //! displaced surfaces, as rays per second (the ray-tracer paper reports only
 //! whole rendering times, its section 4).
 
-use crate::camera_sample::camera_sample;
-use crate::error::{Error, Result};
-use crate::geometry::Ray;
-use crate::integrators::whitted::{facing, shadow_query};
-use crate::scene::Scene;
+use displace_render::camera_sample::camera_sample;
+use displace_render::error::{Error, Result};
+use displace_render::geometry::Ray;
+use displace_render::integrators::whitted::{facing, shadow_query};
+use displace_render::scene::Scene;
 use rayon::prelude::*;
 
 /// A shadow ray and the distance past which occluders do not count.
@@ -43,19 +43,19 @@ pub const MAX_CAMERA_RAYS: u64 = 1 << 26;
 /// a displaced face, with the shadow rays shading would cast from there.
 /// Runs in the current rayon pool.
 pub fn displaced_rays(scene: &Scene) -> Result<DisplacedRays> {
-    let total = scene.width as u64 * scene.height as u64 * scene.spp as u64;
+    let total = scene.width() as u64 * scene.height() as u64 * scene.spp() as u64;
     if total > MAX_CAMERA_RAYS {
         return Err(Error::Option(format!(
             "{}x{} pixels at {} spp is {total} camera rays; benchmarks take at most {MAX_CAMERA_RAYS}",
-            scene.width, scene.height, scene.spp
+            scene.width(), scene.height(), scene.spp()
         )));
     }
-    let rows: Vec<DisplacedRays> = (0..scene.height)
+    let rows: Vec<DisplacedRays> = (0..scene.height())
         .into_par_iter()
         .map(|y| {
             let mut out = DisplacedRays::default();
-            for x in 0..scene.width {
-                for s in 0..scene.spp {
+            for x in 0..scene.width() {
+                for s in 0..scene.spp() {
                     collect_sample(scene, x, y, s, &mut out);
                 }
             }
@@ -84,15 +84,15 @@ fn collect_sample(scene: &Scene, x: u32, y: u32, s: u32, out: &mut DisplacedRays
         return;
     }
     out.camera.push(ray);
-    let mat = &scene.materials[hit.material as usize];
+    let mat = &scene.materials()[hit.material as usize];
     if mat.albedo(hit.uv, hit.tint) == glam::Vec3::ZERO && mat.specular == glam::Vec3::ZERO {
         return;
     }
     let (ng, ns, p) = facing(scene, &ray, &hit);
-    for light in &scene.lights {
-        let n = light.samples(scene.shadow_samples);
+    for light in scene.lights() {
+        let n = light.samples(scene.shadow_samples());
         for i in 0..n {
-            let Some(ls) = light.sample(hit.position, s * n + i, scene.spp * n, &mut rng) else {
+            let Some(ls) = light.sample(hit.position, s * n + i, scene.spp() * n, &mut rng) else {
                 continue;
             };
             if let Some(q) = shadow_query(scene, hit.position, p, ng, ns, ls.point) {
@@ -108,7 +108,7 @@ fn collect_sample(scene: &Scene, x: u32, y: u32, s: u32, out: &mut DisplacedRays
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::SceneOptions;
+    use displace_render::SceneOptions;
 
     /// The default scene's floor is displaced and lit by one area light and
     /// one point light: displaced camera rays exist, are a subset of all
@@ -125,7 +125,7 @@ mod tests {
         assert_eq!(r.camera_total, 24 * 24);
         assert!(!r.camera.is_empty() && r.camera.len() < r.camera_total);
         assert!(!r.shadow.is_empty());
-        assert!(r.shadow.len() <= r.camera.len() * (scene.shadow_samples as usize + 1));
+        assert!(r.shadow.len() <= r.camera.len() * (scene.shadow_samples() as usize + 1));
         for ray in &r.camera {
             let (i, _) = scene.intersect_primitive(ray, 0.0, f32::INFINITY).unwrap();
             assert!(scene.is_displaced(i));

@@ -6,8 +6,8 @@
 //! section 8.4).
 
 use super::CompareError;
-use crate::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Needs, Technique};
-use crate::{bake, BakeOptions, Extent, HeightMap};
+use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Needs, Technique};
+use displace_core::{bake, BakeOptions, Extent, HeightMap};
 use std::time::Instant;
 
 /// Time and memory of one precomputation: a row of `precompute.csv`.

@@ -2,9 +2,9 @@
 //! each technique's hits, fetches and time per ray, scored into rows.
 
 use super::{score, CompareError, Plan, Row};
-use crate::random::rays::{tile_rays, Elevation, Start};
-use crate::techniques::{Maps, Technique};
-use crate::{MapRay, Method, TraceOptions};
+use displace_core::random::rays::{tile_rays, Elevation, Start};
+use displace_core::techniques::{Maps, Technique};
+use displace_core::{MapRay, Method, TraceOptions};
 use glam::Vec2;
 use std::time::Instant;
 

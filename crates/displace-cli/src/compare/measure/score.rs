@@ -93,7 +93,7 @@ pub fn equal_error(rows: &[Row]) -> Vec<(&Row, Option<&Row>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::techniques::Technique;
+    use displace_core::techniques::Technique;
 
     #[test]
     fn errors_are_in_texels_and_disagreeing_misses_are_wrong() {

@@ -1,7 +1,7 @@
 //! A triangle of a curved displaced mesh as the renderer's primitive: its
 //! shell ([`crate::curved_shell`]) in the world, traced through the
 //! triangle's texture space with the same distance map and exact
-//! refinement as a flat face ([`crate::displaced`]).
+//! refinement as a flat face ([`crate::faces::displaced`]).
 //!
 //! Inside the shell the map coordinates `(x, y, w)` are a smooth function
 //! of the world position, so a straight world ray is a curve in map space
@@ -28,7 +28,7 @@
 //! the neighbour's trace left within rounding of the shared side).
 
 use crate::curved_shell::{normal_to_world, Boundary, Crossing, CurvedShell, Located};
-use crate::displaced::{map_shading_direction, DisplacedHit};
+use crate::faces::displaced::{map_shading_direction, DisplacedHit};
 use crate::geometry::{Aabb, Ray};
 use crate::texture::Texture;
 use displace_core::convention::CHORD_TOLERANCE;
@@ -155,7 +155,7 @@ impl CurvedFace {
         &self.shell
     }
 
-    /// Changes the map-space tracer (as [`crate::displaced::DisplacedFace::set_method`]).
+    /// Changes the map-space tracer (as [`crate::faces::displaced::DisplacedFace::set_method`]).
     pub fn set_method(&mut self, method: displace_core::Method) {
         self.trace.method = method;
     }

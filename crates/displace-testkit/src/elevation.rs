@@ -1,10 +1,6 @@
 //! Elevation models (heights in metres, as GDAL writes a DEM) for the tests
-//! of `height_range`: the renderer's (`tests/bad_input.rs`, through
-//! `common`) and the CLI's bake (displace-cli's `tests/bad_input_cli.rs`
-//! includes this file by path), so both build and normalise them the same
-//! way.
-
-#![allow(dead_code)]
+//! of `height_range`: the renderer's and the CLI's bake, so both build and
+//! normalise them the same way.
 
 use std::path::Path;
 

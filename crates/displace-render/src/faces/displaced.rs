@@ -165,16 +165,8 @@ impl From<&FlatDisplacement> for DisplacedFace {
         let trace = f.trace_options();
         let [ax, ay] = map.aspect();
         let to_map = to_world.inverse();
-        let hi = Vec2::new(ax * trace.tiles[0], ay * trace.tiles[1]);
         let prism = f.prism_uv().map(|t| t.map(|uv| uv * Vec2::new(ax, ay)));
-        let base: Vec<Vec2> = match prism {
-            Some(t) => t.to_vec(),
-            None => vec![Vec2::ZERO, Vec2::new(hi.x, 0.0), Vec2::new(0.0, hi.y), hi],
-        };
-        let bounds = Aabb::from_points(
-            base.iter()
-                .flat_map(|b| [0.0, 1.0].map(|z| origin + to_world * b.extend(z))),
-        );
+        let bounds = Aabb::from_points(f.shell_corners());
         Self {
             origin,
             to_world,
@@ -216,12 +208,6 @@ impl DisplacedFace {
     /// as this one does.
     pub fn trace_options(&self) -> TraceOptions {
         self.trace
-    }
-
-    /// Whether the face is a triangle (a prism shell) rather than a
-    /// parallelogram (the whole map box).
-    pub fn is_triangle(&self) -> bool {
-        self.prism.is_some()
     }
 
     /// Changes how the face is traced ([`displace_core::Method`]: the

@@ -7,8 +7,8 @@
 //! `displace.tile` (`I/N`, the tile's index and the tile count).
 
 use crate::error::{Error, Result};
+use crate::film::tiling::TileIndex;
 use crate::render::{Crop, Image};
-use crate::tiling::TileIndex;
 use displace_core::io::atomic::write_atomic;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
 use exr::prelude::{
@@ -192,7 +192,7 @@ pub fn read_tile(path: &Path) -> Result<TileImage> {
         })?;
     let tile_text = text_attribute(attrs, TILE_ATTRIBUTE, path)?;
     let tile = match tile_text.parse() {
-        Ok(crate::tiling::TileArg::Fixed(t)) => t,
+        Ok(crate::film::tiling::TileArg::Fixed(t)) => t,
         _ => {
             return Err(bad(
                 path,
@@ -308,7 +308,7 @@ mod tests {
         }
         // An EXR without the attributes: not a tile.
         let plain = dir.path().join("plain.exr");
-        crate::output::write_image(&plain, &img).unwrap();
+        crate::film::output::write_image(&plain, &img).unwrap();
         let e = read_tile(&plain).unwrap_err().to_string();
         assert!(e.contains("plain.exr") && e.contains(HASH_ATTRIBUTE), "{e}");
     }

@@ -1,9 +1,9 @@
 //! The estimated peak memory of a whole comparison, so that one too large
 //! for the machine is refused from the height maps' headers alone
-//! ([`crate::memory::check`]) rather than failing an allocation minutes in.
+//! ([`displace_core::memory::check`]) rather than failing an allocation minutes in.
 
-use crate::techniques::{Needs, Technique};
-use crate::MapRay;
+use displace_core::techniques::{Needs, Technique};
+use displace_core::MapRay;
 use glam::Vec2;
 
 /// Bytes per height texel every map holds from the start (the maps are
@@ -11,7 +11,7 @@ use glam::Vec2;
 const LOADED_BYTES_PER_TEXEL: u128 = 4;
 
 /// Bytes per height texel of the map being compared, beyond its bake
-/// ([`crate::memory::bake_peak_bytes`] counts that): the heights the
+/// ([`displace_core::memory::bake_peak_bytes`] counts that): the heights the
 /// techniques sample (4) and, when the techniques need them, each cone map
 /// (4), the max pyramid of Tevs et al. 2008 (about 4/3 of 4, counted 6) and
 /// the scratch of a cone build (the footprints' height ranges and slopes,
@@ -45,7 +45,8 @@ pub fn peak_bytes(
     let working = sizes
         .iter()
         .map(|s| {
-            texels(s) * per_texel + crate::memory::bake_peak_bytes(*s, [s[0], s[1], depth], false)
+            texels(s) * per_texel
+                + displace_core::memory::bake_peak_bytes(*s, [s[0], s[1], depth], false)
         })
         .max()
         .unwrap_or(0);
@@ -66,7 +67,7 @@ mod tests {
     fn the_peak_counts_heights_bake_and_rays() {
         let ray = std::mem::size_of::<MapRay>() as u128;
         let hit = std::mem::size_of::<Option<Vec2>>() as u128;
-        let bake = crate::memory::bake_peak_bytes([10, 10], [10, 10, 4], false);
+        let bake = displace_core::memory::bake_peak_bytes([10, 10], [10, 10, 4], false);
         assert_eq!(
             peak_bytes(&[[10, 10]], 4, &[Technique::Pom], 3, None),
             100 * 4 + 100 * 4 + bake + 3 * (ray + 2 * hit)

@@ -1,12 +1,12 @@
 //! The numbers of one pixel sample ([`SampleStream`]): independent
-//! ([`Rng`]) or Owen-scrambled Sobol points ([`crate::sobol`]), on the
+//! ([`Rng`]) or Owen-scrambled Sobol points ([`crate::shading::sobol`]), on the
 //! deterministic per-sample seeds of [`displace_scene::sampler`], which
 //! this module re-exports.
 
 pub use displace_scene::sampler::*;
 
 // SplitMix64's finaliser (Steele et al. 2014) hashes the words together.
-use crate::sobol::{sample_1d, sample_2d, to_unit};
+use crate::shading::sobol::{sample_1d, sample_2d, to_unit};
 use displace_core::random::mix64 as mix;
 use glam::Vec2;
 

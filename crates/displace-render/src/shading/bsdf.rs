@@ -16,10 +16,10 @@
 //!   exact one of the lobe with its cosine (Akenine-Möller et al., RTR4
 //!   section 9.8; Sloan and Hoffman): straight on, the lobe reflects
 //!   `specular` exactly and less at any other angle. The Whitted integrator
-//!   keeps the seed's approximate `(n + 8) / (8 pi)`, which reflects up to
+//!   keeps the ray-tracer paper's approximate `(n + 8) / (8 pi)`, which reflects up to
 //!   6.7% more than it receives (at `n = 16`), so a `phong` highlight is up
 //!   to that much dimmer under `path`.
-//! - **Glossy** (`glossy`'s `color`, `roughness`): the BRDF that the seed's
+//! - **Glossy** (`glossy`'s `color`, `roughness`): the BRDF that the ray-tracer paper's
 //!   distributed reflection ray estimates (Cook et al. 1984): the Phong lobe
 //!   of exponent `e = 2 / roughness^2 - 2` about the mirror direction `r`,
 //!   `f cos(theta_i) = color (e + 1) / (2 pi) cos^e(r.wi)`, sampled exactly by
@@ -297,7 +297,7 @@ fn spherical(cos_t: f32, phi: f32) -> Vec3 {
 /// disk point lifted to the hemisphere).
 #[inline]
 fn cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = crate::sampler::concentric_disk(u);
+    let d = crate::shading::sampler::concentric_disk(u);
     Vec3::new(d.x, d.y, (1.0 - d.length_squared()).max(0.0).sqrt())
 }
 
@@ -311,7 +311,7 @@ fn around(n: Vec3, local: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampler::Rng;
+    use crate::shading::sampler::Rng;
 
     fn material(kind: &str) -> Material {
         match kind {
@@ -424,7 +424,7 @@ mod tests {
             let albedo = sum / n as f64;
             assert!((albedo - want).abs() < 0.01 * want, "{albedo} vs {want}");
         }
-        // The closed form at n = 16 against the seed's (n + 8) / (8 pi):
+        // The closed form at n = 16 against the ray-tracer paper's (n + 8) / (8 pi):
         // 6.7% more than it receives.
         let ratio = (16.0 + 8.0) / (8.0 * PI) / blinn_phong_norm(16.0);
         assert!((ratio - 1.0667).abs() < 1e-3, "{ratio}");

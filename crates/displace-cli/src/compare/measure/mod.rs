@@ -1,4 +1,4 @@
-//! Measuring the displacement techniques of [`crate::techniques`] against
+//! Measuring the displacement techniques of [`displace_core::techniques`] against
 //! the exact reference, the data behind `displace compare` and
 //! BENCHMARKS.md: seeded rays per view elevation ([`elevation_rays`]), every
 //! technique and budget traced on them ([`measure_elevation`]), each hit
@@ -21,10 +21,10 @@ mod run;
 mod score;
 
 pub use precompute::{prepare, Precompute};
-pub use run::{elevation_rays, exact_hits, measure, measure_elevation, ray_seed, Measured};
-pub use score::{equal_error, score, texel_error, Score, EQUAL_ERROR_TEXELS};
+pub use run::{elevation_rays, exact_hits, measure_elevation, ray_seed};
+pub use score::{equal_error, score, texel_error};
 
-use crate::techniques::Technique;
+use displace_core::techniques::Technique;
 
 /// What a comparison runs: which techniques at which budgets, on how many
 /// rays per view elevation.
@@ -86,7 +86,7 @@ pub struct Row {
 pub enum CompareError {
     /// The distance map (needed by the exact reference) did not bake.
     #[error("baking the distance map")]
-    Bake(#[source] crate::Error),
+    Bake(#[source] displace_core::Error),
     /// A technique refused to trace (its precomputation is missing).
     #[error("tracing {technique} at budget {budget}")]
     Trace {
@@ -96,6 +96,6 @@ pub enum CompareError {
         budget: u32,
         /// What it said.
         #[source]
-        source: crate::Error,
+        source: displace_core::Error,
     },
 }

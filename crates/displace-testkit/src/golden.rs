@@ -3,16 +3,13 @@
 //! `ThresholdSet` has them: the mean FLIP (an error spread over the image)
 //! and the 99th-percentile FLIP (an error in a small region: a stud or a
 //! shadow edge gone, which the mean dilutes). One definition for the CPU
-//! renderer's golden test and the GPU raster path's (displace-gpu's
-//! `tests/golden.rs` includes this file by path), so both are judged,
+//! renderer's golden test and the GPU raster path's, so both are judged,
 //! stored and blessed the same way.
 //!
 //! A reference is `DIR/NAME.png` (sRGB); a failure writes `NAME.diff.png`
 //! (the FLIP error map, magma) and `NAME.actual.png` next to it. The
 //! references are regenerated only on request: with `DISPLACE_BLESS` set,
 //! [`check`] writes the render as the reference instead of comparing.
-
-#![allow(dead_code)]
 
 use std::path::Path;
 
@@ -29,14 +26,19 @@ fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> std::io::
 /// What a suite allows: the mean and the 99th-percentile FLIP.
 #[derive(Clone, Copy, Debug)]
 pub struct Thresholds {
+    /// Largest mean FLIP: an error spread over the image.
     pub mean: f32,
+    /// Largest 99th-percentile FLIP: an error in a small region.
     pub p99: f32,
 }
 
 /// FLIP between two sRGB images: the error map and its pooled values.
 pub struct Flip {
+    /// FLIP per pixel, in `[0, 1]`.
     pub error: nv_flip::FlipImageFloat,
+    /// Its mean.
     pub mean: f32,
+    /// Its 99th percentile.
     pub p99: f32,
 }
 

@@ -1,13 +1,13 @@
 //! Putting farm tiles back together: the tiles must all belong to one
 //! render (same content hash, image size and tile count), cover the image
-//! exactly once on the grid of [`crate::tiling`], and be complete files.
+//! exactly once on the grid of [`crate::film::tiling`], and be complete files.
 //! Every problem found is reported, each naming the file or the tile at
 //! fault, and no image is returned unless there are none; the merged image
 //! is then the one a single machine renders, pixel for pixel.
 
+use crate::film::tile_file::{read_tile, TileImage, TileMeta};
+use crate::film::tiling::{tile_rects, TileIndex};
 use crate::render::{Crop, Image};
-use crate::tile_file::{read_tile, TileImage, TileMeta};
-use crate::tiling::{tile_rects, TileIndex};
 use glam::Vec3;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
