@@ -4,13 +4,12 @@
 
 use super::measure::Row;
 use anyhow::{anyhow, Result};
+use displace_core::generators::FONT;
 use displace_core::io::png::write_rgb8_png;
 use displace_core::techniques::Technique;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
-
-static FONT: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans-Bold.ttf");
 
 /// The family name every text style here uses.
 pub const FAMILY: &str = "sans-serif";

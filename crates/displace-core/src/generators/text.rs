@@ -2,7 +2,7 @@
 //! because fine detail and thin gaps defeat uniformly spaced sampling.
 //!
 //! Glyphs come from DejaVu Sans Bold (Bitstream Vera licence, see
-//! `assets/fonts/LICENSE-DejaVu.txt`), embedded in the library so the binary
+//! `crates/displace-core/assets/fonts/LICENSE-DejaVu.txt`), embedded in the library so the binary
 //! needs no font file at run time, and are rasterised by `ab_glyph` as exact
 //! area coverage: the letter edges ramp over one texel, sharp but not
 //! aliased. `%0A` in the text starts a new line; lines are centred.
@@ -15,7 +15,7 @@ use ab_glyph::{point, Font, FontRef, GlyphId, PxScale, ScaleFont};
 
 /// The bundled font's bytes (TrueType), shared with other crates that draw
 /// text (the GPU viewer's overlay) so the binary embeds it once.
-pub static FONT: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans-Bold.ttf");
+pub static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-Bold.ttf");
 
 /// Share of the map's width and height that the default size fills.
 const FILL: f32 = 0.9;
