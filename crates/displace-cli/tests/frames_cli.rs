@@ -131,6 +131,9 @@ fn bad_animations_and_frames_are_refused_by_name() {
         (&anim("frames = 6", "frames = 0"), &[], "animation.frames"),
         (&anim("fps = 12", "fps = -1"), &[], "animation.fps"),
         (&anim("light_path = [", "light = 3\nlight_path = ["), &[], "animation.light = 3"),
+        // A light index past the lights is refused without a path too.
+        (&format!("{}light = 5\n", &ANIMATION[..ANIMATION.find("light_path").unwrap()]), &[],
+            "animation.light = 5"),
         (&anim("fps = 12", "fps = 12\nspeed = 2"), &[], "speed"),
         // A key half way that puts the camera on the point it looks at:
         // found before frame 0 is written, and named by its frame.

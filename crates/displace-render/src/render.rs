@@ -4,7 +4,7 @@
 //! cancellation flag for the CLI.
 
 use crate::error::{Error, Result};
-use crate::integrators::{pixel, Scratch};
+use crate::integrators::{tile, Scratch};
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -230,14 +230,13 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
                 .iter()
                 .map(|a| Vec::with_capacity((w * h) as usize * a.channels()))
                 .collect();
-            let mut scratch = Scratch::default();
-            for y in 0..h {
-                for x in 0..w {
-                    let (gx, gy) = (crop.x + tx + x, crop.y + ty + y);
-                    px.push(pixel(scene, gx, gy, &mut scratch));
-                    if !opts.aovs.is_empty() {
-                        aov_pixel(scene, gx, gy, &opts.aovs, &mut aov);
-                    }
+            let coords: Vec<(u32, u32)> = (0..h)
+                .flat_map(|y| (0..w).map(move |x| (crop.x + tx + x, crop.y + ty + y)))
+                .collect();
+            tile(scene, &coords, &mut Scratch::default(), &mut px);
+            if !opts.aovs.is_empty() {
+                for &(gx, gy) in &coords {
+                    aov_pixel(scene, gx, gy, &opts.aovs, &mut aov);
                 }
             }
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;

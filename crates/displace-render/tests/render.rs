@@ -373,6 +373,27 @@ fn every_scene_of_the_repository_loads() {
     assert!(n >= 12, "{n} scenes");
 }
 
+/// A scene file that starts with a UTF-8 byte-order mark (as editors on
+/// Windows save it) loads as the same file without one.
+#[test]
+fn a_scene_file_may_start_with_a_byte_order_mark() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = displace_render::scene::DEFAULT_SCENE;
+    let (plain, marked) = (dir.path().join("plain.toml"), dir.path().join("bom.toml"));
+    std::fs::write(&plain, text).unwrap();
+    std::fs::write(&marked, format!("\u{feff}{text}")).unwrap();
+    let o = SceneOptions {
+        size: Some([8, 8]),
+        ..opts()
+    };
+    let (a, b) = (
+        Scene::load(&plain, &o).unwrap(),
+        Scene::load(&marked, &o).unwrap(),
+    );
+    assert_eq!(image(&a), image(&b));
+    assert_eq!(a.primitive_count(), b.primitive_count());
+}
+
 /// An area light whose lit side (`edge_u x edge_v`) faces away from the
 /// scene is warned about, naming the light and the way to turn it, visible
 /// or not; the same light turned round is not, nor is the point light.

@@ -200,21 +200,21 @@ impl Animation {
             interpolation,
             "animation.light_path",
         )?;
-        let light = match light_path {
-            None => None,
-            Some(p) => {
-                let i = usize::try_from(a.light).ok().filter(|&i| i < lights).ok_or_else(|| {
-                    err(
-                        name,
-                        format!(
-                            "animation.light = {}: the scene has {lights} [[lights]] (counted from 0)",
-                            a.light
-                        ),
-                    )
-                })?;
-                Some((i, p))
-            }
-        };
+        // The light index must name a light whenever it is given (the
+        // default, 0, names the first where there is a path to move it
+        // along): an index past the lights is a mistake with or without a
+        // path.
+        let index = usize::try_from(a.light).ok().filter(|&i| i < lights);
+        if index.is_none() && (light_path.is_some() || a.light != 0) {
+            return Err(err(
+                name,
+                format!(
+                    "animation.light = {}: the scene has {lights} [[lights]] (counted from 0)",
+                    a.light
+                ),
+            ));
+        }
+        let light = light_path.zip(index).map(|(p, i)| (i, p));
         Ok(Self {
             frames,
             fps: a.fps,

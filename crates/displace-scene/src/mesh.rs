@@ -47,6 +47,7 @@ pub fn load(path: &Path) -> Result<Mesh> {
     // that could be read for ever.
     let no_materials = |_: &Path| Err(tobj::LoadError::OpenFileFailed);
     let mut reader = std::io::BufReader::new(file);
+    skip_byte_order_mark(&mut reader).map_err(|e| CoreError::io(path, e))?;
     let (models, _materials) =
         tobj::load_obj_buf(&mut reader, &opts, no_materials).map_err(|e| {
             let bytes = std::fs::read(path).unwrap_or_default();
@@ -238,7 +239,9 @@ fn check_face_indices(path: &Path) -> Result<()> {
     let io_err = |e| Error::from(CoreError::io(path, e));
     let file = std::fs::File::open(path).map_err(io_err)?;
     let mut counts = [0usize; 3];
-    for (n, line) in std::io::BufReader::new(file).split(b'\n').enumerate() {
+    let mut reader = std::io::BufReader::new(file);
+    skip_byte_order_mark(&mut reader).map_err(io_err)?;
+    for (n, line) in reader.split(b'\n').enumerate() {
         let line = line.map_err(io_err)?;
         // Not UTF-8: tobj refuses the file itself.
         let Ok(line) = std::str::from_utf8(&line) else {
@@ -264,6 +267,17 @@ fn check_face_indices(path: &Path) -> Result<()> {
             }
             _ => {}
         }
+    }
+    Ok(())
+}
+
+/// Steps over a UTF-8 byte-order mark at the start of `reader`, which
+/// editors on Windows write: `tobj` would read `\u{feff}v ...` as an unknown
+/// statement and drop the first vertex, shifting every index after it.
+fn skip_byte_order_mark(reader: &mut impl std::io::BufRead) -> std::io::Result<()> {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    if reader.fill_buf()?.starts_with(BOM) {
+        reader.consume(BOM.len());
     }
     Ok(())
 }
@@ -364,5 +378,33 @@ mod tests {
         std::fs::write(&latin1, b"v 0 0 0\n# caf\xe9\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
         let e = load(&latin1).unwrap_err().to_string();
         assert!(e.contains("latin1.obj:2:6") && e.contains("0xE9"), "{e}");
+    }
+
+    /// A file that starts with a UTF-8 byte-order mark reads as the same
+    /// file without it: its first vertex kept, its indices unshifted.
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+        let (plain, marked) = (dir.path().join("plain.obj"), dir.path().join("bom.obj"));
+        std::fs::write(&plain, text).unwrap();
+        std::fs::write(
+            &marked,
+            [b"\xEF\xBB\xBF".as_slice(), text.as_bytes()].concat(),
+        )
+        .unwrap();
+        let (a, b) = (load(&plain).unwrap(), load(&marked).unwrap());
+        let corners =
+            |m: &Mesh| -> Vec<[Vec3; 3]> { m.triangles.iter().map(|t| t.positions).collect() };
+        assert_eq!(corners(&a), corners(&b));
+        assert_eq!(corners(&b)[0], [Vec3::ZERO, Vec3::X, Vec3::Y]);
+        // The index check reads past the mark too: `f 1 2 4` with four
+        // vertices is in range.
+        std::fs::write(
+            &marked,
+            "\u{feff}v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 4\n",
+        )
+        .unwrap();
+        assert_eq!(load(&marked).unwrap().triangles.len(), 1);
     }
 }

@@ -160,7 +160,7 @@ fn read_text(path: &Path) -> Result<String> {
     use displace_core::io::{check_input, MAX_SCENE_FILE_BYTES};
     check_input(path, "scene file", MAX_SCENE_FILE_BYTES)?;
     let bytes = std::fs::read(path).map_err(|e| displace_core::Error::io(path, e))?;
-    String::from_utf8(bytes).map_err(|e| {
+    let text = String::from_utf8(bytes).map_err(|e| {
         // Where the bad byte is, as for a TOML error.
         let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let good = std::str::from_utf8(good).unwrap_or_default();
@@ -171,6 +171,12 @@ fn read_text(path: &Path) -> Result<String> {
             column,
             message: "invalid UTF-8: a scene file is UTF-8 text".into(),
         }
+    })?;
+    // A byte-order mark (editors on Windows write one) is not TOML: the
+    // scene is what follows it.
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
     })
 }
 

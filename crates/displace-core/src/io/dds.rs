@@ -198,6 +198,7 @@ pub fn from_bytes(
             size[0], size[1]
         )));
     }
+    check_layout(&dds, size)?;
     DistanceMap::check_size(size)?;
     let count = size[0] * size[1] * size[2];
     let need = count * format.bytes_per_voxel();
@@ -235,9 +236,51 @@ pub fn from_bytes(
         ),
     };
     super::check_no_nan(&data, size)?;
+    super::check_plausible(&data, size, extent.aspect())?;
     let bound = super::bake_underestimate(size, extent.aspect(), quantum);
     let map = DistanceMap::from_raw(size, extent.aspect(), address, data, bound)?;
     Ok((map, format))
+}
+
+/// Refuses a header whose layout is not one volume texture, though its
+/// depth says so: a DX10 resource that is not `Texture3D` (a 2D texture
+/// with a depth field), a legacy header without the volume flag, more
+/// than one array layer (as the KTX2 reader refuses arrays: which layer
+/// would be the map?), or more mip levels than a texture of `size` has.
+/// Only the first level is read, but a header that miscounts its levels
+/// is not the file its writer meant.
+fn check_layout(dds: &Dds, size: [usize; 3]) -> std::result::Result<(), FormatError> {
+    let [w, h, d] = size;
+    match &dds.header10 {
+        Some(h10) if h10.resource_dimension != D3D10ResourceDimension::Texture3D => {
+            return Err(FormatError::Unsupported(format!(
+                "a {:?} resource {w}x{h} of depth {d}: a distance map is a volume texture \
+                 (Texture3D)",
+                h10.resource_dimension
+            )));
+        }
+        None if !dds.header.caps2.contains(Caps2::VOLUME) => {
+            return Err(FormatError::Unsupported(format!(
+                "a {w}x{h} texture of depth {d} without the volume flag (DDSCAPS2_VOLUME): a \
+                 distance map is a volume texture"
+            )));
+        }
+        _ => {}
+    }
+    let layers = dds.get_num_array_layers();
+    if layers > 1 {
+        return Err(FormatError::Unsupported(format!(
+            "{layers} array layers: a distance map is one volume texture"
+        )));
+    }
+    let most = usize::BITS - w.max(h).max(d).leading_zeros();
+    let levels = dds.get_num_mipmap_levels();
+    if levels > most {
+        return Err(FormatError::Invalid(format!(
+            "{levels} mip levels for a {w}x{h}x{d} texture, which has at most {most}"
+        )));
+    }
+    Ok(())
 }
 
 /// Reads a DDS distance map; `extent` and `address` must be the ones it was
@@ -353,6 +396,57 @@ mod tests {
             D3D10ResourceDimension::Texture3D,
         );
         assert_refused(&err, &rgba, &["R8G8B8A8"]);
+        // Headers that are not one volume texture: six array layers, a
+        // 2D resource that claims a depth, a legacy header without the
+        // volume flag, and a mip count no 12x10x6 texture has.
+        let mut layered = Dds::read(&good[..]).unwrap();
+        layered.header10.as_mut().unwrap().array_size = 6;
+        let mut b = Vec::new();
+        layered.write(&mut b).unwrap();
+        assert_refused(&err, &b, &["6 array layers"]);
+        let flat_deep = dxgi_file(
+            Some(4),
+            DxgiFormat::R32_Float,
+            None,
+            D3D10ResourceDimension::Texture2D,
+        );
+        assert_refused(&err, &flat_deep, &["Texture2D", "volume texture"]);
+        // A legacy header (no DX10 extension) of `R32F`, its FourCC set by
+        // hand: `ddsfile` writes that format's legacy pixel format as a
+        // bit count that no reader takes for a float.
+        let legacy = |caps2| {
+            let mut dds = Dds::new_d3d(ddsfile::NewD3dParams {
+                height: 4,
+                width: 4,
+                depth: Some(4),
+                format: D3DFormat::R32F,
+                mipmap_levels: Some(1),
+                caps2,
+            })
+            .unwrap();
+            dds.header.spf = ddsfile::PixelFormat {
+                flags: ddsfile::PixelFormatFlags::FOURCC,
+                fourcc: Some(ddsfile::FourCC(ddsfile::FourCC::R32F)),
+                rgb_bit_count: None,
+                r_bit_mask: None,
+                g_bit_mask: None,
+                b_bit_mask: None,
+                a_bit_mask: None,
+                ..dds.header.spf
+            };
+            let mut b = Vec::new();
+            dds.write(&mut b).unwrap();
+            b
+        };
+        assert_refused(&err, &legacy(None), &["volume flag"]);
+        from_bytes(&legacy(Some(Caps2::VOLUME)), extent, Address::Clamp).unwrap();
+        // The mip count, with its header flag (DDSD_MIPMAPCOUNT), patched
+        // into the header's bytes as another writer would set them.
+        let mut mips = good.clone();
+        let flags = u32::from_le_bytes(mips[8..12].try_into().unwrap()) | 0x2_0000;
+        mips[8..12].copy_from_slice(&flags.to_le_bytes());
+        mips[28..32].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert_refused(&err, &mips, &["4294967295 mip levels", "at most 4"]);
         // An absurd size in the header is refused before allocating.
         let mut huge = good.clone();
         for (off, v) in [(12usize, 100_000u32), (16, 100_000), (24, 1000)] {

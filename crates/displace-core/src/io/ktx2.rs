@@ -451,6 +451,7 @@ pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Decoded, FormatError> {
             .collect(),
     };
     super::check_no_nan(&data, size)?;
+    super::check_plausible(&data, size, extent.aspect())?;
     let map = DistanceMap::from_raw(size, extent.aspect(), address, data, bound)?;
     Ok(Decoded {
         map,

@@ -266,6 +266,56 @@ pub(crate) fn check_no_nan(data: &[f32], size: [usize; 3]) -> Result<(), FormatE
     }
 }
 
+/// Refuses decoded voxels (shell depths) of a map of `size` over a tile of
+/// `aspect` that no conservative distance map of a height field can hold:
+/// with them every ray would miss, or stop where it starts. Two invariants
+/// hold for every bake, whatever its format's rounding (always down):
+///
+/// 1. a voxel of the lowest slice lies `z_0 = 0.5 / d` above the floor and
+///    no height goes below the floor, so its value is at most `z_0` (a map
+///    in other units, or an R8 range whose low end is above zero, breaks
+///    this first);
+/// 2. no point of the tile's box is farther from the surface than the
+///    box's diagonal, `sqrt(ax^2 + ay^2 + 1)` shell depths.
+pub(crate) fn check_plausible(
+    data: &[f32],
+    size: [usize; 3],
+    aspect: [f32; 2],
+) -> Result<(), FormatError> {
+    let [w, h, d] = size;
+    let at = |i: usize| (i % w, (i / w) % h, i / (w * h));
+    let z0 = crate::convention::texel_centre(0, d);
+    // Single-precision rounding of values near z_0, and of the diagonal.
+    let slack = 1e-4;
+    if let Some(i) = data[..(w * h).min(data.len())]
+        .iter()
+        .position(|&v| v > z0 + slack)
+    {
+        let (x, y, _) = at(i);
+        return Err(FormatError::Invalid(format!(
+            "voxel ({x}, {y}, 0) holds {} shell depths, but the lowest slice's voxels lie {z0} \
+             above the floor, which no height goes below: not a conservative distance map of \
+             a height field (values in other units? a range that starts above zero?)",
+            data[i]
+        )));
+    }
+    let [ax, ay] = aspect;
+    let diagonal = (ax * ax + ay * ay + 1.0).sqrt();
+    if let Some(i) = data
+        .iter()
+        .position(|&v| v > diagonal * (1.0 + slack) + slack)
+    {
+        let (x, y, z) = at(i);
+        return Err(FormatError::Invalid(format!(
+            "voxel ({x}, {y}, {z}) holds {} shell depths, farther than any point of the tile \
+             is from its surface (the box's diagonal, {diagonal}): not a conservative distance \
+             map of this extent",
+            data[i]
+        )));
+    }
+    Ok(())
+}
+
 /// Asserts that the reader `err` (bytes to its error message) refuses
 /// `bytes` with a message holding every one of `needles`: the malformed
 /// file tests of each format.
@@ -274,5 +324,68 @@ pub(crate) fn assert_refused(err: &dyn Fn(&[u8]) -> String, bytes: &[u8], needle
     let message = err(bytes);
     for needle in needles {
         assert!(message.contains(needle), "no `{needle}` in: {message}");
+    }
+}
+
+#[cfg(test)]
+mod plausible_tests {
+    use super::*;
+    use crate::{bake, generators, Address, BakeOptions, Extent};
+
+    /// Every bake is plausible, and the maps no bake makes are not: every
+    /// voxel 1e30, values raised by an R8 range whose low end is above zero,
+    /// a value past the tile's diagonal; the readers refuse them (npy, end
+    /// to end).
+    #[test]
+    fn implausible_maps_are_refused_and_bakes_are_not() {
+        let extent = Extent::new(1.0, 0.5, 0.125).unwrap();
+        for (name, address) in [
+            ("gen:studded", Address::Clamp),
+            ("gen:noise", Address::Repeat),
+        ] {
+            let height = generators::generate(name, 20, 12, address).unwrap();
+            let map = bake(&height, &BakeOptions::new([10, 6, 4], extent))
+                .unwrap()
+                .distance;
+            check_plausible(map.data(), map.size(), map.aspect()).unwrap();
+        }
+        let size = [10, 6, 4];
+        let aspect = extent.aspect();
+        let e = check_plausible(&vec![1e30; 240], size, aspect)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("voxel (0, 0, 0)") && e.contains("lowest slice"),
+            "{e}"
+        );
+        // A range starting at 0.2 lifts every value by at least that much.
+        let height = generators::generate("gen:gaussian", 20, 12, Address::Clamp).unwrap();
+        let map = bake(&height, &BakeOptions::new(size, extent))
+            .unwrap()
+            .distance;
+        let lifted: Vec<f32> = map.data().iter().map(|v| v.max(0.0) + 0.2).collect();
+        let e = check_plausible(&lifted, size, aspect)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("range that starts above zero"), "{e}");
+        // Far values above the lowest slice: past the box's diagonal.
+        let mut far = map.data().to_vec();
+        far[3 * 60 + 7] = 50.0;
+        let e = check_plausible(&far, size, aspect).unwrap_err().to_string();
+        assert!(
+            e.contains("voxel (7, 0, 3)") && e.contains("diagonal"),
+            "{e}"
+        );
+        // End to end: an npy volume of 1e30 is refused by its reader, named.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("far.npy");
+        npy::write_file(&p, &[4, 6, 10], &vec![1e30f32; 240]).unwrap();
+        let e = npy::read_distance_map(&p, extent, Address::Clamp)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("far.npy") && e.contains("not a conservative distance map"),
+            "{e}"
+        );
     }
 }

@@ -303,8 +303,12 @@ pub fn read_distance_map(path: &Path, extent: Extent, address: Address) -> Resul
         });
     }
     let inv = 1.0 / extent.sz;
-    let data = arr.data.into_iter().map(|v| v * inv).collect();
+    let data: Vec<f32> = arr.data.into_iter().map(|v| v * inv).collect();
     let size = [w, h, d];
+    super::check_plausible(&data, size, extent.aspect()).map_err(|e| Error::Format {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
     DistanceMap::from_raw(
         size,
         extent.aspect(),

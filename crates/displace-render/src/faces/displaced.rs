@@ -219,12 +219,17 @@ impl DisplacedFace {
     }
 
     /// First hit with world distance in `[t_min, t_max]`: the world distance
-    /// and the map-space hit.
+    /// and the map-space hit. A hit the map-space range admits but whose
+    /// world distance rounds past `t_max` is dropped, as the batch queries
+    /// drop it ([`crate::scene::batch`]): where a displaced face and a plain
+    /// shape meet a ray at the same distance within rounding (a ray into
+    /// the corner of a displaced floor and a wall), both queries then
+    /// answer the same whichever they test first.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, MapHit)> {
         let query = self.map_query(ray, t_min, t_max)?;
         let hit = self.map.trace(&query.ray, &query.opts)?;
-        Some(query.finish(hit))
+        Some(query.finish(hit)).filter(|&(t, _)| t <= t_max)
     }
 
     /// `ray` in map space, as [`Self::intersect`] and [`Self::occludes`]

@@ -3,8 +3,8 @@
 //! the ray-tracer paper's Whitted tracer with distributed effects
 //! ([`whitted`], the default) and path tracing with next-event estimation
 //! and multiple importance sampling ([`path`], pbrt-v4 section 13.4). Each
-//! estimates a pixel from its samples; the render loop
-//! ([`crate::render()`]) asks [`pixel`] and knows no technique.
+//! estimates the pixels of a tile from their samples; the render loop
+//! ([`crate::render()`]) asks [`tile`] and knows no technique.
 
 pub mod path;
 pub mod whitted;
@@ -13,18 +13,30 @@ use crate::scene::Scene;
 use crate::settings::Integrator;
 use glam::Vec3;
 
-/// What one tile's pixels reuse from pixel to pixel, whichever integrator
-/// runs (the Whitted tracer's batch buffers; the path tracer keeps none).
+/// What a thread's tiles reuse from tile to tile, whichever integrator
+/// runs (the Whitted tracer's batch buffers, the path tracer's wavefront).
 #[derive(Default)]
 pub(crate) struct Scratch {
     whitted: whitted::PixelScratch,
+    path: path::WaveScratch,
 }
 
-/// The estimate of pixel `(x, y)` by the integrator the scene's settings
-/// name.
-pub(crate) fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut Scratch) -> Vec3 {
+/// The estimates of `pixels` (in that order, onto `out`) by the integrator
+/// the scene's settings name: the Whitted tracer pixel by pixel (each
+/// pixel's rays in batches), the path tracer as one wavefront over the
+/// tile's samples.
+pub(crate) fn tile(
+    scene: &Scene,
+    pixels: &[(u32, u32)],
+    scratch: &mut Scratch,
+    out: &mut Vec<Vec3>,
+) {
     match scene.integrator {
-        Integrator::Whitted => whitted::pixel(scene, x, y, &mut scratch.whitted),
-        Integrator::Path => path::pixel(scene, x, y),
+        Integrator::Whitted => {
+            for &(x, y) in pixels {
+                out.push(whitted::pixel(scene, x, y, &mut scratch.whitted));
+            }
+        }
+        Integrator::Path => path::tile(scene, pixels, &mut scratch.path, out),
     }
 }

@@ -20,10 +20,22 @@
 //! For testing the estimators one at a time, `image.sampling` chooses
 //! light sampling alone or BSDF sampling alone instead of both (each
 //! unbiased by itself; Veach 1997, figure 9.2's comparison).
+//!
+//! A render runs the estimator as a wavefront ([`tile`]): every sample of
+//! a tile's pixels is a path whose state waits between stages, and each
+//! stage runs over all the paths still alive (Laine, Karras and Aila 2013,
+//! "Megakernels considered harmful"; pbrt-v4's `WavefrontPathIntegrator`):
+//! their rays are traced as one batch ([`Scene::intersect_many`]), each is
+//! shaded, and the shadow rays of next-event estimation are traced as
+//! another batch ([`Scene::occluded_many`]) before their light is added.
+//! Each path draws the same numbers in the same order and sums its terms
+//! in the same order as the one-sample estimator ([`radiance`], kept as the
+//! reference), so the image is the same bit for bit.
 
 use super::whitted::{emitted, facing, shadow_query};
 use crate::camera_sample::{camera_ray, camera_sample};
 use crate::geometry::Ray;
+use crate::scene::batch::Batch;
 use crate::scene::{Interaction, Scene};
 use crate::settings::Sampling;
 use crate::shading::bsdf::Bsdf;
@@ -105,77 +117,168 @@ pub fn radiance(scene: &Scene, ray: &Ray, rng: &mut SampleStream) -> Vec3 {
     }
 }
 
-fn trace(scene: &Scene, mut ray: Ray, rng: &mut SampleStream) -> Vec3 {
-    let mut l = Vec3::ZERO;
-    let mut beta = Vec3::ONE;
-    let mut prev: Option<Bounce> = None;
-    let mut depth = 0u32;
+/// The path of `ray` on its own, through the batch queries with one ray
+/// each: the rays of [`tile`]'s wavefront meet the same surfaces whatever
+/// else is in their batch, so each query answers as it does there (where a
+/// displaced face and a plain shape meet a ray at exactly the same
+/// distance, the one-ray walk's answer would hang on the order it visits
+/// them in).
+fn trace(scene: &Scene, ray: Ray, rng: &mut SampleStream) -> Vec3 {
+    let mut path = Path::new(ray);
+    let (mut batch, mut hits, mut blocked) = (Batch::default(), Vec::new(), Vec::new());
     loop {
-        let Some((prim, hit)) = scene.intersect_primitive(&ray, 0.0, f32::INFINITY) else {
+        scene.intersect_many(&[path.ray], 0.0, &[f32::INFINITY], &mut batch, &mut hits);
+        let step = path.step(scene, hits[0], rng);
+        if let Some(light) = step.light {
+            scene.occluded_many(&[light.ray], 0.0, &[light.t_max], &mut batch, &mut blocked);
+            if !blocked[0] {
+                path.l += light.contribution;
+            }
+        }
+        if !step.goes_on {
+            return path.l;
+        }
+    }
+}
+
+/// One path between two traces: the ray it is about to trace and what it
+/// has gathered so far.
+#[derive(Clone, Copy, Debug)]
+struct Path {
+    ray: Ray,
+    /// Radiance gathered so far.
+    l: Vec3,
+    /// Throughput: what light arriving along `ray` is worth at the camera.
+    beta: Vec3,
+    prev: Option<Bounce>,
+    depth: u32,
+}
+
+/// Light a vertex sampled, if nothing blocks the shadow ray.
+#[derive(Clone, Copy, Debug)]
+struct LightSample {
+    ray: Ray,
+    t_max: f32,
+    /// What it adds to the path's radiance when unblocked (throughput
+    /// included).
+    contribution: Vec3,
+}
+
+/// What one vertex of a path did.
+struct Step {
+    /// The light it sampled, waiting for its shadow ray.
+    light: Option<LightSample>,
+    /// Whether the path goes on along its new `ray`.
+    goes_on: bool,
+}
+
+impl Path {
+    fn new(ray: Ray) -> Self {
+        Self {
+            ray,
+            l: Vec3::ZERO,
+            beta: Vec3::ONE,
+            prev: None,
+            depth: 0,
+        }
+    }
+
+    /// The vertex at `hit` (the nearest hit of `self.ray`, `None` for a
+    /// ray that escapes): its emitted light, its light sample (the shadow
+    /// ray left to the caller) and its bounce, drawing from `rng` in the
+    /// order of [`BOUNCE_DIMENSIONS`].
+    fn step(
+        &mut self,
+        scene: &Scene,
+        hit: Option<(u32, Interaction)>,
+        rng: &mut SampleStream,
+    ) -> Step {
+        let ray = self.ray;
+        let ends = Step {
+            light: None,
+            goes_on: false,
+        };
+        let Some((prim, hit)) = hit else {
             let le = scene.environment.radiance(ray.dir);
             if le != Vec3::ZERO {
                 let pdf = scene.emitters.pdf_environment(&scene.environment, ray.dir);
-                l += beta * le * hit_weight(scene, prev, pdf);
+                self.l += self.beta * le * hit_weight(scene, self.prev, pdf);
             }
-            break;
+            return ends;
         };
         let le = emitted(scene, &ray, &hit);
         if le != Vec3::ZERO {
-            let pdf = prev.map_or(0.0, |b| {
+            let pdf = self.prev.map_or(0.0, |b| {
                 scene
                     .emitters
                     .pdf_hit(prim, b.position, hit.position, hit.geometric_normal)
             });
-            l += beta * le * hit_weight(scene, prev, pdf);
+            self.l += self.beta * le * hit_weight(scene, self.prev, pdf);
         }
-        if depth == scene.max_depth {
-            break;
+        if self.depth == scene.max_depth {
+            return ends;
         }
-        let dimensions = CAMERA_DIMENSIONS + depth * BOUNCE_DIMENSIONS;
+        let dimensions = CAMERA_DIMENSIONS + self.depth * BOUNCE_DIMENSIONS;
         rng.set_dimension(dimensions);
-        depth += 1;
+        self.depth += 1;
 
         let mat = &scene.materials[hit.material as usize];
         let wo = -ray.dir;
         let (ng, ns, p) = facing(scene, &ray, &hit);
         let bsdf = Bsdf::new(mat, mat.albedo(hit.uv, hit.tint), ng, ns, wo);
         if bsdf.is_black() {
-            break;
+            return ends;
         }
-        if bsdf.has_non_delta() {
-            l += beta * direct(scene, &hit, &bsdf, ng, p, rng);
-        }
+        let light = if bsdf.has_non_delta() {
+            direct(scene, &hit, &bsdf, ng, p, rng).map(|(ray, t_max, d)| LightSample {
+                ray,
+                t_max,
+                contribution: self.beta * d,
+            })
+        } else {
+            None
+        };
+        let stop = Step {
+            light,
+            goes_on: false,
+        };
         rng.set_dimension(dimensions + 2);
         let pick = rng.next_choice(bsdf.chooses_lobe());
         let Some(s) = bsdf.sample(pick, rng.next_2d()) else {
-            break;
+            return stop;
         };
-        beta *= s.weight;
-        if beta == Vec3::ZERO {
-            break;
+        self.beta *= s.weight;
+        if self.beta == Vec3::ZERO {
+            return stop;
         }
-        prev = Some(Bounce {
+        self.prev = Some(Bounce {
             position: hit.position,
             pdf: s.pdf,
             delta: s.delta,
         });
-        ray = Ray::new(p, s.wi);
-        if depth >= RR_DEPTH {
-            let m = beta.max_element();
+        self.ray = Ray::new(p, s.wi);
+        if self.depth >= RR_DEPTH {
+            let m = self.beta.max_element();
             if m < 1.0 {
                 let q = (1.0 - m).max(0.0);
                 if rng.next_1d() < q {
-                    break;
+                    return stop;
                 }
-                beta /= 1.0 - q;
+                self.beta /= 1.0 - q;
             }
         }
+        Step {
+            light,
+            goes_on: true,
+        }
     }
-    l
 }
 
 /// Next-event estimation at `hit`: one light sample, weighted against BSDF
 /// sampling by the power heuristic (pbrt-v4 `PathIntegrator::SampleLd`).
+/// Returns the shadow ray, the distance within which a blocker counts and
+/// the light it brings if nothing blocks it; the caller traces the ray
+/// (one at a time, or a batch of them).
 fn direct(
     scene: &Scene,
     hit: &Interaction,
@@ -183,55 +286,44 @@ fn direct(
     ng: Vec3,
     p: Vec3,
     rng: &mut SampleStream,
-) -> Vec3 {
+) -> Option<(Ray, f32, Vec3)> {
     if scene.emitters.is_empty() {
-        return Vec3::ZERO;
+        return None;
     }
     // The cosine that agrees with `bsdf.f` (see `Bsdf::shading_normal`).
     let ns = bsdf.shading_normal();
     let pick = rng.next_choice(scene.emitters.len() > 1);
     let u = rng.next_2d();
-    let Some(ls) = scene
+    let ls = scene
         .emitters
-        .sample(&scene.environment, hit.position, pick, u)
-    else {
-        return Vec3::ZERO;
-    };
+        .sample(&scene.environment, hit.position, pick, u)?;
     if scene.sampling == Sampling::Bsdf && ls.hittable {
         // BSDF sampling finds this light by itself.
-        return Vec3::ZERO;
+        return None;
     }
-    let cos = match ls.point {
+    let (ray, t_max, cos) = match ls.point {
         Some(point) => {
-            let Some(q) = shadow_query(scene, hit.position, p, ng, ns, point) else {
-                return Vec3::ZERO;
-            };
-            if scene.occluded(&q.ray, 0.0, q.t_max) {
-                return Vec3::ZERO;
-            }
-            q.cos
+            let q = shadow_query(scene, hit.position, p, ng, ns, point)?;
+            (q.ray, q.t_max, q.cos)
         }
         None => {
             let cos = ns.dot(ls.wi);
             if cos <= 0.0 || ng.dot(ls.wi) <= 0.0 {
-                return Vec3::ZERO;
+                return None;
             }
-            if scene.occluded(&Ray::new(p, ls.wi), 0.0, f32::INFINITY) {
-                return Vec3::ZERO;
-            }
-            cos
+            (Ray::new(p, ls.wi), f32::INFINITY, cos)
         }
     };
     let f = bsdf.f(ls.wi);
     if f == Vec3::ZERO {
-        return Vec3::ZERO;
+        return None;
     }
     let w = if ls.hittable && scene.sampling == Sampling::Mis {
         power_heuristic(ls.pdf, bsdf.pdf(ls.wi))
     } else {
         1.0
     };
-    f * ls.radiance * (cos * w / ls.pdf)
+    Some((ray, t_max, f * ls.radiance * (cos * w / ls.pdf)))
 }
 
 /// The camera ray of sample `s` of pixel `(x, y)` under the path
@@ -253,15 +345,111 @@ fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStre
     }
 }
 
-/// The mean of the pixel's samples under the path integrator, each sample's path traced on its own from its
-/// [`path_camera_sample`].
-pub(crate) fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
+/// The mean of the pixel's samples under the path integrator, each
+/// sample's path traced on its own from its [`path_camera_sample`]: the
+/// one-sample estimator, which [`tile`] equals bit for bit.
+pub fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for s in 0..scene.spp {
         let (ray, mut rng) = path_camera_sample(scene, x, y, s);
         sum += radiance(scene, &ray, &mut rng);
     }
     sum / scene.spp as f32
+}
+
+/// Paths a wavefront holds at once: enough for full packets through the
+/// batch queries, few enough that their states (about 100 bytes each)
+/// stay in the core's caches between stages.
+const WAVE: usize = 2048;
+
+/// The buffers of [`tile`], reused from tile to tile of a thread.
+#[derive(Default)]
+pub struct WaveScratch {
+    batch: Batch,
+    paths: Vec<(Path, SampleStream)>,
+    /// Indices into `paths` of the paths still alive (the queue stays in
+    /// place: paths are not moved between stages).
+    alive: Vec<u32>,
+    next: Vec<u32>,
+    rays: Vec<Ray>,
+    t_max: Vec<f32>,
+    hits: Vec<Option<(u32, Interaction)>>,
+    /// Shadow rays of the stage, their ranges, owners and light.
+    shadow_rays: Vec<Ray>,
+    shadow_t_max: Vec<f32>,
+    shadow_owner: Vec<(u32, Vec3)>,
+    blocked: Vec<bool>,
+    /// Each sample's radiance, pixel-major.
+    samples: Vec<Vec3>,
+}
+
+/// The path-traced estimate of each pixel of `pixels` (in that order, onto
+/// `out`), every sample of them traced as one wavefront (the module docs):
+/// the same values, bit for bit, as [`pixel`] for each.
+pub fn tile(scene: &Scene, pixels: &[(u32, u32)], w: &mut WaveScratch, out: &mut Vec<Vec3>) {
+    let spp = scene.spp as usize;
+    let total = pixels.len() * spp;
+    w.samples.clear();
+    w.samples.resize(total, Vec3::ZERO);
+    for first in (0..total).step_by(WAVE) {
+        let ids = first..(first + WAVE).min(total);
+        w.paths.clear();
+        for id in ids.clone() {
+            let (x, y) = pixels[id / spp];
+            let (ray, rng) = path_camera_sample(scene, x, y, (id % spp) as u32);
+            w.paths.push((Path::new(ray), rng));
+        }
+        w.alive.clear();
+        w.alive.extend(0..w.paths.len() as u32);
+        while !w.alive.is_empty() {
+            w.rays.clear();
+            w.rays
+                .extend(w.alive.iter().map(|&i| w.paths[i as usize].0.ray));
+            w.t_max.clear();
+            w.t_max.resize(w.rays.len(), f32::INFINITY);
+            scene.intersect_many(&w.rays, 0.0, &w.t_max, &mut w.batch, &mut w.hits);
+            w.shadow_rays.clear();
+            w.shadow_t_max.clear();
+            w.shadow_owner.clear();
+            w.next.clear();
+            for (&i, &hit) in w.alive.iter().zip(&w.hits) {
+                let (path, rng) = &mut w.paths[i as usize];
+                let step = path.step(scene, hit, rng);
+                if let Some(light) = step.light {
+                    w.shadow_rays.push(light.ray);
+                    w.shadow_t_max.push(light.t_max);
+                    w.shadow_owner.push((i, light.contribution));
+                }
+                if step.goes_on {
+                    w.next.push(i);
+                }
+            }
+            scene.occluded_many(
+                &w.shadow_rays,
+                0.0,
+                &w.shadow_t_max,
+                &mut w.batch,
+                &mut w.blocked,
+            );
+            for (&(i, light), &blocked) in w.shadow_owner.iter().zip(&w.blocked) {
+                if !blocked {
+                    w.paths[i as usize].0.l += light;
+                }
+            }
+            std::mem::swap(&mut w.alive, &mut w.next);
+        }
+        for (id, (path, _)) in ids.zip(&w.paths) {
+            w.samples[id] = if path.l.is_finite() {
+                path.l
+            } else {
+                Vec3::ZERO
+            };
+        }
+    }
+    for samples in w.samples.chunks_exact(spp) {
+        let sum = samples.iter().fold(Vec3::ZERO, |sum, &l| sum + l);
+        out.push(sum / scene.spp as f32);
+    }
 }
 
 #[cfg(test)]
