@@ -460,15 +460,15 @@ def main():
     for r in rows:
         if r["tool"] == "displace":
             surf = "displace (bake+trace)"
-            setup = f"load {r['setup_s']:.2f}"
+            setup_s = f"load {r['setup_s']:.2f}"
             rend = f"{r['render_s']:.2f}"
             rmse = f"mean {r['mean']:.3f}"
         else:
             surf = f"{r['tool']}: Embree/Mitsuba"
-            setup = f"bvh {r['embree_build_s']:.2f}"
+            setup_s = f"bvh {r['embree_build_s']:.2f}"
             rend = f"{r['render_s']:.2f} (1st {r['mitsuba_first_s']:.1f})"
             rmse = f"{r['rmse']:.4f}"
-        print(f"{r['map']:<9} {surf:<22} {str(r['tris']):>9} {setup:>18} {r['memory_mb']:>8.1f} "
+        print(f"{r['map']:<9} {surf:<22} {str(r['tris']):>9} {setup_s:>18} {r['memory_mb']:>8.1f} "
               f"{r['mrays_1t']:>8.2f} {r['mrays_nt']:>9.2f} {r['shadow_1t']:>7.2f} "
               f"{r['shadow_nt']:>8.2f} {rend:>16} {rmse:>8}")
     print("\nsetup: ours = scene load with the bake (no cache); mesh = Embree BVH build; "
