@@ -178,6 +178,16 @@ fn open_gpu() -> Result<GpuContext> {
 }
 
 /// `<output stem>.uvkt.npy` next to `output`.
+/// Every file `gpu-render` writes: the image, and the UV image with
+/// `--uv-aov`; checked against its inputs before any work.
+fn written(args: &GpuRenderArgs) -> Vec<(String, PathBuf)> {
+    let mut out = vec![("-o".to_string(), args.output.clone())];
+    if args.uv_aov {
+        out.push(("--uv-aov".to_string(), uv_aov_path(&args.output)));
+    }
+    out
+}
+
 fn uv_aov_path(output: &std::path::Path) -> PathBuf {
     let stem = output
         .file_stem()
@@ -256,7 +266,12 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     }
     let kind = check_render_args(args)?;
     let size = args.size.as_deref().map(image_size).transpose()?;
+    // The scene file before it is loaded (and its bakes made), every file
+    // it reads once they are known.
+    let written = written(args);
+    crate::outputs::check_not_scene_inputs(&written, &[], Some(path))?;
     let loaded = scene::load(path, size, args.no_cache)?;
+    crate::outputs::check_not_scene_inputs(&written, &loaded.sources, Some(path))?;
     let ctx = open_gpu()?;
     let (draws, image) = scene::render(&ctx, &loaded, args.distance, args.shadows)
         .with_context(|| format!("rendering {}", path.display()))?;
@@ -285,6 +300,19 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
         bail!(
             "--method exact is the CPU reference; the GPU paths trace with sphere or sphere-fixed"
         );
+    }
+    let height = std::path::Path::new(&args.face.height);
+    if !args
+        .face
+        .height
+        .starts_with(displace_core::generators::PREFIX)
+    {
+        let written = written(&args);
+        let written: Vec<(&str, &std::path::Path)> = written
+            .iter()
+            .map(|(n, p)| (n.as_str(), p.as_path()))
+            .collect();
+        crate::outputs::check_not_inputs(&written, &[("--height", height)])?;
     }
     let map = bake_face(&args.face, &args.face.map_size)?;
     let mut scene = PlaneScene::for_map(&map, size);

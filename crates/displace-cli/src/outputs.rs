@@ -86,11 +86,12 @@ pub fn check_not_inputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> 
     Ok(())
 }
 
-/// [`check_not_inputs`] for a command that writes `output` from a loaded
-/// scene: every file the scene read (height maps, textures, meshes), and
-/// the scene file itself where given.
+/// [`check_not_inputs`] for a command that writes `outputs` (its image and
+/// every file named after it: AOVs, a UV image) from a loaded scene: every
+/// file the scene read (height maps, textures, meshes), and the scene file
+/// itself where given.
 pub fn check_not_scene_inputs(
-    output: &Path,
+    outputs: &[(String, std::path::PathBuf)],
     sources: &[std::path::PathBuf],
     scene_file: Option<&Path>,
 ) -> Result<()> {
@@ -99,5 +100,9 @@ pub fn check_not_scene_inputs(
         .map(|p| ("a file the scene reads", p.as_path()))
         .collect();
     read.extend(scene_file.map(|p| ("scene", p)));
-    check_not_inputs(&[("-o", output)], &read)
+    let written: Vec<(&str, &Path)> = outputs
+        .iter()
+        .map(|(name, p)| (name.as_str(), p.as_path()))
+        .collect();
+    check_not_inputs(&written, &read)
 }

@@ -190,7 +190,13 @@ fn render_one(
         None => Scene::default_scene(&opts),
     })?;
     let setup = start.elapsed();
-    crate::outputs::check_not_scene_inputs(output, scene.sources(), args.scene.as_deref())?;
+    let mut written = vec![("-o".to_string(), output.to_path_buf())];
+    for &aov in &plan.aovs {
+        let (npy, png) = aov_paths(output, aov);
+        let name = format!("--aov {}", aov.name());
+        written.extend([(name.clone(), npy), (name, png)]);
+    }
+    crate::outputs::check_not_scene_inputs(&written, scene.sources(), args.scene.as_deref())?;
     let stats = scene.cache_stats();
     for w in scene.warnings() {
         eprintln!("warning: {w}");

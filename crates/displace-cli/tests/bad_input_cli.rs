@@ -762,7 +762,9 @@ fn a_full_disk_leaves_nothing_behind() {
 /// `bake` (as `-o`'s normal map), the rays of `trace` (one face or a
 /// scene), a texture of a rendered scene (also through another spelling of
 /// its path), the tiles of `merge`, the mesh a scene exported by
-/// `export-mesh --scene` reads. Each was replaced by what was made from it.
+/// `export-mesh --scene` reads, an AOV written beside the image over a
+/// texture the scene reads, `gpu-render`'s height map and scene texture.
+/// Each was replaced by what was made from it.
 #[test]
 fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
     let dir = tempfile::tempdir().unwrap();
@@ -791,6 +793,15 @@ fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
         "type = \"mesh\"\npath = \"q.obj\"",
     );
     std::fs::write(d.join("m.toml"), meshed).unwrap();
+    // A scene textured by the file `render -o o.png --aov depth` would
+    // write beside its image.
+    std::fs::copy(d.join("wood.png"), d.join("o.depth.png")).unwrap();
+    let aov_named = replaced(
+        SCENE,
+        "color = [0.5, 0.5, 0.5]",
+        "color = [0.5, 0.5, 0.5]\ntexture = \"o.depth.png\"",
+    );
+    std::fs::write(d.join("d.toml"), aov_named).unwrap();
     let tile = run(
         &["render", "-q", "s.toml", "--tile", "0/1", "-o", "t0.exr"],
         d,
@@ -811,6 +822,13 @@ fn outputs_that_are_inputs_are_refused_and_the_input_kept() {
             "trace --scene m.toml --rays rays.npy -o rays.npy".into(),
             "rays.npy",
         ),
+        // Outputs named after -o (AOVs), and gpu-render's.
+        (
+            "render -q d.toml -o o.png --aov depth".into(),
+            "o.depth.png",
+        ),
+        ("gpu-render --height h.png -o h.png".into(), "h.png"),
+        ("gpu-render s.toml -o wood.png".into(), "wood.png"),
     ] {
         let before = bytes(input);
         refuses(d, &words(&command), &["is also an input"], &[]);

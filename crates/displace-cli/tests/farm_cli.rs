@@ -141,6 +141,15 @@ fn merge_names_missing_duplicate_foreign_and_truncated_tiles() {
         &["t0.exr", "t1.exr", "of7.exr", "t2.exr", "t3.exr"],
         &["of7.exr: a tile of another render: one of 7 tiles, the others of 4"],
     );
+    // A tile cut short keeps its header: the set is whole, and the tile is
+    // named when its pixels are decoded.
+    refused(
+        d,
+        &["t0.exr", "t1.exr", "t2.exr", "cut3.exr"],
+        &["cut3.exr", "not a complete OpenEXR tile"],
+    );
+    // Cut into its header, it is unreadable and its tile missing: both said.
+    std::fs::write(d.join("cut3.exr"), &cut[..200]).unwrap();
     refused(
         d,
         &["t0.exr", "t1.exr", "t2.exr", "cut3.exr"],

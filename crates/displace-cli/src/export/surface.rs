@@ -21,7 +21,8 @@ pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Res
         ..SceneOptions::default()
     };
     let loaded = Scene::load(scene, &opts)?;
-    crate::outputs::check_not_scene_inputs(output, loaded.sources(), None)?;
+    let written = [("-o".to_string(), output.to_path_buf())];
+    crate::outputs::check_not_scene_inputs(&written, loaded.sources(), None)?;
     let surfaces = loaded
         .meshes()
         .iter()

@@ -130,7 +130,8 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
     let start = Instant::now();
     let scene =
         Scene::load(scene, &opts).with_context(|| format!("loading scene {}", scene.display()))?;
-    crate::outputs::check_not_scene_inputs(output, scene.sources(), None)?;
+    let written = [("-o".to_string(), output.to_path_buf())];
+    crate::outputs::check_not_scene_inputs(&written, scene.sources(), None)?;
     println!(
         "loaded the scene in {:.3} s (displacement maps {:.1} MB)",
         start.elapsed().as_secs_f64(),

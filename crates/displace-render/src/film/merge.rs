@@ -4,8 +4,14 @@
 //! Every problem found is reported, each naming the file or the tile at
 //! fault, and no image is returned unless there are none; the merged image
 //! is then the one a single machine renders, pixel for pixel.
+//!
+//! [`merge_files`] reads every tile's header first and checks the set
+//! before it decodes a pixel, so a set that cannot be merged (a hundred
+//! copies of one tile, a tile of another render) costs its headers only;
+//! the tiles are then decoded one at a time, each checked against its
+//! pixels' checksum, into the image.
 
-use crate::film::tile_file::{read_tile, TileImage, TileMeta};
+use crate::film::tile_file::{read_tile, read_tile_header, TileImage, TileMeta};
 use crate::film::tiling::{tile_rects, TileIndex};
 use crate::render::{Crop, Image};
 use glam::Vec3;
@@ -68,6 +74,9 @@ pub enum Problem {
     /// Nothing to merge.
     #[error("no tiles were given")]
     NoTiles,
+    /// The merged image would not fit in the memory available.
+    #[error("{0}")]
+    Memory(String),
 }
 
 /// Why a merge was refused: every problem found.
@@ -99,11 +108,11 @@ type RenderKey = (u64, [u32; 2], u32);
 
 /// The render most tiles agree on (ties go to the first file given): the
 /// others are foreign to it.
-fn reference(tiles: &[(PathBuf, TileImage)]) -> RenderKey {
+fn reference(metas: &[(PathBuf, TileMeta)]) -> RenderKey {
     let key = |m: &TileMeta| (m.content_hash, m.full_size, m.tile.count);
     let mut votes: Vec<(RenderKey, usize)> = Vec::new();
-    for (_, t) in tiles {
-        let k = key(&t.meta);
+    for (_, m) in metas {
+        let k = key(m);
         match votes.iter_mut().find(|(v, _)| *v == k) {
             Some((_, n)) => *n += 1,
             None => votes.push((k, 1)),
@@ -142,50 +151,43 @@ fn foreign(meta: &TileMeta, want: RenderKey) -> Option<String> {
     (!why.is_empty()).then(|| why.join("; "))
 }
 
-/// Checks `tiles` (each with the file it came from) and stitches them.
-pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
-    if tiles.is_empty() {
-        return Err(MergeError {
-            problems: vec![Problem::NoTiles],
-        });
+/// The whole image's size and which of `metas` is each band, in band
+/// order, if the tiles make one image; else every problem.
+fn plan(metas: &[(PathBuf, TileMeta)]) -> Result<([u32; 2], Vec<usize>), Vec<Problem>> {
+    if metas.is_empty() {
+        return Err(vec![Problem::NoTiles]);
     }
-    let want = reference(&tiles);
+    let want = reference(metas);
     let (_, [width, height], count) = want;
+    let grid = tile_rects(width, height, count).map_err(|e| vec![Problem::Grid(e.to_string())])?;
     let mut problems = Vec::new();
-    let grid = match tile_rects(width, height, count) {
-        Ok(g) => g,
-        Err(e) => {
-            return Err(MergeError {
-                problems: vec![Problem::Grid(e.to_string())],
-            })
-        }
-    };
-    let mut placed: BTreeMap<u32, (PathBuf, TileImage)> = BTreeMap::new();
-    for (path, t) in tiles {
-        if let Some(why) = foreign(&t.meta, want) {
+    let mut placed: BTreeMap<u32, usize> = BTreeMap::new();
+    for (k, (path, m)) in metas.iter().enumerate() {
+        let path = path.clone();
+        if let Some(why) = foreign(m, want) {
             problems.push(Problem::Foreign { path, why });
             continue;
         }
-        let tile = t.meta.tile;
+        let tile = m.tile;
         let expected = grid[tile.index as usize];
-        if t.meta.rect != expected {
+        if m.rect != expected {
             problems.push(Problem::WrongRect {
                 path,
                 tile,
-                got: rect_text(&t.meta.rect),
+                got: rect_text(&m.rect),
                 want: rect_text(&expected),
             });
             continue;
         }
-        if let Some((first, _)) = placed.get(&tile.index) {
+        if let Some(&first) = placed.get(&tile.index) {
             problems.push(Problem::Duplicate {
                 tile,
-                first: first.clone(),
+                first: metas[first].0.clone(),
                 second: path,
             });
             continue;
         }
-        placed.insert(tile.index, (path, t));
+        placed.insert(tile.index, k);
     }
     for (i, r) in grid.iter().enumerate() {
         if !placed.contains_key(&(i as u32)) {
@@ -200,12 +202,19 @@ pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
         }
     }
     if !problems.is_empty() {
-        return Err(MergeError { problems });
+        return Err(problems);
     }
+    Ok(([width, height], placed.into_values().collect()))
+}
+
+/// Checks `tiles` (each with the file it came from) and stitches them.
+pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
+    let metas: Vec<(PathBuf, TileMeta)> = tiles.iter().map(|(p, t)| (p.clone(), t.meta)).collect();
+    let ([width, height], order) = plan(&metas).map_err(|problems| MergeError { problems })?;
     // Bands are whole rows in index order: the image is their pixels in turn.
     let mut pixels: Vec<Vec3> = Vec::with_capacity(width as usize * height as usize);
-    for (_, (_, t)) in placed {
-        pixels.extend_from_slice(&t.pixels);
+    for k in order {
+        pixels.extend_from_slice(&tiles[k].1.pixels);
     }
     Ok(Image {
         width,
@@ -214,39 +223,65 @@ pub fn merge(tiles: Vec<(PathBuf, TileImage)>) -> Result<Image, MergeError> {
     })
 }
 
-/// Reads the tile files at `paths` and merges them; a file that cannot be
-/// read is one of the problems reported, beside any among the others.
+/// Reads the tile files at `paths` and merges them: every header first
+/// (a file that cannot be read is one of the problems reported, beside any
+/// among the others), the set checked, the image's memory checked against
+/// the limits in force, then each tile decoded and verified in turn.
 pub fn merge_files(paths: &[PathBuf]) -> Result<Image, MergeError> {
-    let mut tiles = Vec::with_capacity(paths.len());
-    let mut unreadable = Vec::new();
-    for p in paths {
-        match read_tile(p) {
-            Ok(t) => tiles.push((p.clone(), t)),
-            Err(e) => unreadable.push(Problem::Unreadable(e.to_string())),
-        }
-    }
-    if tiles.is_empty() && unreadable.is_empty() {
+    if paths.is_empty() {
         return Err(MergeError {
             problems: vec![Problem::NoTiles],
         });
     }
-    match (tiles.is_empty(), merge(tiles)) {
-        (false, Ok(img)) if unreadable.is_empty() => Ok(img),
-        (false, Ok(_)) => Err(MergeError {
-            problems: unreadable,
-        }),
-        (true, _) => Err(MergeError {
-            problems: unreadable,
-        }),
-        (false, Err(mut e)) => {
-            // An unreadable file is likely the tile reported missing: both
-            // are said.
-            unreadable.append(&mut e.problems);
-            Err(MergeError {
-                problems: unreadable,
-            })
+    let mut metas = Vec::with_capacity(paths.len());
+    let mut problems = Vec::new();
+    for p in paths {
+        match read_tile_header(p) {
+            Ok(h) => metas.push((p.clone(), h.meta)),
+            Err(e) => problems.push(Problem::Unreadable(e.to_string())),
         }
     }
+    let planned = if metas.is_empty() {
+        None
+    } else {
+        match plan(&metas) {
+            Ok(p) => Some(p),
+            // An unreadable file is likely the tile reported missing: both
+            // are said.
+            Err(mut more) => {
+                problems.append(&mut more);
+                None
+            }
+        }
+    };
+    let (Some(([width, height], order)), true) = (planned, problems.is_empty()) else {
+        return Err(MergeError { problems });
+    };
+    let count = width as usize * height as usize;
+    displace_core::memory::check("the merged image", count as u128 * 12).map_err(|e| {
+        MergeError {
+            problems: vec![Problem::Memory(e.to_string())],
+        }
+    })?;
+    let mut pixels: Vec<Vec3> = Vec::with_capacity(count);
+    for k in order {
+        match read_tile(&metas[k].0) {
+            Ok(t) if t.meta == metas[k].1 => pixels.extend_from_slice(&t.pixels),
+            Ok(_) => problems.push(Problem::Unreadable(format!(
+                "{}: the tile changed while it was merged",
+                metas[k].0.display()
+            ))),
+            Err(e) => problems.push(Problem::Unreadable(e.to_string())),
+        }
+    }
+    if !problems.is_empty() {
+        return Err(MergeError { problems });
+    }
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
 }
 
 #[cfg(test)]
@@ -312,5 +347,54 @@ mod tests {
         assert!(text.contains("tile 1/3 (rows 16..32) is missing"), "{text}");
         assert!(text.contains("tile 2/3 (rows 32..64) is missing"), "{text}");
         assert_eq!(merge(vec![]).unwrap_err().problems, vec![Problem::NoTiles]);
+    }
+
+    /// Files: a set that cannot be merged is refused from the headers
+    /// alone (a damaged tile among them is never decoded, so only the
+    /// set's problems are said); once the set is whole, the damaged tile
+    /// is decoded and refused by its checksum; the undamaged set merges.
+    #[test]
+    fn files_are_checked_as_a_set_before_any_is_decoded() {
+        use crate::film::tile_file::{pixel_checksum, write_tile};
+        let dir = tempfile::tempdir().unwrap();
+        let mut paths = Vec::new();
+        for index in 0..3 {
+            let (_, t) = tile(7, index, 3);
+            let p = dir.path().join(format!("t{index}.exr"));
+            let r = t.meta.rect;
+            let img = Image {
+                width: r.width,
+                height: r.height,
+                pixels: t.pixels,
+            };
+            write_tile(&p, &t.meta, &img).unwrap();
+            paths.push(p);
+        }
+        let whole = merge_files(&paths).unwrap();
+        // Tile 1's checksum swapped for another's: its pixels no longer
+        // match it.
+        let bytes = std::fs::read(&paths[1]).unwrap();
+        let (_, t1) = tile(7, 1, 3);
+        let mine = format!("{:016x}", pixel_checksum(&t1.pixels));
+        let at = bytes
+            .windows(16)
+            .position(|w| w == mine.as_bytes())
+            .unwrap();
+        let mut damaged = bytes.clone();
+        damaged[at..at + 16].copy_from_slice(b"0123456789abcdef");
+        std::fs::write(&paths[1], &damaged).unwrap();
+        let twice = [paths.clone(), vec![paths[0].clone()]].concat();
+        let e = merge_files(&twice).unwrap_err().to_string();
+        assert!(
+            e.contains("tile 0/3 is given twice") && !e.contains("checksum"),
+            "{e}"
+        );
+        let e = merge_files(&paths).unwrap_err().to_string();
+        assert!(
+            e.contains("t1.exr") && e.contains("do not match the checksum"),
+            "{e}"
+        );
+        std::fs::write(&paths[1], &bytes).unwrap();
+        assert_eq!(merge_files(&paths).unwrap(), whole);
     }
 }
