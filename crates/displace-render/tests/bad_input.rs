@@ -232,7 +232,7 @@ fn faces_tiled_past_the_walks_precision_are_refused() {
 /// a negative reflectance in a colour map (each was rendered into NaN or
 /// negative pixels). The same files' finite, non-negative twins load.
 #[test]
-fn float_textures_with_nan_or_negative_texels_are_refused() {
+fn float_textures_with_texels_out_of_range_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let base = dir.path();
     let exr = |name: &str, bad: [f32; 3]| {
@@ -245,6 +245,8 @@ fn float_textures_with_nan_or_negative_texels_are_refused() {
     exr("nan.exr", [0.5, f32::NAN, 0.5]);
     exr("neg.exr", [-1.0, 0.5, 0.5]);
     exr("ok.exr", [1.0, 0.0, 0.25]);
+    exr("bright.exr", [1.5, 0.5, 0.5]);
+    exr("huge.exr", [1e20, 0.5, 0.5]);
     let load = |text: &str| {
         Scene::from_toml(text, Path::new("test.toml"), base, &opts()).map_err(|e| e.to_string())
     };
@@ -269,6 +271,14 @@ fn float_textures_with_nan_or_negative_texels_are_refused() {
             normals("nan.exr"),
             "shapes[0].displacement.normal_map",
             "nan.exr",
+        ),
+        // A colour map is a reflectance, at most 1; a normal map's
+        // squared lengths must fit in single precision.
+        (material("bright.exr"), "materials.m.texture", "bright.exr"),
+        (
+            normals("huge.exr"),
+            "shapes[0].displacement.normal_map",
+            "huge.exr",
         ),
     ] {
         let Err(e) = load(&text) else {
@@ -408,4 +418,49 @@ fn elevation_models_render_through_their_height_range() {
             "{e}"
         );
     }
+}
+
+/// Values the renderer's arithmetic cannot hold are refused at their key,
+/// not rendered into infinite or black pixels: a reflectance above 1 (two
+/// facing mirrors of colour 1e18 reach infinity in three bounces), light
+/// past `MAX_RADIANCE`; the bounds themselves pass.
+#[test]
+fn colours_and_lights_past_what_single_precision_holds_are_refused() {
+    use displace_render::scene::MAX_RADIANCE;
+    let load = |text: String| {
+        Scene::from_toml(&text, Path::new("test.toml"), Path::new("."), &opts())
+            .map_err(|e| e.to_string())
+    };
+    let grey = "color = [0.5, 0.5, 0.5]";
+    let mirror = "type = \"mirror\"\ncolor = [1e18, 1e18, 1e18]";
+    for (text, key, why) in [
+        (
+            with(grey, "color = [1.5, 0.5, 0.5]"),
+            "materials.m.color",
+            "at most 1",
+        ),
+        (
+            with(&format!("type = \"lambert\"\n{grey}"), mirror),
+            "materials.m.color",
+            "at most 1",
+        ),
+        (
+            with(grey, &format!("{grey}\nemission = [1e16, 1, 1]")),
+            "materials.m.emission",
+            "at most 1e15",
+        ),
+        (
+            with("intensity = [10, 10, 10]", "intensity = [1e17, 0, 0]"),
+            "lights[0].intensity",
+            "at most 1e15",
+        ),
+    ] {
+        let Err(e) = load(text) else {
+            panic!("{key}: accepted");
+        };
+        assert!(e.contains(key) && e.contains(why), "{key}: {e}");
+    }
+    let at_bounds = format!("intensity = [{MAX_RADIANCE:e}, 0, 0]");
+    assert!(load(with(grey, "color = [1, 1, 0]")).is_ok());
+    assert!(load(with("intensity = [10, 10, 10]", &at_bounds)).is_ok());
 }

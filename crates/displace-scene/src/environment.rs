@@ -73,7 +73,8 @@ impl EnvironmentMap {
             Some(Self::FORMAT),
         )?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-        let texels = crate::texture::checked_texels(path, &rgb, true, "radiance")
+        let range = [0.0, crate::build::MAX_RADIANCE];
+        let texels = crate::texture::checked_texels(path, &rgb, range, "radiance")
             .collect::<Result<Vec<_>>>()?;
         Ok(Self::from_texels(w, h, texels))
     }

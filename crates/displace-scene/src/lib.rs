@@ -42,6 +42,8 @@ pub mod vertex_normals;
 pub mod world;
 
 pub use bake_cache::{default_cache_dir, CacheStats};
-pub use build::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
+pub use build::{
+    MAX_COORDINATE, MAX_DEPTH, MAX_RADIANCE, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP,
+};
 pub use error::{Error, Result};
 pub use world::{RenderSettings, SceneOptions, World, DEFAULT_SCENE, DEFAULT_SCENE_NAME};

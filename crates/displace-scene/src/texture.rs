@@ -98,26 +98,23 @@ pub(crate) fn read_rgb32f(
 }
 
 /// The texels of a decoded float image, each refused (naming the file and
-/// the texel) unless finite and, with `non_negative`, at least 0: a float
-/// image (EXR) can hold what no texture or radiance means. `what` names
-/// the values in the message. Shared by textures and environment maps.
+/// the texel) unless every component lies in `[lo, hi]` (NaN never does):
+/// a float image (EXR) can hold what no texture or radiance means. `what`
+/// names the values in the message. Shared by textures and environment
+/// maps.
 pub(crate) fn checked_texels<'a>(
     path: &'a Path,
     rgb: &'a image::Rgb32FImage,
-    non_negative: bool,
+    [lo, hi]: [f32; 2],
     what: &'a str,
 ) -> impl Iterator<Item = Result<Vec3>> + 'a {
     let w = rgb.width() as usize;
     rgb.pixels().enumerate().map(move |(i, p)| {
         let c = Vec3::new(p[0], p[1], p[2]);
-        if c.is_finite() && !(non_negative && c.min_element() < 0.0) {
+        if c.is_finite() && c.min_element() >= lo && c.max_element() <= hi {
             return Ok(c);
         }
-        let want = if non_negative {
-            "finite and >= 0"
-        } else {
-            "finite"
-        };
+        let want = format!("finite and in [{lo:e}, {hi:e}]");
         let message = format!(
             "texel ({}, {}) is {:?}: {what} must be {want}",
             i % w,
@@ -143,14 +140,22 @@ impl Texture {
     /// otherwise values are kept as stored (normal maps).
     ///
     /// A float image (EXR, HDR) can hold what no texture means: a texel
-    /// that is not finite is refused, and so is a negative one in a colour
-    /// map (a reflectance is at least 0), naming the file and the texel,
-    /// rather than rendered into NaN or negative pixels.
+    /// that is not finite is refused, and so is one outside `[0, 1]` in a
+    /// colour map (a reflectance) or past `MAX_COORDINATE` in a normal map
+    /// (its squared length must fit in single precision), naming the file
+    /// and the texel, rather than rendered into NaN, negative or infinite
+    /// pixels.
     pub fn load(path: &Path, srgb: bool) -> Result<Self> {
         let rgb = read_rgb32f(path, "texture", Self::BYTES_PER_TEXEL, None)?;
         let (w, h) = (rgb.width() as usize, rgb.height() as usize);
         let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
-        let data = checked_texels(path, &rgb, srgb, "a texture's values")
+        let range = if srgb {
+            [0.0, 1.0]
+        } else {
+            let m = crate::build::MAX_COORDINATE;
+            [-m, m]
+        };
+        let data = checked_texels(path, &rgb, range, "a texture's values")
             .map(|c| c.map(|c| c.map(decode)))
             .collect::<Result<Vec<_>>>()?;
         Ok(Self {

@@ -11,7 +11,9 @@ pub(crate) mod world;
 pub use displace_scene::placed::{MeshDisplacement, SceneMesh, TriAttr};
 pub use displace_scene::{animation, spec};
 pub use displace_scene::{SceneOptions, World, DEFAULT_SCENE, DEFAULT_SCENE_NAME};
-pub use displace_scene::{MAX_COORDINATE, MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
+pub use displace_scene::{
+    MAX_COORDINATE, MAX_DEPTH, MAX_RADIANCE, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP,
+};
 pub use world::{Interaction, Primitive, Shape};
 
 use crate::bake_cache::CacheStats;

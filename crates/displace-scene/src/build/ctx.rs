@@ -20,6 +20,14 @@ use std::sync::Arc;
 /// reported as looking nowhere instead of as out of range.
 pub const MAX_COORDINATE: f32 = 1e18;
 
+/// Most light a scene key may give off (emission, radiance, intensity,
+/// background), per component. A sample is at most that light times
+/// reflectances of at most 1 and the geometry of one light sample, and a
+/// pixel the mean of at most 2^16 samples: 1e15 keeps those sums more than
+/// twenty orders of magnitude inside single precision's 3.4e38, while
+/// lights thousands of times brighter than any scene of `scenes/` pass.
+pub const MAX_RADIANCE: f32 = 1e15;
+
 /// A loaded height map's source, generated size, addressing and height
 /// range (as its `Debug` text: the range holds floats, which do not hash).
 pub(super) type HeightKey = (String, [usize; 2], Address, String);
@@ -81,10 +89,34 @@ impl<'a> Ctx<'a> {
         Ok(Vec3::from_array(v))
     }
 
+    /// Light given off (emission, a light's radiance or intensity, the
+    /// background): not negative, and at most [`MAX_RADIANCE`].
     pub(super) fn color(&self, v: V3, what: &str) -> Result<Vec3> {
         let c = self.vec(v, what)?;
         if c.min_element() < 0.0 {
             return Err(self.err(format!("{what} = {v:?}: colours cannot be negative")));
+        }
+        if c.max_element() > MAX_RADIANCE {
+            return Err(self.err(format!(
+                "{what} = {v:?}: at most {MAX_RADIANCE:e} (larger values overflow single \
+                 precision in the sums of a pixel's samples)"
+            )));
+        }
+        Ok(c)
+    }
+
+    /// A surface's reflectance (a material's colour, specular or diffuse
+    /// part): each component in `[0, 1]`, since a surface reflects at most
+    /// the light that reaches it. A larger one multiplies the light at
+    /// every bounce: two facing mirrors of colour 1e18 reach infinity in
+    /// three.
+    pub(super) fn reflectance(&self, v: V3, what: &str) -> Result<Vec3> {
+        let c = self.color(v, what)?;
+        if c.max_element() > 1.0 {
+            return Err(self.err(format!(
+                "{what} = {v:?}: a reflectance is at most 1 in each component (a surface \
+                 reflects at most the light that reaches it)"
+            )));
         }
         Ok(c)
     }

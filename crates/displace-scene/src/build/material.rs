@@ -41,7 +41,7 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
     };
     let material = match m {
         MaterialSpec::Lambert { color, texture, .. } => Material {
-            diffuse: cx.color(*color, &format!("{what}.color"))?,
+            diffuse: cx.reflectance(*color, &format!("{what}.color"))?,
             texture: tex(cx, texture)?,
             ..Material::default()
         },
@@ -58,16 +58,16 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
                 )));
             }
             Material {
-                diffuse: cx.color(*color, &format!("{what}.color"))?,
+                diffuse: cx.reflectance(*color, &format!("{what}.color"))?,
                 texture: tex(cx, texture)?,
-                specular: cx.color(*specular, &format!("{what}.specular"))?,
+                specular: cx.reflectance(*specular, &format!("{what}.specular"))?,
                 shininess: *shininess,
                 ..Material::default()
             }
         }
         MaterialSpec::Mirror { color, diffuse, .. } => Material {
-            diffuse: cx.color(*diffuse, &format!("{what}.diffuse"))?,
-            reflect: cx.color(*color, &format!("{what}.color"))?,
+            diffuse: cx.reflectance(*diffuse, &format!("{what}.diffuse"))?,
+            reflect: cx.reflectance(*color, &format!("{what}.color"))?,
             ..Material::default()
         },
         MaterialSpec::Glossy {
@@ -82,8 +82,8 @@ fn material(cx: &mut Ctx, key: &str, m: &MaterialSpec) -> Result<Material> {
                 )));
             }
             Material {
-                diffuse: cx.color(*diffuse, &format!("{what}.diffuse"))?,
-                reflect: cx.color(*color, &format!("{what}.color"))?,
+                diffuse: cx.reflectance(*diffuse, &format!("{what}.diffuse"))?,
+                reflect: cx.reflectance(*color, &format!("{what}.color"))?,
                 roughness: *roughness,
                 ..Material::default()
             }

@@ -18,7 +18,7 @@ mod material;
 mod shapes;
 mod triangles;
 
-pub use ctx::MAX_COORDINATE;
+pub use ctx::{MAX_COORDINATE, MAX_RADIANCE};
 pub use film::{MAX_DEPTH, MAX_SAMPLES, MAX_SHADOW_SAMPLES, MAX_SPP};
 
 use crate::error::Result;
