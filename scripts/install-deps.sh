@@ -19,6 +19,10 @@ done
 for p in slurmctld slurmd slurm-client munge iproute2; do
   dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
 done
+# The Python package's tests: an interpreter that can make a virtual
+# environment (Debian splits venv and pip out of python3).
+command -v python3 >/dev/null 2>&1 || need+=(python3)
+python3 -c "import ensurepip, venv" >/dev/null 2>&1 || need+=(python3-venv python3-pip)
 if [ ${#need[@]} -gt 0 ]; then
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq

@@ -2,7 +2,7 @@
 # The whole test suite, as the README gives it and CI runs it: system
 # packages, formatting, lints, then every test of the workspace (GPU tests on
 # lavapipe when no GPU is present; they fail, never skip, when no adapter is
-# found under CI).
+# found under CI), and the Python package's tests (scripts/test-python.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -15,3 +15,4 @@ fi
 cargo fmt --all --check
 cargo clippy --workspace --all-targets -- -D warnings
 cargo test --workspace
+bash scripts/test-python.sh

@@ -72,6 +72,11 @@ pub enum Error {
     /// technique run without the map it needs.
     #[error("invalid trace: {0}")]
     InvalidTrace(String),
+    /// A ray given by a user that cannot be traced (a component not finite
+    /// or too large, a direction of no length, a bad `t_max`); the message
+    /// names the ray and its column.
+    #[error("{0}")]
+    InvalidRay(String),
     /// A map file with an unknown extension, a format it cannot hold, or
     /// contents that break its format (KTX2, DDS, NumPy `.npy`).
     #[error("{path}: {message}")]

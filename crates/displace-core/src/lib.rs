@@ -40,6 +40,7 @@ pub mod io;
 pub mod memory;
 pub mod names;
 pub mod normal_map;
+pub mod physical;
 pub mod random;
 pub mod sphere_trace;
 pub mod techniques;

@@ -2,14 +2,7 @@
 //! face's physical frame, so users can check our tracer against their own
 //! tools (or, with `--scene`, against a whole scene: [`scene`]).
 //!
-//! **Frames.** A physical point `(x, y, z)` (x along u in `[0, SX]`, y along
-//! v in `[0, SY]`, z up, the shell in `[0, SZ]`) is map-space point
-//! `(x, y, z) / SZ` (lengths in shell depths, `crate::convention`). The
-//! scale is uniform, so a direction keeps its orientation: the map-space
-//! direction is the physical one normalised, and a map-space distance `t_m`
-//! along it is `t_m * SZ` physical length. The `t` reported is the ray
-//! parameter for the direction *as given*: `hit = origin + t * dir`, i.e.
-//! `t = t_m * SZ / |dir|` (the physical distance when `dir` is unit length).
+//! The frame and the units of `t` are [`displace_core::physical`]'s.
 
 mod rays;
 mod scene;
@@ -18,10 +11,10 @@ use crate::args::{load_height, parse_map_size, FaceArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use displace_core::io::{self as dio, npy};
-use displace_core::{DisplacementMap, MapRay, Method, NormalMap, TraceOptions};
+use displace_core::physical;
+use displace_core::{DisplacementMap, Method, NormalMap, TraceOptions};
 #[cfg(feature = "gpu")]
 use displace_gpu::{DistanceTexture, GpuContext};
-use glam::Vec3;
 use rayon::prelude::*;
 use rays::read_rays;
 use std::path::{Path, PathBuf};
@@ -86,22 +79,14 @@ fn parse_method(s: &str) -> Result<Method, String> {
     s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
-/// Traces one physical-frame ray: `[t, x, y, z, iterations]`.
+/// Traces one physical-frame ray ([`displace_core::physical`]): `[t, x, y,
+/// z, iterations]`, `t` inf and the point NaN on a miss.
 pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) -> [f32; 5] {
-    let sz = map.extent.sz;
-    let origin = Vec3::new(r[0], r[1], r[2]);
-    let dir = Vec3::new(r[3], r[4], r[5]);
-    let ray = MapRay::new(origin / sz, dir);
-    match map.trace(&ray, opts) {
+    let ray = [r[0], r[1], r[2], r[3], r[4], r[5], f32::INFINITY];
+    match physical::intersect(map.into(), opts, &ray) {
         Some(hit) => {
-            let p = hit.position * sz;
-            [
-                hit.t * sz / dir.length(),
-                p.x,
-                p.y,
-                p.z,
-                hit.iterations as f32,
-            ]
+            let p = hit.position;
+            [hit.t, p.x, p.y, p.z, hit.iterations as f32]
         }
         None => [f32::INFINITY, f32::NAN, f32::NAN, f32::NAN, 0.0],
     }

@@ -4,13 +4,8 @@
 
 use anyhow::{bail, Context, Result};
 use displace_core::io::npy;
-use glam::Vec3;
+use displace_core::physical;
 use std::path::Path;
-
-/// Largest magnitude of a ray's origin or direction component: past it the
-/// direction's length overflows float32 and a ray of direction 1e30 would
-/// be reported as having no length.
-pub const MAX_RAY_COMPONENT: f32 = 1e18;
 
 /// Rays read from `path`, checked: shape `(N, 6)`, finite, non-zero
 /// directions. Returned in physical units, as given.
@@ -52,34 +47,7 @@ fn read_ray_rows(path: &Path, with_length: bool) -> Result<Vec<[f32; 7]>> {
         })
         .collect();
     for (n, r) in rays.iter().enumerate() {
-        if r[6].is_nan() || r[6] <= 0.0 {
-            bail!(
-                "rays {}: ray {n} has t_max {} in column 6, which must be positive (or inf)",
-                path.display(),
-                r[6]
-            );
-        }
-        if let Some(c) = r[..6].iter().position(|v| !v.is_finite()) {
-            bail!(
-                "rays {}: ray {n} has {} in column {c}",
-                path.display(),
-                r[c]
-            );
-        }
-        if let Some(c) = r[..6].iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
-            bail!(
-                "rays {}: ray {n} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
-                path.display(),
-                r[c]
-            );
-        }
-        let d = Vec3::new(r[3], r[4], r[5]);
-        if !(d.length() > 0.0 && d.length().is_finite()) {
-            bail!(
-                "rays {}: ray {n} has direction {d}, which has no length",
-                path.display()
-            );
-        }
+        physical::check_ray(&format!("rays {}: ray {n}", path.display()), r)?;
     }
     Ok(rays)
 }

@@ -492,6 +492,28 @@ fn load_data_tiff(
     finish(path, w, h, data, opts.address)
 }
 
+/// Heights from samples already in memory (an array a binding hands over,
+/// rows of `width`, row 0 at `v = 0` as a file's first row is), mapped as
+/// `range` says and checked as a loaded file's are, so that an array and
+/// the file it came from give the same map; `name` names them in messages.
+///
+/// # Errors
+///
+/// As [`load`]: a sample outside the range (or, as stored, outside `[0,
+/// 1]`), NaN or infinite, or a map smaller than 2x2.
+pub fn from_samples(
+    name: &str,
+    [width, height]: [usize; 2],
+    mut data: Vec<f32>,
+    range: HeightRange,
+    address: Address,
+) -> Result<HeightMap> {
+    let path = Path::new(name);
+    HeightMap::check_size(width, height).map_err(|e| Error::image(path, e))?;
+    apply_range(path, &mut data, width, range)?;
+    finish(path, width, height, data, address)
+}
+
 /// Maps `data` (rows of `w`) to heights as `range` says; as stored, the
 /// values must already lie in `[0, 1]` (an integer image's normalised codes
 /// always do), and a value outside is refused, named.

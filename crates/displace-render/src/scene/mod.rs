@@ -6,6 +6,7 @@
 
 pub mod batch;
 mod build;
+pub mod queries;
 pub(crate) mod world;
 
 pub use displace_scene::placed::{MeshDisplacement, SceneMesh, TriAttr};

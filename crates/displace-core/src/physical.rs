@@ -1,0 +1,192 @@
+//! Ray queries against one displaced face in its physical frame: the
+//! frame users measure in (metres of terrain, millimetres of a part), so
+//! that batch tools (`displace trace`, the Python package) answer in the
+//! units their rays were given in, and all of them answer alike.
+//!
+//! **Frames.** A physical point `(x, y, z)` (x along u in `[0, SX]`, y
+//! along v in `[0, SY]`, z up, the shell in `[0, SZ]`) is map-space point
+//! `(x, y, z) / SZ` (lengths in shell depths, Donnelly, GPU Gems 2 section
+//! 8.3: the distance map spans a unit-depth slab). The scale is uniform, so
+//! a direction keeps its orientation: the map-space direction is the
+//! physical one normalised, and a map-space distance `t_m` along it is
+//! `t_m * SZ` physical length. The `t` reported is the ray parameter for
+//! the direction *as given*: `hit = origin + t * dir`, i.e. `t = t_m * SZ /
+//! |dir|` (the physical distance when `dir` is unit length), and `t_max`
+//! is read in the same units.
+
+use crate::sphere_trace::{MapRay, TraceOptions};
+use crate::{DisplacementMap, DistanceMap, Error, Extent, HeightMap, Result};
+use glam::{Vec2, Vec3};
+
+/// Largest magnitude of a ray's origin or direction component: past it the
+/// direction's squared length overflows float32, and a ray of direction
+/// 1e30 would be reported as having no length.
+pub const MAX_RAY_COMPONENT: f32 = 1e18;
+
+/// What a ray query reads of a displaced face: the heights its hits are
+/// refined on, the distance map it steps through, and the tile's physical
+/// size. Not the shading normals, which a query never reads, so that a
+/// caller answering queries only (the Python package) need not hold them.
+#[derive(Clone, Copy, Debug)]
+pub struct Face<'a> {
+    /// The bilinear height surface.
+    pub height: &'a HeightMap,
+    /// The conservative distance map.
+    pub distance: &'a DistanceMap,
+    /// One tile's physical size.
+    pub extent: Extent,
+}
+
+impl<'a> From<&'a DisplacementMap> for Face<'a> {
+    fn from(map: &'a DisplacementMap) -> Self {
+        Face {
+            height: &map.height,
+            distance: &map.distance,
+            extent: map.extent,
+        }
+    }
+}
+
+/// A hit on the displaced face, in the face's physical frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhysicalHit {
+    /// Ray parameter for the direction as given: `position = origin + t
+    /// dir`.
+    pub t: f32,
+    /// The hit point, physical units.
+    pub position: Vec3,
+    /// Unit geometric normal of the bilinear surface (or of the shell's
+    /// wall) at the hit, physical frame (the map's scale is uniform, so
+    /// map-space normals are physical ones).
+    pub normal: Vec3,
+    /// Texture coordinate of the hit, in tiles (`[0, 1]` on a clamped map).
+    pub uv: Vec2,
+    /// The height-map texel cell hit, row-major (`j * width + i`): the
+    /// face's analogue of a mesh's triangle index.
+    pub cell: u32,
+    /// Distance-map steps plus patches walked (Donnelly's cost, section
+    /// 8.6).
+    pub iterations: u32,
+}
+
+/// Checks one ray as given by a user: `ray` is origin xyz, direction xyz,
+/// and `t_max` (positive, or infinite for an unbounded ray). `what` names
+/// the ray in the message (such as "rays rays.npy: ray 12").
+///
+/// # Errors
+///
+/// [`Error::InvalidRay`] naming the first bad component: not finite,
+/// larger than [`MAX_RAY_COMPONENT`], a direction of no length, or a
+/// `t_max` that is NaN or not positive.
+pub fn check_ray(what: &str, ray: &[f32; 7]) -> Result<()> {
+    if ray[6].is_nan() || ray[6] <= 0.0 {
+        return Err(Error::InvalidRay(format!(
+            "{what} has t_max {} in column 6, which must be positive (or inf)",
+            ray[6]
+        )));
+    }
+    if let Some(c) = ray[..6].iter().position(|v| !v.is_finite()) {
+        return Err(Error::InvalidRay(format!(
+            "{what} has {} in column {c}",
+            ray[c]
+        )));
+    }
+    if let Some(c) = ray[..6].iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
+        return Err(Error::InvalidRay(format!(
+            "{what} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
+            ray[c]
+        )));
+    }
+    let d = Vec3::new(ray[3], ray[4], ray[5]);
+    if !(d.length() > 0.0 && d.length().is_finite()) {
+        return Err(Error::InvalidRay(format!(
+            "{what} has direction {d}, which has no length"
+        )));
+    }
+    Ok(())
+}
+
+/// The map-space ray of a physical one, and its options with `t_max` (in
+/// units of the direction's length, as given) carried over.
+fn map_ray(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> (MapRay, TraceOptions, f32) {
+    let sz = face.extent.sz;
+    let dir = Vec3::new(ray[3], ray[4], ray[5]);
+    let len = dir.length();
+    let origin = Vec3::new(ray[0], ray[1], ray[2]);
+    let mut opts = *opts;
+    if ray[6] < f32::INFINITY {
+        opts.t_max = opts.t_max.min(ray[6] * len / sz);
+    }
+    (MapRay::new(origin / sz, dir), opts, len)
+}
+
+/// The first hit of a checked physical ray ([`check_ray`]) on `face`:
+/// [`DisplacementMap::trace`]'s hit, in physical units.
+pub fn intersect(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> Option<PhysicalHit> {
+    let (mray, opts, len) = map_ray(face, opts, ray);
+    let sz = face.extent.sz;
+    crate::cell_trace::trace(face.height, face.distance, &mray, &opts).map(|hit| {
+        let (w, h) = (face.height.width(), face.height.height());
+        let fract = |x: f32| x - x.floor();
+        let (u, v) = (fract(hit.uv.x), fract(hit.uv.y));
+        let i = ((u * w as f32) as usize).min(w - 1);
+        let j = ((v * h as f32) as usize).min(h - 1);
+        PhysicalHit {
+            t: hit.t * sz / len,
+            position: hit.position * sz,
+            normal: hit.normal,
+            uv: hit.uv,
+            cell: (j * w + i) as u32,
+            iterations: hit.iterations,
+        }
+    })
+}
+
+/// Whether anything of `face`'s displaced solid lies on a checked physical
+/// ray within `(0, t_max]`: the shadow-ray query
+/// ([`DisplacementMap::occluded`]).
+pub fn occluded(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> bool {
+    let (mray, opts, _) = map_ray(face, opts, ray);
+    crate::cell_trace::occluded(face.height, face.distance, &mray, &opts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{bake, BakeOptions};
+
+    fn flat_map(level: f32) -> DisplacementMap {
+        let height = HeightMap::new(8, 8, vec![level; 64], crate::Address::Clamp).unwrap();
+        let extent = Extent::new(2.0, 2.0, 0.5).unwrap();
+        bake(&height, &BakeOptions::new([8, 8, 4], extent)).unwrap()
+    }
+
+    #[test]
+    fn a_flat_face_is_hit_at_its_level_in_the_units_of_the_direction() {
+        let map = flat_map(0.5);
+        // The surface lies at z = 0.5 * SZ = 0.25; a direction of length 2
+        // halves the parameter.
+        let ray = [0.7, 1.1, 1.25, 0.0, 0.0, -2.0, f32::INFINITY];
+        check_ray("ray", &ray).unwrap();
+        let face = Face::from(&map);
+        let hit = intersect(face, &TraceOptions::default(), &ray).unwrap();
+        assert!((hit.t - 0.5).abs() < 1e-5, "{hit:?}");
+        assert!((hit.position - Vec3::new(0.7, 1.1, 0.25)).length() < 1e-5);
+        assert!((hit.normal - Vec3::Z).length() < 1e-5);
+        assert_eq!(hit.cell, 4 * 8 + 2);
+        assert!(occluded(face, &TraceOptions::default(), &ray));
+        // Stopped short of the surface by t_max, in the same units.
+        let short = [0.7, 1.1, 1.25, 0.0, 0.0, -2.0, 0.49];
+        assert!(intersect(face, &TraceOptions::default(), &short).is_none());
+        assert!(!occluded(face, &TraceOptions::default(), &short));
+    }
+
+    #[test]
+    fn bad_rays_are_named() {
+        let msg = |r: [f32; 7]| check_ray("ray 3", &r).unwrap_err().to_string();
+        assert!(msg([0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 1.0]).contains("NaN in column 1"));
+        assert!(msg([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]).contains("no length"));
+        assert!(msg([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]).contains("t_max 0"));
+        assert!(msg([0.0, 0.0, 2e18, 0.0, 0.0, 1.0, 1.0]).contains("column 2"));
+    }
+}

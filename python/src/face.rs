@@ -1,0 +1,406 @@
+//! One displaced face: `displace.bake` and `displace.load` make a
+//! [`DistanceMap`], which saves as the CLI writes maps and answers ray
+//! queries in the face's physical frame ([`displace_core::physical`]).
+
+use crate::arrays::RayRows;
+use crate::errors;
+use crate::hits::{Hits, Target};
+use crate::queries::Queries;
+use crate::work::{self, Job};
+use displace_core::distance_map::Format;
+use displace_core::io::height::{self, HeightOptions, HeightRange};
+use displace_core::io::{self as dio, MapFile};
+use displace_core::{physical, Address, BakeOptions, Extent, HeightMap, Method, TraceOptions};
+use numpy::{PyArray2, PyReadonlyArray2};
+use pyo3::prelude::*;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A baked displaced face: the height map and the conservative distance
+/// map (Donnelly, GPU Gems 2 ch. 8), with the options its queries trace
+/// with. Not the shading normals a renderer keeps beside them: queries
+/// never read them, and at an elevation model's resolution they would be
+/// three times the heights' memory.
+#[pyclass(module = "displace", extends = Queries, frozen)]
+pub struct DistanceMap {
+    face: Arc<Face>,
+}
+
+/// What a [`DistanceMap`] holds, shared with the queries of its base class.
+struct Face {
+    height: HeightMap,
+    distance: displace_core::DistanceMap,
+    extent: Extent,
+    opts: TraceOptions,
+}
+
+/// Rays a parallel task traces and writes out: outputs are written in
+/// place, in chunks, so that nothing is gathered afterwards.
+const CHUNK: usize = 512;
+
+impl Target for Face {
+    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Hits {
+        let mut h = Hits::misses(rays.len, true, true);
+        let uv = h.uv.as_mut().expect("a face has uv");
+        let it = h.iterations.as_mut().expect("a face counts steps");
+        h.t.par_chunks_mut(CHUNK)
+            .zip(h.position.par_chunks_mut(3 * CHUNK))
+            .zip(h.normal.par_chunks_mut(3 * CHUNK))
+            .zip(uv.par_chunks_mut(2 * CHUNK))
+            .zip(h.id.par_chunks_mut(CHUNK))
+            .zip(it.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(k, (((((t, p), n), uv), id), it))| {
+                if job.cancelled() {
+                    return;
+                }
+                for (j, t) in t.iter_mut().enumerate() {
+                    if let Some(hit) =
+                        physical::intersect(self.view(), &self.opts, &rays.get(k * CHUNK + j))
+                    {
+                        *t = hit.t;
+                        p[3 * j..3 * j + 3].copy_from_slice(&hit.position.to_array());
+                        n[3 * j..3 * j + 3].copy_from_slice(&hit.normal.to_array());
+                        uv[2 * j..2 * j + 2].copy_from_slice(&hit.uv.to_array());
+                        id[j] = i64::from(hit.cell);
+                        it[j] = hit.iterations;
+                    }
+                }
+            });
+        h
+    }
+
+    fn occluded(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Vec<bool> {
+        (0..rays.len)
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|i| !job.cancelled() && physical::occluded(self.view(), &self.opts, &rays.get(i)))
+            .collect()
+    }
+
+    fn id_key(&self) -> &'static str {
+        "cell"
+    }
+}
+
+impl Face {
+    fn new(
+        height: HeightMap,
+        distance: displace_core::DistanceMap,
+        extent: Extent,
+        opts: TraceOptions,
+    ) -> Self {
+        Self {
+            height,
+            distance,
+            extent,
+            opts,
+        }
+    }
+
+    /// The face as the core's queries read it.
+    fn view(&self) -> physical::Face<'_> {
+        physical::Face {
+            height: &self.height,
+            distance: &self.distance,
+            extent: self.extent,
+        }
+    }
+
+    /// A new Python object of this face.
+    fn into_py(self, py: Python<'_>) -> PyResult<Py<DistanceMap>> {
+        let face = Arc::new(self);
+        let base = Queries::new(face.clone());
+        Py::new(
+            py,
+            PyClassInitializer::from(base).add_subclass(DistanceMap { face }),
+        )
+    }
+
+    /// Bytes held: heights (f32), distances (f32 values and the 8-bit
+    /// codes the tracer reads).
+    fn bytes(&self) -> usize {
+        let voxels: usize = self.distance.size().iter().product();
+        self.height.data().len() * 4 + voxels * 5
+    }
+}
+
+/// `(SX, SY, SZ)` as an [`Extent`].
+fn extent_of(extent: (f32, f32, f32)) -> PyResult<Extent> {
+    Extent::new(extent.0, extent.1, extent.2).map_err(errors::core)
+}
+
+/// `clamp` or `repeat`.
+fn address_of(s: &str) -> PyResult<Address> {
+    s.parse().map_err(errors::core)
+}
+
+/// `None` (as stored), `"auto"` or `(lo, hi)`.
+fn range_of(obj: Option<&Bound<'_, PyAny>>) -> PyResult<HeightRange> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(HeightRange::AsStored);
+    };
+    if let Ok(s) = obj.extract::<String>() {
+        return s.parse().map_err(errors::core);
+    }
+    let (lo, hi): (f32, f32) = obj
+        .extract()
+        .map_err(|_| errors::value("height_range: expected None, \"auto\" or (lo, hi)"))?;
+    HeightRange::span(lo, hi).map_err(errors::core)
+}
+
+/// The trace options of `method` and `iterations`, checked.
+fn trace_options(method: &str, iterations: u32) -> PyResult<TraceOptions> {
+    let method: Method = method.parse().map_err(errors::core)?;
+    displace_core::check_iterations(iterations).map_err(errors::core)?;
+    Ok(TraceOptions {
+        method,
+        iterations,
+        ..TraceOptions::default()
+    })
+}
+
+/// A height map from what `bake` and `load` take: a 2-D numpy array
+/// (float32/float64 heights, uint8/uint16 codes over their full scale,
+/// row `j` at `v = (j + 0.5) / H` as an image's rows are), or a path or
+/// `gen:` source as the CLI reads it (`gen:` at `size`).
+fn height_of(
+    py: Python<'_>,
+    height: &Bound<'_, PyAny>,
+    size: [usize; 2],
+    range: HeightRange,
+    address: Address,
+) -> PyResult<HeightMap> {
+    if let Ok(source) = height.extract::<PathBuf>() {
+        let source = source.to_string_lossy().into_owned();
+        let opts = HeightOptions {
+            size,
+            address,
+            range,
+            ..HeightOptions::default()
+        };
+        return py
+            .detach(|| height::load(&source, &opts))
+            .map_err(errors::core);
+    }
+    let np = py.import("numpy")?;
+    let arr = if height.is_instance(&np.getattr("ndarray")?)? {
+        height.clone()
+    } else {
+        np.call_method1("asarray", (height,))?
+    };
+    let shape: Vec<usize> = arr.getattr("shape")?.extract()?;
+    let [h, w] = shape[..] else {
+        return Err(errors::value(format!(
+            "height: shape {shape:?}, expected a 2-D array (rows, columns)"
+        )));
+    };
+    // Integer images are codes over their full scale unless a range maps
+    // them, as the CLI reads PNGs; floats are heights as they are.
+    let (data, full): (Vec<f32>, f32) = if let Ok(a) = arr.extract::<PyReadonlyArray2<f32>>() {
+        (a.as_array().iter().copied().collect(), 1.0)
+    } else if let Ok(a) = arr.extract::<PyReadonlyArray2<f64>>() {
+        (a.as_array().iter().map(|&v| v as f32).collect(), 1.0)
+    } else if let Ok(a) = arr.extract::<PyReadonlyArray2<u8>>() {
+        (a.as_array().iter().map(|&v| f32::from(v)).collect(), 255.0)
+    } else if let Ok(a) = arr.extract::<PyReadonlyArray2<u16>>() {
+        (
+            a.as_array().iter().map(|&v| f32::from(v)).collect(),
+            65535.0,
+        )
+    } else {
+        let dtype = arr.getattr("dtype")?.str()?.to_string();
+        return Err(errors::value(format!(
+            "height: dtype {dtype}, expected float32, float64, uint8 or uint16"
+        )));
+    };
+    let data = if range == HeightRange::AsStored && full != 1.0 {
+        data.into_iter().map(|v| v / full).collect()
+    } else {
+        data
+    };
+    height::from_samples("height array", [w, h], data, range, address).map_err(errors::core)
+}
+
+/// Refuses a bake whose estimated peak memory exceeds what the machine
+/// allows ([`displace_core::memory`]), before anything is allocated.
+fn check_memory(height: [usize; 2], size: [usize; 3]) -> PyResult<()> {
+    displace_core::memory::check(
+        &format!(
+            "baking the {}x{} height map into {}x{}x{} voxels",
+            height[0], height[1], size[0], size[1], size[2]
+        ),
+        displace_core::memory::bake_peak_bytes(height, size, false),
+    )
+    .map_err(errors::core)
+}
+
+/// The size of what `height` names, before it is loaded.
+fn height_dimensions(
+    height: &Bound<'_, PyAny>,
+    size: [usize; 2],
+    address: Address,
+) -> PyResult<Option<[usize; 2]>> {
+    let Ok(source) = height.extract::<PathBuf>() else {
+        return Ok(None);
+    };
+    let opts = HeightOptions {
+        size,
+        address,
+        ..HeightOptions::default()
+    };
+    height::dimensions(&source.to_string_lossy(), &opts)
+        .map(Some)
+        .map_err(errors::core)
+}
+
+/// Bakes a height map into a [`DistanceMap`]; see the package's stubs.
+#[pyfunction]
+#[pyo3(signature = (height, size=(256, 256, 16), extent=(1.0, 1.0, 0.1), *, height_range=None, address="clamp", method="sphere", iterations=64, threads=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn bake(
+    py: Python<'_>,
+    height: &Bound<'_, PyAny>,
+    size: (usize, usize, usize),
+    extent: (f32, f32, f32),
+    height_range: Option<&Bound<'_, PyAny>>,
+    address: &str,
+    method: &str,
+    iterations: u32,
+    threads: Option<usize>,
+    progress: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Py<DistanceMap>> {
+    let size = [size.0, size.1, size.2];
+    displace_core::DistanceMap::check_size(size).map_err(errors::core)?;
+    let extent = extent_of(extent)?;
+    let address = address_of(address)?;
+    let range = range_of(height_range)?;
+    let opts = trace_options(method, iterations)?;
+    if let Some(dims) = height_dimensions(height, [size[0], size[1]], address)? {
+        check_memory(dims, size)?;
+    }
+    let heights = height_of(py, height, [size[0], size[1]], range, address)?;
+    check_memory([heights.width(), heights.height()], size)?;
+    let map = work::run(py, threads, progress, false, |job| {
+        let job2 = job.clone();
+        let bake = BakeOptions {
+            progress: Some(Arc::new(move |done, total| job2.progress(done, total))),
+            cancel: Some(job.cancel.clone()),
+            ..BakeOptions::new(size, extent)
+        };
+        displace_core::bake(&heights, &bake)
+    })?
+    .map_err(errors::core)?;
+    // The shading normals the bake made are dropped here (see `Face`).
+    let (height, distance, extent) = (map.height, map.distance, map.extent);
+    Face::new(height, distance, extent, opts).into_py(py)
+}
+
+/// Loads a distance map the CLI (or [`DistanceMap::save`]) wrote, with the
+/// height map it was baked from; see the package's stubs.
+#[pyfunction]
+#[pyo3(signature = (path, height, extent=None, *, height_range=None, address="clamp", method="sphere", iterations=64))]
+#[allow(clippy::too_many_arguments)]
+pub fn load(
+    py: Python<'_>,
+    path: PathBuf,
+    height: &Bound<'_, PyAny>,
+    extent: Option<(f32, f32, f32)>,
+    height_range: Option<&Bound<'_, PyAny>>,
+    address: &str,
+    method: &str,
+    iterations: u32,
+) -> PyResult<Py<DistanceMap>> {
+    let address = address_of(address)?;
+    let range = range_of(height_range)?;
+    let opts = trace_options(method, iterations)?;
+    let (distance, extent) = match (MapFile::from_path(&path).map_err(errors::core)?, extent) {
+        (MapFile::Ktx2, None) => py
+            .detach(|| dio::ktx2::read_distance_map(&path))
+            .map_err(errors::core)?,
+        (_, Some(e)) => {
+            let e = extent_of(e)?;
+            let map = py
+                .detach(|| dio::read_distance_map(&path, e, address))
+                .map_err(errors::core)?;
+            (map, e)
+        }
+        (_, None) => {
+            return Err(errors::value(format!(
+                "{}: a .dds or .npy map does not record its extent: pass extent=(SX, SY, SZ) as it was baked",
+                path.display()
+            )))
+        }
+    };
+    let [w, h, _] = distance.size();
+    let height = height_of(py, height, [w, h], range, distance.address())?;
+    Face::new(height, distance, extent, opts).into_py(py)
+}
+
+#[pymethods]
+impl DistanceMap {
+    /// Distance-map voxels `(W, H, D)`.
+    #[getter]
+    fn size(&self) -> (usize, usize, usize) {
+        let [w, h, d] = self.face.distance.size();
+        (w, h, d)
+    }
+
+    /// Physical size of one tile `(SX, SY, SZ)`.
+    #[getter]
+    fn extent(&self) -> (f32, f32, f32) {
+        let e = self.face.extent;
+        (e.sx, e.sy, e.sz)
+    }
+
+    /// `clamp` (one tile) or `repeat`.
+    #[getter]
+    fn address(&self) -> &'static str {
+        match self.face.height.address() {
+            Address::Clamp => "clamp",
+            Address::Repeat => "repeat",
+        }
+    }
+
+    /// Bytes the map holds in memory (heights, distances).
+    #[getter]
+    fn nbytes(&self) -> usize {
+        self.face.bytes()
+    }
+
+    /// The heights, `(H, W)` float32 in `[0, 1]` (a copy).
+    #[getter]
+    fn heights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        let h = &self.face.height;
+        crate::hits::rows(py, h.data().to_vec(), h.height(), h.width())
+    }
+
+    /// Writes the map as the CLI's `bake` does: `.ktx2`, `.dds` (`format`
+    /// r8, r16f or r32f; r8 by default) or `.npy` (float32), under a
+    /// temporary name renamed last.
+    #[pyo3(signature = (path, format=None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let kind = MapFile::from_path(&path).map_err(errors::core)?;
+        let format = match (kind, format) {
+            (MapFile::Npy, None) => Format::R32F,
+            (_, None) => Format::R8,
+            (_, Some(f)) => f.parse().map_err(errors::core)?,
+        };
+        py.detach(|| dio::write_distance_map(&path, &self.face.distance, self.face.extent, format))
+            .map_err(errors::core)
+    }
+
+    fn __repr__(&self) -> String {
+        let [w, h, d] = self.face.distance.size();
+        let e = self.face.extent;
+        format!(
+            "DistanceMap(size=({w}, {h}, {d}), extent=({}, {}, {}), address='{}', {:.1} MB)",
+            e.sx,
+            e.sy,
+            e.sz,
+            self.address(),
+            self.face.bytes() as f64 / 1e6
+        )
+    }
+}

@@ -1,0 +1,32 @@
+//! `displace` for Python: bake distance maps from numpy height fields,
+//! answer ray queries (first hit, occlusion) on displaced faces and whole
+//! scenes from numpy arrays, and render scenes to numpy images, without
+//! tessellating the surfaces (Donnelly, GPU Gems 2 ch. 8: a conservative
+//! distance map, sphere traced, refined exactly on the bilinear surface).
+//!
+//! The Python package `displace` re-exports this module (`displace._native`)
+//! and ships its type stubs.
+
+#![warn(missing_docs)]
+
+mod arrays;
+mod errors;
+mod face;
+mod hits;
+mod queries;
+mod scene;
+mod work;
+
+use pyo3::prelude::*;
+
+/// The extension module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(face::bake, m)?)?;
+    m.add_function(wrap_pyfunction!(face::load, m)?)?;
+    m.add_class::<queries::Queries>()?;
+    m.add_class::<face::DistanceMap>()?;
+    m.add_class::<scene::Scene>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
