@@ -14,14 +14,16 @@
 # A failure prints proptest's minimal case and adds it to the test's
 # `*.proptest-regressions` file (commit it: the suite then runs it first);
 # the fuzz test keeps its crashing inputs under target/fuzz-crashes.
-# Arguments name groups to run: tracers, bake, curved, parsers (all when
-# none). Tests build in release, where the cases run fastest.
+# Arguments name groups to run: tracers, bake, curved, parsers, python (all
+# when none; python runs the Python package's tests on rays of fresh seeds,
+# SCALE/4 times, through scripts/test-python.sh). Tests build in release,
+# where the cases run fastest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seed="${SEED:-$(od -An -N4 -tu4 /dev/urandom | tr -d ' ')}"
 scale="${SCALE:-16}"
 groups=("$@")
-[ ${#groups[@]} -gt 0 ] || groups=(tracers bake curved parsers)
+[ ${#groups[@]} -gt 0 ] || groups=(tracers bake curved parsers python)
 fuzz_seed=$((seed % 1000000007))
 fuzz_cases="${FUZZ_CASES:-10000}"
 echo "explore: PROPTEST_RNG_SEED=$seed DISPLACE_PROPERTY_SCALE=$scale DISPLACE_FUZZ_SEED=$fuzz_seed DISPLACE_FUZZ_CASES=$fuzz_cases groups: ${groups[*]}"
@@ -35,7 +37,11 @@ for g in "${groups[@]}"; do
     curved) run -p displace-render --test curved -- rays_never_cross_the_surface_before_their_hit ;;
     parsers) run -p displace-core --lib -- npy
              run -p displace-render --test fuzz ;;
-    *) echo "explore: unknown group '$g' (tracers, bake, curved, parsers)" >&2; exit 2 ;;
+    python) for k in $(seq 1 $(( (scale + 3) / 4 ))); do
+              echo "explore: DISPLACE_PY_SEED=$((seed + k)) scripts/test-python.sh"
+              DISPLACE_PY_SEED=$((seed + k)) bash scripts/test-python.sh
+            done ;;
+    *) echo "explore: unknown group '$g' (tracers, bake, curved, parsers, python)" >&2; exit 2 ;;
   esac
 done
 echo "explore: clean (seed $seed, scale $scale)"

@@ -206,12 +206,15 @@ impl RayRows<'_> {
     pub fn check(&self) -> Result<(), displace_core::Error> {
         (0..self.len)
             .into_par_iter()
-            .try_for_each(|i| displace_core::physical::check_ray(&format!("ray {i}"), &self.get(i)))
+            .try_for_each(|i| {
+                displace_core::physical::check_ray(|| format!("ray {i}"), &self.get(i))
+            })
             .map_err(|_| {
                 // The first bad ray, not whichever a thread found first.
                 (0..self.len)
                     .find_map(|i| {
-                        displace_core::physical::check_ray(&format!("ray {i}"), &self.get(i)).err()
+                        displace_core::physical::check_ray(|| format!("ray {i}"), &self.get(i))
+                            .err()
                     })
                     .expect("a ray failed its check")
             })

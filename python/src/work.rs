@@ -101,7 +101,15 @@ pub fn run<T: Send>(
     let mut interrupted: Option<PyErr> = None;
     let value = py.detach(|| {
         std::thread::scope(|s| {
-            let handle = s.spawn(|| install(&job));
+            // The worker wakes this thread when it is done, so a job pays
+            // no part of a polling slice for finishing between polls.
+            let waiting = std::thread::current();
+            let shared = &job;
+            let handle = s.spawn(move || {
+                let value = install(shared);
+                waiting.unpark();
+                value
+            });
             let mut shown = (usize::MAX, usize::MAX);
             loop {
                 std::thread::park_timeout(POLL);

@@ -71,36 +71,41 @@ pub struct PhysicalHit {
 
 /// Checks one ray as given by a user: `ray` is origin xyz, direction xyz,
 /// and `t_max` (positive, or infinite for an unbounded ray). `what` names
-/// the ray in the message (such as "rays rays.npy: ray 12").
+/// the ray in the message (such as "rays rays.npy: ray 12"); it is called
+/// only for a bad ray, so that checking millions costs no formatting.
 ///
 /// # Errors
 ///
 /// [`Error::InvalidRay`] naming the first bad component: not finite,
 /// larger than [`MAX_RAY_COMPONENT`], a direction of no length, or a
 /// `t_max` that is NaN or not positive.
-pub fn check_ray(what: &str, ray: &[f32; 7]) -> Result<()> {
+pub fn check_ray(what: impl FnOnce() -> String, ray: &[f32; 7]) -> Result<()> {
     if ray[6].is_nan() || ray[6] <= 0.0 {
         return Err(Error::InvalidRay(format!(
-            "{what} has t_max {} in column 6, which must be positive (or inf)",
+            "{} has t_max {} in column 6, which must be positive (or inf)",
+            what(),
             ray[6]
         )));
     }
     if let Some(c) = ray[..6].iter().position(|v| !v.is_finite()) {
         return Err(Error::InvalidRay(format!(
-            "{what} has {} in column {c}",
+            "{} has {} in column {c}",
+            what(),
             ray[c]
         )));
     }
     if let Some(c) = ray[..6].iter().position(|v| v.abs() > MAX_RAY_COMPONENT) {
         return Err(Error::InvalidRay(format!(
-            "{what} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
+            "{} has {} in column {c}: values must be at most {MAX_RAY_COMPONENT:e} in magnitude (squared lengths must fit in float32)",
+            what(),
             ray[c]
         )));
     }
     let d = Vec3::new(ray[3], ray[4], ray[5]);
     if !(d.length() > 0.0 && d.length().is_finite()) {
         return Err(Error::InvalidRay(format!(
-            "{what} has direction {d}, which has no length"
+            "{} has direction {d}, which has no length",
+            what()
         )));
     }
     Ok(())
@@ -167,7 +172,7 @@ mod tests {
         // The surface lies at z = 0.5 * SZ = 0.25; a direction of length 2
         // halves the parameter.
         let ray = [0.7, 1.1, 1.25, 0.0, 0.0, -2.0, f32::INFINITY];
-        check_ray("ray", &ray).unwrap();
+        check_ray(|| "ray".into(), &ray).unwrap();
         let face = Face::from(&map);
         let hit = intersect(face, &TraceOptions::default(), &ray).unwrap();
         assert!((hit.t - 0.5).abs() < 1e-5, "{hit:?}");
@@ -183,7 +188,7 @@ mod tests {
 
     #[test]
     fn bad_rays_are_named() {
-        let msg = |r: [f32; 7]| check_ray("ray 3", &r).unwrap_err().to_string();
+        let msg = |r: [f32; 7]| check_ray(|| "ray 3".into(), &r).unwrap_err().to_string();
         assert!(msg([0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 1.0]).contains("NaN in column 1"));
         assert!(msg([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]).contains("no length"));
         assert!(msg([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]).contains("t_max 0"));

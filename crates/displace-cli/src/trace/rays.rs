@@ -47,7 +47,7 @@ fn read_ray_rows(path: &Path, with_length: bool) -> Result<Vec<[f32; 7]>> {
         })
         .collect();
     for (n, r) in rays.iter().enumerate() {
-        physical::check_ray(&format!("rays {}: ray {n}", path.display()), r)?;
+        physical::check_ray(|| format!("rays {}: ray {n}", path.display()), r)?;
     }
     Ok(rays)
 }
