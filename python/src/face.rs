@@ -277,11 +277,16 @@ pub fn bake(
     let address = address_of(address)?;
     let range = range_of(height_range)?;
     let opts = trace_options(method, iterations)?;
-    if let Some(dims) = height_dimensions(height, [size[0], size[1]], address)? {
+    // A file's size is checked from its header, before it is read; an
+    // array's once it is converted.
+    let dims = height_dimensions(height, [size[0], size[1]], address)?;
+    if let Some(dims) = dims {
         check_memory(dims, size)?;
     }
     let heights = height_of(py, height, [size[0], size[1]], range, address)?;
-    check_memory([heights.width(), heights.height()], size)?;
+    if dims.is_none() {
+        check_memory([heights.width(), heights.height()], size)?;
+    }
     let map = work::run(py, threads, progress, false, |job| {
         let job2 = job.clone();
         let bake = BakeOptions {
