@@ -13,7 +13,10 @@ Cases (each a height field in [0, 1] and a physical extent):
 * ``studded``: ``gen:studded`` at 1024 x 1024 over (1, 1, 0.1), its heights
   taken from ``displace.bake("gen:studded", size=(1024, 1024, 16)).heights``.
 
-Engines: displace (``displace.bake`` then ``face.run``), and embreex on the
+Engines: displace (``displace.bake`` then ``face.run``) with its distance
+map at two resolutions (``--map-div 4,1``: a voxel column over 4 x 4
+texels, as Donnelly's maps are coarser than the textures they serve, and
+one a texel), and embreex on the
 standard tessellation at x1 (a vertex per texel centre, two triangles per
 cell) and x4 (each cell split 4 x 4, the new vertices bilinear in the
 texels). Both answer through the same call, ``run(origins, dirs, dists,
@@ -34,7 +37,7 @@ Measured, for each case and engine, each in a fresh subprocess:
 * set-up: the bake against tessellation (numpy) + ``TriangleMesh`` (copies
   the mesh into Embree) + the BVH build (Embree commits on the first
   ``run``); both build on every core;
-* memory: peak resident set (``ru_maxrss``) over a baseline taken after
+* memory: peak resident set (``VmHWM``) over a baseline taken after
   importing numpy and the library and loading the heights (the peak is
   reset there through /proc/self/clear_refs, so that the imports' own
   transient peak does not hide the set-up's), and what stays resident
@@ -59,7 +62,7 @@ Usage (from the repository's root; the release CLI for the overhead):
     cargo build --release -p displace-cli
     target/pyenv/bin/python scripts/bench_python_peers.py [--quick] [--rays N]
         [--dem PATH] [--displace-bin PATH] [--cases dem,studded] [--sub 1,4]
-        [--threads 1,2] [--repeat 3] [--keep DIR]
+        [--map-div 4,1] [--threads 1,2] [--repeat 3] [--keep DIR]
 
 ``--quick``: a 512 x 512 DEM, a 256 x 256 studded face, 50 000 rays, one
 repeat -- a smoke run in well under a minute on two cores. Engines whose
@@ -245,12 +248,20 @@ def tessellate(heights, extent, sub, block=256):
     return verts, idx
 
 
+def map_size(shape, depth, div):
+    """The distance map's size for heights of `shape` at `div` texels a
+    voxel a side (at least 1 voxel)."""
+    rows, cols = shape
+    return max(1, cols // div), max(1, rows // div), depth
+
+
 def estimate_bytes(engine, shape, depth, sub):
     """A rough peak-memory estimate of an engine's set-up, to skip what
-    cannot fit."""
+    cannot fit (`sub`: displace's map divisor, embreex's cell split)."""
     rows, cols = shape
     if engine == "displace":
-        return rows * cols * (4 * depth + 24) * 2
+        w, h, d = map_size(shape, depth, sub)
+        return rows * cols * 24 + w * h * (4 * d + 24) * 2
     v = (sub * (cols - 1) + 1) * (sub * (rows - 1) + 1)
     t = 2 * sub * sub * (cols - 1) * (rows - 1)
     # numpy mesh + Embree's copy (16-byte vertices) + BVH and its build.
@@ -274,12 +285,19 @@ def rss():
 
 
 def peak():
+    """The peak resident set: VmHWM, which clear_refs resets. (Not
+    ru_maxrss: that also keeps the resident set of the process image that
+    exec replaced, the forked driver's, hundreds of MiB after a big case.)"""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
 def reset_peak():
     """Resets the process's peak resident set (Linux >= 4.0: "5" to
-    /proc/self/clear_refs), so that ru_maxrss measures from here on and not
+    /proc/self/clear_refs), so that VmHWM measures from here on and not
     the imports' transient peak. False where it cannot."""
     try:
         with open("/proc/self/clear_refs", "w") as f:
@@ -313,7 +331,7 @@ def worker(args):
     heights = np.load(os.path.join(work, "heights.npy"))
     gc.collect()
     # The baseline: numpy, the library and the heights resident. With the
-    # peak reset, ru_maxrss - baseline is the set-up's own peak; without,
+    # peak reset, VmHWM - baseline is the set-up's own peak; without,
     # the imports' earlier peak may hide part of it (then it is a floor).
     res = {"engine": args.worker, "sub": args.sub, "peak_reset": reset_peak()}
     base_rss = rss()
@@ -321,8 +339,8 @@ def worker(args):
 
     t0 = time.perf_counter()
     if args.worker == "displace":
-        rows, cols = heights.shape
-        face = displace.bake(heights, size=(cols, rows, meta["depth"]), extent=extent)
+        face = displace.bake(heights, size=map_size(heights.shape, meta["depth"], args.sub),
+                             extent=extent)
         res["setup_s"] = time.perf_counter() - t0
         res["held_bytes"] = face.nbytes
         engine = face
@@ -391,7 +409,7 @@ def worker(args):
         for nt in threads:
             s, fh = best_of(args.repeat, lambda: face.intersect(ho, hd, threads=nt))
             res[f"intersect_{nt}"] = len(ho) / s
-        np.save(os.path.join(work, "intersect.npy"),
+        np.save(os.path.join(work, f"intersect{args.sub}.npy"),
                 np.column_stack([fh["t"], fh["position"], fh["iterations"].astype(np.float32)]))
     print(json.dumps(res))
 
@@ -406,19 +424,25 @@ def find_cli(given):
     return p if os.path.exists(p) else None
 
 
-def run_cli(exe, work, meta, nthreads):
-    rows, cols = meta["shape"]
+def run_cli(exe, work, meta, nthreads, div, repeat):
+    w, h, d = map_size(meta["shape"], meta["depth"], div)
     ext = ",".join(f"{v:.9g}" for v in meta["extent"])
-    out = os.path.join(work, f"cli_{nthreads}.npy")
+    out = os.path.join(work, f"cli{div}_{nthreads}.npy")
     cmd = [exe, "trace", "--height", os.path.join(work, "heights.tif"), "--extent", ext,
-           "--size", f"{cols}x{rows}x{meta['depth']}", "--rays", os.path.join(work, "hit_rays.npy"),
+           "--size", f"{w}x{h}x{d}", "--rays", os.path.join(work, "hit_rays.npy"),
            "-o", out]
     env = dict(os.environ, RAYON_NUM_THREADS=str(nthreads))
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if p.returncode != 0:
-        return None, None, (p.stderr.strip().splitlines() or ["?"])[-1]
-    m = re.search(r"\(([\d.]+) Mrays/s", p.stdout)
-    return (float(m.group(1)) * 1e6 if m else None), out, None
+    # Best of as many runs as the binding's best-of, so that both sides
+    # see the machine's noise alike.
+    best = None
+    for _ in range(repeat):
+        p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        if p.returncode != 0:
+            return None, None, (p.stderr.strip().splitlines() or ["?"])[-1]
+        m = re.search(r"\(([\d.]+) Mrays/s", p.stdout)
+        if m:
+            best = max(best or 0.0, float(m.group(1)) * 1e6)
+    return best, out, None
 
 
 def same_bits(a, b):
@@ -479,6 +503,15 @@ def run_worker(engine, sub, args, work):
     return res
 
 
+def engine_name(res, meta):
+    """How a table names an engine: displace with its map, embreex with its
+    tessellation."""
+    if res["engine"] == "displace":
+        w, h, d = map_size(meta["shape"], meta["depth"], res["sub"])
+        return f"displace, map {w}x{h}x{d}"
+    return f"embreex x{res['sub']}"
+
+
 def fmt(v, spec):
     return "-" if v is None else format(v, spec)
 
@@ -494,6 +527,9 @@ def main(argv=None):
     ap.add_argument("--depth", type=int, default=16, help="distance-map voxels in z (default 16)")
     ap.add_argument("--cases", default="dem,studded")
     ap.add_argument("--sub", default="1,4", help="embreex tessellations: cells split k x k (default 1,4)")
+    ap.add_argument("--map-div", default="4,1",
+                    help="displace's distance maps: k x k texels a voxel column, the first compared "
+                         "with embreex in the ratio rows (default 4,1)")
     ap.add_argument("--threads", default="1,2", help="thread counts timed (default 1,2)")
     ap.add_argument("--repeat", type=int, help="best of this many (default 3, --quick 1)")
     ap.add_argument("--displace-bin", help="the displace CLI (default target/release/displace)")
@@ -511,6 +547,7 @@ def main(argv=None):
 
     threads = [int(t) for t in args.threads.split(",")]
     subs = [int(s) for s in args.sub.split(",")]
+    divs = [int(s) for s in args.map_div.split(",")]
     cli = find_cli(args.displace_bin)
     top = args.keep or tempfile.mkdtemp(prefix="bench-python-peers-")
     os.makedirs(top, exist_ok=True)
@@ -525,23 +562,24 @@ def main(argv=None):
             print(f"{meta['label']}: extent {tuple(round(v, 6) for v in meta['extent'])}, "
                   f"{meta['rays']} rays a query, set up in {time.perf_counter() - t0:.1f} s", flush=True)
             results = []
-            for engine, sub in [("displace", 0)] + [("embreex", s) for s in subs]:
+            engines = [("displace", d) for d in divs] + [("embreex", s) for s in subs]
+            for engine, sub in engines:
                 need = estimate_bytes(engine, heights.shape, args.depth, sub)
                 if need > 0.8 * available_bytes() and not args.force:
                     res = {"engine": engine, "sub": sub,
                            "error": f"skipped: needs ~{need / 2**30:.0f} GiB (--force to try)"}
                 else:
                     res = run_worker(engine, sub, args, work)
-                print(f"  {engine}{' x%d' % sub if sub else ''}: "
+                print(f"  {engine_name(res, meta)}: "
                       f"{res.get('error') or 'done in %.1f s' % res['wall_s']}", flush=True)
                 results.append(res)
             dis = results[0]
-            # Agreement with displace on the same rays.
+            # Agreement with the first displace on the same rays.
             if "error" not in dis:
-                t_d = np.load(os.path.join(work, "displace0_tfar.npy"))
-                o_d = np.load(os.path.join(work, "displace0_occ.npy"))
+                t_d = np.load(os.path.join(work, f"displace{dis['sub']}_tfar.npy"))
+                o_d = np.load(os.path.join(work, f"displace{dis['sub']}_occ.npy"))
                 for res in results[1:]:
-                    if "error" in res:
+                    if "error" in res or res["engine"] != "embreex":
                         continue
                     t_e = np.load(os.path.join(work, f"embreex{res['sub']}_tfar.npy"))
                     o_e = np.load(os.path.join(work, f"embreex{res['sub']}_occ.npy"))
@@ -555,15 +593,19 @@ def main(argv=None):
                 res["case"] = meta["label"]
             rows_out.append((meta, results))
 
-            # The binding's overhead against the CLI.
-            if cli and "error" not in dis:
-                ref = np.load(os.path.join(work, "intersect.npy"))
+            # The binding's overhead against the CLI, for each map size.
+            for res in results:
+                if not cli or res["engine"] != "displace" or "error" in res:
+                    continue
+                div = res["sub"]
+                ref = np.load(os.path.join(work, f"intersect{div}.npy"))
                 for nt in threads:
-                    rate, path, err = run_cli(cli, work, meta, nt)
+                    rate, path, err = run_cli(cli, work, meta, nt, div, args.repeat)
                     same = same_bits(np.load(path), ref) if path else None
-                    overhead.append({"case": meta["label"], "threads": nt, "cli": rate,
-                                     "py": dis.get(f"intersect_{nt}"), "same": same, "error": err})
-            elif not cli:
+                    overhead.append({"case": meta["label"], "map": engine_name(res, meta),
+                                     "threads": nt, "cli": rate, "py": res.get(f"intersect_{nt}"),
+                                     "same": same, "error": err})
+            if not cli:
                 notes.append("no displace CLI (target/release/displace or --displace-bin): "
                              "the binding's overhead was not measured")
     finally:
@@ -582,9 +624,8 @@ def print_tables(rows_out, overhead, threads, cli, notes):
     print("|" + "---|" * len(head))
     gil = []
     for meta, results in rows_out:
-        dis = results[0]
         for res in results:
-            name = "displace" if res["engine"] == "displace" else f"embreex x{res['sub']}"
+            name = engine_name(res, meta)
             if "error" in res:
                 print(f"| {meta['label']} | {name} | {res['error']} |" + " |" * (len(head) - 3))
                 continue
@@ -606,12 +647,12 @@ def print_tables(rows_out, overhead, threads, cli, notes):
             print("| " + " | ".join(cells) + " |")
         # Ratios displace / embreex: set-up and memory below 1, speed above
         # 1 are in displace's favour.
-        if "error" in dis:
-            continue
-        for res in results[1:]:
-            if "error" in res:
+        pairs = [(d, e) for d in results if d["engine"] == "displace"
+                 for e in results if e["engine"] == "embreex"]
+        for dis, res in pairs:
+            if "error" in dis or "error" in res:
                 continue
-            cells = [meta["label"], f"**displace / embreex x{res['sub']}**",
+            cells = [meta["label"], f"**{engine_name(dis, meta)} / embreex x{res['sub']}**",
                      f"{dis['setup_s'] / res['setup_s']:.3f}",
                      f"{dis['peak_bytes'] / max(res['peak_bytes'], 1):.3f}",
                      f"{dis['retained_bytes'] / max(res['retained_bytes'], 1):.3f}"]
@@ -639,7 +680,7 @@ def print_tables(rows_out, overhead, threads, cli, notes):
                       f"TriangleMesh {p['TriangleMesh']:.2f} s, BVH {p['bvh']:.2f} s; "
                       f"mesh arrays {res['mesh_bytes'] / MIB:.0f} MiB")
             elif res["engine"] == "displace" and "held_bytes" in res:
-                print(f"- displace on {meta['label']}: face.nbytes {res['held_bytes'] / MIB:.0f} MiB")
+                print(f"- {engine_name(res, meta)} on {meta['label']}: face.nbytes {res['held_bytes'] / MIB:.0f} MiB")
 
     if overhead:
         print()
@@ -648,15 +689,15 @@ def print_tables(rows_out, overhead, threads, cli, notes):
             print("(a debug-profile CLI: comparable only with a package built the same way, as "
                   "scripts/test-python.sh builds it (--profile dev); build both --release for the figures)")
         print()
-        print("| case | threads | CLI trace Mrays/s | face.intersect Mrays/s | intersect / CLI | same bits |")
-        print("|---|---|---|---|---|---|")
+        print("| case | engine | threads | CLI trace Mrays/s | face.intersect Mrays/s | intersect / CLI | same bits |")
+        print("|---|---|---|---|---|---|---|")
         for o in overhead:
             if o["error"]:
-                print(f"| {o['case']} | {o['threads']} | {o['error']} | | | |")
+                print(f"| {o['case']} | {o['map']} | {o['threads']} | {o['error']} | | | |")
                 continue
             ratio = o["py"] / o["cli"] if o["cli"] and o["py"] else None
             same = "-" if o["same"] is None else ("yes" if o["same"] else "**NO**")
-            print(f"| {o['case']} | {o['threads']} | {fmt(o['cli'] and o['cli'] / 1e6, '.2f')} | "
+            print(f"| {o['case']} | {o['map']} | {o['threads']} | {fmt(o['cli'] and o['cli'] / 1e6, '.2f')} | "
                   f"{fmt(o['py'] and o['py'] / 1e6, '.2f')} | {fmt(ratio, '.3f')} | {same} |")
     for n in notes:
         print(f"\nNote: {n}")

@@ -48,7 +48,9 @@ pub mod techniques;
 pub mod bake;
 mod displacement_map;
 
-pub use bake::{bake, bake_streamed, BakeLayout, BakeOptions, CodedSlab, Slab, SlabSink};
+pub use bake::{
+    bake, bake_distance, bake_streamed, BakeLayout, BakeOptions, CodedSlab, Slab, SlabSink,
+};
 pub use convention::{Address, Extent};
 pub use displacement_map::{check_iterations, DisplacementMap};
 pub use distance_map::DistanceMap;

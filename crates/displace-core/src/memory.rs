@@ -20,6 +20,10 @@ pub const LIMIT_ENV: &str = "DISPLACE_MEMORY_LIMIT";
 /// image or the 8-bit normal PNG on the way in or out (4).
 pub const BAKE_BYTES_PER_TEXEL: u128 = 2 * HEIGHT_BYTES_PER_TEXEL + NORMAL_BYTES_PER_TEXEL;
 
+/// Bytes a distance-only bake ([`crate::bake_distance`]) holds per
+/// height-map texel: the map it reads (4), nothing more.
+pub const DISTANCE_BAKE_BYTES_PER_TEXEL: u128 = HEIGHT_BYTES_PER_TEXEL;
+
 /// Bytes per cone-map texel: the cones (4) and their working rows (4).
 pub const CONE_BYTES_PER_TEXEL: u128 = 8;
 
@@ -45,6 +49,16 @@ pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128
             0
         }
         + voxels * BAKE_BYTES_PER_VOXEL
+        + columns * BAKE_BYTES_PER_COLUMN
+}
+
+/// Estimated peak bytes of [`crate::bake_distance`]: [`bake_peak_bytes`]
+/// without the normal map and the copy of the heights.
+pub fn distance_bake_peak_bytes(height: [usize; 2], map: [usize; 3]) -> u128 {
+    let texels = height[0] as u128 * height[1] as u128;
+    let columns = map[0] as u128 * map[1] as u128;
+    texels * DISTANCE_BAKE_BYTES_PER_TEXEL
+        + columns * map[2] as u128 * BAKE_BYTES_PER_VOXEL
         + columns * BAKE_BYTES_PER_COLUMN
 }
 

@@ -127,6 +127,7 @@ fn map_ray(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> (MapRay, Trac
 
 /// The first hit of a checked physical ray ([`check_ray`]) on `face`:
 /// [`DisplacementMap::trace`]'s hit, in physical units.
+#[inline]
 pub fn intersect(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> Option<PhysicalHit> {
     let (mray, opts, len) = map_ray(face, opts, ray);
     let sz = face.extent.sz;
@@ -150,6 +151,7 @@ pub fn intersect(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> Option<
 /// Whether anything of `face`'s displaced solid lies on a checked physical
 /// ray within `(0, t_max]`: the shadow-ray query
 /// ([`DisplacementMap::occluded`]).
+#[inline]
 pub fn occluded(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> bool {
     let (mray, opts, _) = map_ray(face, opts, ray);
     crate::cell_trace::occluded(face.height, face.distance, &mray, &opts)

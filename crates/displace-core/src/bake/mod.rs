@@ -28,24 +28,34 @@ use plan::{check_promise, BakePlan};
 /// thread. [`bake_streamed`] computes the same values a slab at a time, for
 /// writers that need not hold the whole volume.
 pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
+    let distance = bake_distance(height, opts)?;
+    Ok(DisplacementMap {
+        normals: NormalMap::from_height(height, opts.extent),
+        height: height.clone(),
+        distance,
+        extent: opts.extent,
+    })
+}
+
+/// The distance map alone of [`bake`] (the same values): what ray queries
+/// need, which never read the shading normals. Against [`bake`] it saves
+/// the normal map and the copy of the heights (20 of the 24 bytes a texel
+/// [`crate::memory::BAKE_BYTES_PER_TEXEL`] counts, most of a bake's peak
+/// when the map is coarser than the heights, as Donnelly's maps are:
+/// GPU Gems 2, ch. 8, sec. 8.4).
+pub fn bake_distance(height: &HeightMap, opts: &BakeOptions) -> Result<DistanceMap> {
     let plan = BakePlan::new(height, opts, true)?;
     let [w, h, d] = plan.size;
     let done = AtomicUsize::new(0);
     let mut data = vec![0.0f32; w * h * d];
     plan.slices(0, &mut data, &mut vec![0.0; d], opts, &done)?;
-    let distance = DistanceMap::from_raw(
+    DistanceMap::from_raw(
         plan.size,
         plan.aspect,
         plan.address,
         data,
         plan.underestimate(),
-    )?;
-    Ok(DisplacementMap {
-        normals: NormalMap::from_height(height, plan.extent),
-        height: height.clone(),
-        distance,
-        extent: plan.extent,
-    })
+    )
 }
 
 /// Bakes the distance map of [`bake`] a slab of `slab_slices` depth slices
