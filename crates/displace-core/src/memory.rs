@@ -40,16 +40,13 @@ pub const BAKE_BYTES_PER_COLUMN: u128 = RANGE_BYTES_PER_COLUMN + CENTRE_BYTES_PE
 /// `cones`.
 pub fn bake_peak_bytes(height: [usize; 2], map: [usize; 3], cones: bool) -> u128 {
     let texels = height[0] as u128 * height[1] as u128;
-    let columns = map[0] as u128 * map[1] as u128;
-    let voxels = columns * map[2] as u128;
-    texels * BAKE_BYTES_PER_TEXEL
+    distance_bake_peak_bytes(height, map)
+        + texels * (BAKE_BYTES_PER_TEXEL - DISTANCE_BAKE_BYTES_PER_TEXEL)
         + if cones {
             texels * CONE_BYTES_PER_TEXEL
         } else {
             0
         }
-        + voxels * BAKE_BYTES_PER_VOXEL
-        + columns * BAKE_BYTES_PER_COLUMN
 }
 
 /// Estimated peak bytes of [`crate::bake_distance`]: [`bake_peak_bytes`]
