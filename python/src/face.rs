@@ -4,7 +4,7 @@
 
 use crate::arrays::RayRows;
 use crate::errors;
-use crate::hits::{unfilled, Hits, Target};
+use crate::hits::{Hits, Target};
 use crate::queries::Queries;
 use crate::work::{self, Job};
 use displace_core::distance_map::Format;
@@ -45,79 +45,43 @@ const BLOCK: usize = 64;
 
 impl Target for Face {
     fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Hits {
-        // Each output is written once, hit or miss: no fill pass first
-        // (the outputs are most of the memory a query touches).
-        let len = rays.len;
-        let mut h = Hits {
-            t: unfilled(len),
-            position: unfilled(3 * len),
-            normal: unfilled(3 * len),
-            uv: Some(unfilled(2 * len)),
-            id: unfilled(len),
-            iterations: Some(unfilled(len)),
-        };
-        let uv = h.uv.as_mut().expect("made above");
-        let it = h.iterations.as_mut().expect("made above");
-        let nan3 = [f32::NAN; 3];
-        h.t.spare_capacity_mut()[..len]
-            .par_chunks_mut(CHUNK)
-            .zip(h.position.spare_capacity_mut()[..3 * len].par_chunks_mut(3 * CHUNK))
-            .zip(h.normal.spare_capacity_mut()[..3 * len].par_chunks_mut(3 * CHUNK))
-            .zip(uv.spare_capacity_mut()[..2 * len].par_chunks_mut(2 * CHUNK))
-            .zip(h.id.spare_capacity_mut()[..len].par_chunks_mut(CHUNK))
-            .zip(it.spare_capacity_mut()[..len].par_chunks_mut(CHUNK))
+        let mut h = Hits::misses(rays.len, true, true);
+        let uv = h.uv.as_mut().expect("a face has uv");
+        let it = h.iterations.as_mut().expect("a face counts steps");
+        h.t.par_chunks_mut(CHUNK)
+            .zip(h.position.par_chunks_mut(3 * CHUNK))
+            .zip(h.normal.par_chunks_mut(3 * CHUNK))
+            .zip(uv.par_chunks_mut(2 * CHUNK))
+            .zip(h.id.par_chunks_mut(CHUNK))
+            .zip(it.par_chunks_mut(CHUNK))
             .enumerate()
             .for_each(|(k, (((((t, p), n), uv), id), it))| {
-                // Rays after a cancel are written as misses.
-                let live = !job.cancelled();
+                if job.cancelled() {
+                    return;
+                }
                 // Traced a block at a time into a buffer that stays in the
                 // first-level cache, then written out: stores to six
                 // output streams, each line a miss of fresh memory, held
-                // the next ray's first loads behind them (up to a sixth of the
-                // trace of a ray through a coarse map).
+                // the next ray's first loads behind them (up to a sixth of
+                // the trace of a ray through a coarse map).
                 let mut block = [None; BLOCK];
                 for (b, t) in t.chunks_mut(BLOCK).enumerate() {
                     let first = k * CHUNK + b * BLOCK;
                     for (j, slot) in block[..t.len()].iter_mut().enumerate() {
-                        *slot = if live {
-                            physical::intersect(self.view(), &self.opts, &rays.get(first + j))
-                        } else {
-                            None
-                        };
+                        *slot = physical::intersect(self.view(), &self.opts, &rays.get(first + j));
                     }
-                    for (j, (t, hit)) in t.iter_mut().zip(&block).enumerate() {
-                        let (tj, pj, nj, uvj, idj, itj) = match hit {
-                            Some(hit) => (
-                                hit.t,
-                                hit.position.to_array(),
-                                hit.normal.to_array(),
-                                hit.uv.to_array(),
-                                i64::from(hit.cell),
-                                hit.iterations,
-                            ),
-                            None => (f32::INFINITY, nan3, nan3, [f32::NAN; 2], -1, 0),
-                        };
-                        let j = b * BLOCK + j;
-                        t.write(tj);
-                        write_row(&mut p[3 * j..3 * j + 3], pj);
-                        write_row(&mut n[3 * j..3 * j + 3], nj);
-                        write_row(&mut uv[2 * j..2 * j + 2], uvj);
-                        id[j].write(idj);
-                        it[j].write(itj);
+                    for (jb, (t, hit)) in t.iter_mut().zip(&block).enumerate() {
+                        let Some(hit) = hit else { continue };
+                        let j = b * BLOCK + jb;
+                        *t = hit.t;
+                        p[3 * j..3 * j + 3].copy_from_slice(&hit.position.to_array());
+                        n[3 * j..3 * j + 3].copy_from_slice(&hit.normal.to_array());
+                        uv[2 * j..2 * j + 2].copy_from_slice(&hit.uv.to_array());
+                        id[j] = i64::from(hit.cell);
+                        it[j] = hit.iterations;
                     }
                 }
             });
-        // SAFETY: the chunks above cover each column's first `len` rows
-        // (`k * CHUNK + j` runs over every ray once, and each column's
-        // chunks hold the same rays), and every row was written.
-        unsafe {
-            h.t.set_len(len);
-            h.position.set_len(3 * len);
-            h.normal.set_len(3 * len);
-            uv.set_len(2 * len);
-            h.id.set_len(len);
-            it.set_len(len);
-        }
         h
     }
 
@@ -131,14 +95,6 @@ impl Target for Face {
 
     fn id_key(&self) -> &'static str {
         "cell"
-    }
-}
-
-/// `values` into `row`, which is as long.
-#[inline(always)]
-fn write_row<const K: usize>(row: &mut [std::mem::MaybeUninit<f32>], values: [f32; K]) {
-    for (r, v) in row.iter_mut().zip(values) {
-        r.write(v);
     }
 }
 

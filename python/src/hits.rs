@@ -62,15 +62,6 @@ impl Hits {
     }
 }
 
-/// An empty column with room for `n` values, to be written once each
-/// (through `spare_capacity_mut`): no fill pass before the trace writes
-/// every row. (Asking the kernel for huge pages here, as numpy does for
-/// its large arrays, was measured and left out: on a virtual machine each
-/// 2 MB fault cost more system time than the 4 KB faults it saved.)
-pub fn unfilled<T>(n: usize) -> Vec<T> {
-    Vec::with_capacity(n)
-}
-
 /// `data` as an `(n, k)` numpy array, without a copy.
 pub fn rows<T: numpy::Element>(
     py: Python<'_>,
