@@ -1,14 +1,16 @@
 //! numpy arrays in: rays as `(N, 3)` origins and directions of float32 or
 //! float64, in any memory order and any stride, read where they lie (no
-//! copy of the inputs), checked before any is traced with the CLI's
-//! checks ([`displace_core::physical::check_ray`]).
+//! copy of the inputs), each checked as it is read with the CLI's checks
+//! ([`displace_core::physical::check_ray`]): a bad ray fails the query
+//! with the CLI's message for the first one.
 
 use crate::errors;
+use displace_core::physical;
 use numpy::ndarray::{ArrayView1, ArrayView2};
 use numpy::ndarray::{Dimension, Ix1, Ix2};
 use numpy::PyReadonlyArray;
 use pyo3::prelude::*;
-use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A borrowed float array of dimension `D`, of either float type.
 pub enum Floats<'py, D: Dimension> {
@@ -201,6 +203,9 @@ pub struct Rays<'py> {
     origins: Held<'py>,
     directions: Held<'py>,
     limits: Limits<'py>,
+    /// Set when a traced loop met a ray that fails its check
+    /// ([`RayRows::get`]): the query then raises for the first such ray.
+    bad: AtomicBool,
 }
 
 /// A `Send` view of [`Rays`], what the traced closure reads.
@@ -209,37 +214,44 @@ pub struct RayRows<'a> {
     origins: Rows<'a>,
     directions: Rows<'a>,
     limits: LimitRows<'a>,
+    bad: &'a AtomicBool,
     /// How many rays.
     pub len: usize,
 }
 
 impl RayRows<'_> {
-    /// Ray `i` as the tracer takes it: origin, direction, `t_max`.
+    /// Ray `i` as the tracer takes it (origin, direction, `t_max`),
+    /// unchecked.
     #[inline(always)]
-    pub fn get(&self, i: usize) -> [f32; 7] {
+    pub fn raw(&self, i: usize) -> [f32; 7] {
         let o = self.origins.row(i);
         let d = self.directions.row(i);
         [o[0], o[1], o[2], d[0], d[1], d[2], self.limits.get(i)]
     }
 
-    /// Checks every ray ([`displace_core::physical::check_ray`]): the first
-    /// bad one (lowest index) is named.
-    pub fn check(&self) -> Result<(), displace_core::Error> {
-        // A yes or no over all rays first (a fold that carried the error
-        // through every ray cost a quarter of a trivial query), then the
-        // first bad ray, not whichever a thread found first.
-        let good = (0..self.len)
-            .into_par_iter()
-            .with_min_len(4096)
-            .all(|i| displace_core::physical::check_ray(String::new, &self.get(i)).is_ok());
-        if good {
-            return Ok(());
+    /// Ray `i`, checked as it is read: `None` (and the query marked as
+    /// failed) for a ray that `displace trace` would refuse. Checking
+    /// each ray in the loop that traces it reads the rays once, where a
+    /// pass of its own before the trace read them twice (a tenth of a
+    /// query on a coarse map).
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> Option<[f32; 7]> {
+        let r = self.raw(i);
+        if physical::ray_is_valid(&r) {
+            Some(r)
+        } else {
+            self.bad.store(true, Ordering::Relaxed);
+            None
         }
-        Err((0..self.len)
-            .find_map(|i| {
-                displace_core::physical::check_ray(|| format!("ray {i}"), &self.get(i)).err()
-            })
-            .expect("a ray failed its check"))
+    }
+
+    /// The error for the first bad ray, with its index, where a traced
+    /// loop met one.
+    pub fn failure(&self) -> Option<displace_core::Error> {
+        if !self.bad.load(Ordering::Relaxed) {
+            return None;
+        }
+        (0..self.len).find_map(|i| physical::check_ray(|| format!("ray {i}"), &self.raw(i)).err())
     }
 }
 
@@ -267,7 +279,13 @@ impl<'py> Rays<'py> {
             origins,
             directions,
             limits,
+            bad: AtomicBool::new(false),
         })
+    }
+
+    /// How many rays.
+    pub fn len(&self) -> usize {
+        self.origins.rows().len()
     }
 
     /// The `Send` view the tracer reads.
@@ -276,7 +294,8 @@ impl<'py> Rays<'py> {
             origins: self.origins.rows(),
             directions: self.directions.rows(),
             limits: self.limits.rows(),
-            len: self.origins.rows().len(),
+            bad: &self.bad,
+            len: self.len(),
         }
     }
 }

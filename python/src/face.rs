@@ -44,8 +44,11 @@ const CHUNK: usize = 512;
 const BLOCK: usize = 64;
 
 impl Target for Face {
-    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Hits {
-        let mut h = Hits::misses(rays.len, true, true);
+    fn new_hits(&self, n: usize) -> Hits {
+        Hits::unwritten(n, true, true)
+    }
+
+    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>, h: &mut Hits) {
         let uv = h.uv.as_mut().expect("a face has uv");
         let it = h.iterations.as_mut().expect("a face counts steps");
         h.t.par_chunks_mut(CHUNK)
@@ -56,40 +59,63 @@ impl Target for Face {
             .zip(it.par_chunks_mut(CHUNK))
             .enumerate()
             .for_each(|(k, (((((t, p), n), uv), id), it))| {
-                if job.cancelled() {
-                    return;
-                }
                 // Traced a block at a time into a buffer that stays in the
-                // first-level cache, then written out: stores to six
-                // output streams, each line a miss of fresh memory, held
-                // the next ray's first loads behind them (up to a sixth of
-                // the trace of a ray through a coarse map).
+                // first-level cache, then written out, every row (misses
+                // too: the columns start unwritten): stores to six output
+                // streams, each line a miss of fresh memory, held the next
+                // ray's first loads behind them (up to a sixth of the
+                // trace of a ray through a coarse map).
                 let mut block = [None; BLOCK];
+                let cancelled = job.cancelled();
                 for (b, t) in t.chunks_mut(BLOCK).enumerate() {
                     let first = k * CHUNK + b * BLOCK;
                     for (j, slot) in block[..t.len()].iter_mut().enumerate() {
-                        *slot = physical::intersect(self.view(), &self.opts, &rays.get(first + j));
+                        *slot = rays
+                            .get(first + j)
+                            .filter(|_| !cancelled)
+                            .and_then(|r| physical::intersect(self.view(), &self.opts, &r));
                     }
                     for (jb, (t, hit)) in t.iter_mut().zip(&block).enumerate() {
-                        let Some(hit) = hit else { continue };
                         let j = b * BLOCK + jb;
-                        *t = hit.t;
-                        p[3 * j..3 * j + 3].copy_from_slice(&hit.position.to_array());
-                        n[3 * j..3 * j + 3].copy_from_slice(&hit.normal.to_array());
-                        uv[2 * j..2 * j + 2].copy_from_slice(&hit.uv.to_array());
-                        id[j] = i64::from(hit.cell);
-                        it[j] = hit.iterations;
+                        let (tt, pos, nrm, tex, cell, steps) = match hit {
+                            Some(h) => (
+                                h.t,
+                                h.position.to_array(),
+                                h.normal.to_array(),
+                                h.uv.to_array(),
+                                i64::from(h.cell),
+                                h.iterations,
+                            ),
+                            None => (
+                                f32::INFINITY,
+                                [f32::NAN; 3],
+                                [f32::NAN; 3],
+                                [f32::NAN; 2],
+                                -1,
+                                0,
+                            ),
+                        };
+                        *t = tt;
+                        p[3 * j..3 * j + 3].copy_from_slice(&pos);
+                        n[3 * j..3 * j + 3].copy_from_slice(&nrm);
+                        uv[2 * j..2 * j + 2].copy_from_slice(&tex);
+                        id[j] = cell;
+                        it[j] = steps;
                     }
                 }
             });
-        h
     }
 
     fn occluded(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Vec<bool> {
         (0..rays.len)
             .into_par_iter()
             .with_min_len(256)
-            .map(|i| !job.cancelled() && physical::occluded(self.view(), &self.opts, &rays.get(i)))
+            .map(|i| {
+                !job.cancelled()
+                    && rays
+                        .get(i)
+                        .is_some_and(|r| physical::occluded(self.view(), &self.opts, &r))
+            })
             .collect()
     }
 

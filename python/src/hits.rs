@@ -3,9 +3,10 @@
 //! every query shape (ours, embreex's, trimesh's) is written once.
 
 use crate::arrays::RayRows;
+use crate::pool;
 use crate::work::Job;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1};
+use numpy::IntoPyArray;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Arc;
@@ -32,13 +33,34 @@ pub struct Hits {
 impl Hits {
     /// `n` misses, to be filled.
     pub fn misses(n: usize, uv: bool, iterations: bool) -> Self {
+        let mut h = Self::unwritten(n, uv, iterations);
+        h.t.fill(f32::INFINITY);
+        h.position.fill(f32::NAN);
+        h.normal.fill(f32::NAN);
+        if let Some(uv) = &mut h.uv {
+            uv.fill(f32::NAN);
+        }
+        h.id.fill(-1);
+        if let Some(it) = &mut h.iterations {
+            it.fill(0);
+        }
+        h
+    }
+
+    /// `n` rows of unspecified values, for a target that writes every
+    /// row (hit or miss): buffers of earlier results from the [`pool`],
+    /// or new zeroed memory, untouched pages, so that the first touch of
+    /// the outputs happens in the parallel loop that writes them and not
+    /// in a fill on one thread before it (that fill, and the page faults,
+    /// were a tenth of a query on a coarse map).
+    pub fn unwritten(n: usize, uv: bool, iterations: bool) -> Self {
         Self {
-            t: vec![f32::INFINITY; n],
-            position: vec![f32::NAN; 3 * n],
-            normal: vec![f32::NAN; 3 * n],
-            uv: uv.then(|| vec![f32::NAN; 2 * n]),
-            id: vec![-1; n],
-            iterations: iterations.then(|| vec![0; n]),
+            t: pool::take(n),
+            position: pool::take(3 * n),
+            normal: pool::take(3 * n),
+            uv: uv.then(|| pool::take(2 * n)),
+            id: pool::take(n),
+            iterations: iterations.then(|| pool::take(n)),
         }
     }
 
@@ -48,15 +70,15 @@ impl Hits {
     pub fn into_dict<'py>(self, py: Python<'py>, id_key: &str) -> PyResult<Bound<'py, PyDict>> {
         let n = self.t.len();
         let d = PyDict::new(py);
-        d.set_item("t", PyArray1::from_vec(py, self.t))?;
-        d.set_item("position", rows(py, self.position, n, 3))?;
-        d.set_item("normal", rows(py, self.normal, n, 3))?;
+        d.set_item("t", pool::column(py, self.t)?)?;
+        d.set_item("position", pool::rows(py, self.position, n, 3)?)?;
+        d.set_item("normal", pool::rows(py, self.normal, n, 3)?)?;
         if let Some(uv) = self.uv {
-            d.set_item("uv", rows(py, uv, n, 2))?;
+            d.set_item("uv", pool::rows(py, uv, n, 2)?)?;
         }
-        d.set_item(id_key, PyArray1::from_vec(py, self.id))?;
+        d.set_item(id_key, pool::column(py, self.id)?)?;
         if let Some(it) = self.iterations {
-            d.set_item("iterations", PyArray1::from_vec(py, it))?;
+            d.set_item("iterations", pool::column(py, it)?)?;
         }
         Ok(d)
     }
@@ -76,10 +98,17 @@ pub fn rows<T: numpy::Element>(
 
 /// What rays are traced against: one displaced face, or a scene.
 pub trait Target: Sync {
-    /// First hits of every ray (checked), on the current pool; rays after
-    /// `job` is cancelled are left as misses.
-    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Hits;
-    /// Whether each ray (checked) is blocked within its `t_max`.
+    /// Writes the first hits of every ray into `hits` (made by
+    /// [`Target::new_hits`]), on the current pool, each read through
+    /// [`RayRows::get`] (a bad ray is left a miss and fails the query);
+    /// rays after `job` is cancelled are left as misses.
+    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>, hits: &mut Hits);
+    /// The columns [`Target::first_hits`] writes `n` rays' hits into,
+    /// with the optional ones it fills: [`Hits::misses`], or
+    /// [`Hits::zeroed`] for a target that writes every row.
+    fn new_hits(&self, n: usize) -> Hits;
+    /// Whether each ray (read through [`RayRows::get`]) is blocked within
+    /// its `t_max`.
     fn occluded(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Vec<bool>;
     /// The key under which [`Hits::id`] is returned.
     fn id_key(&self) -> &'static str;

@@ -13,6 +13,7 @@ mod arrays;
 mod errors;
 mod face;
 mod hits;
+mod pool;
 mod queries;
 mod scene;
 mod work;

@@ -31,7 +31,9 @@ impl Queries {
         Self { target }
     }
 
-    /// `query` of the target over `rays`, checked first, off the GIL.
+    /// `query` of the target over `rays`, off the GIL, each ray checked
+    /// as the query reads it: a bad ray raises (for the first one, by
+    /// index) and the query's results are dropped.
     fn traced<T: Send>(
         &self,
         py: Python<'_>,
@@ -42,15 +44,19 @@ impl Queries {
         let rows = rays.rows();
         let target = &*self.target;
         work::run(py, threads, None, rows.len < QUICK, |job| {
-            rows.check()?;
-            Ok(query(target, rows, job))
+            let value = query(target, rows, job);
+            rows.failure().map_or(Ok(value), Err)
         })?
         .map_err(errors::core)
     }
 
     /// The first hits of `rays` as [`Hits`].
     fn hits(&self, py: Python<'_>, rays: &Rays<'_>, threads: Option<usize>) -> PyResult<Hits> {
-        self.traced(py, rays, threads, |t, rows, job| t.first_hits(rows, job))
+        let mut h = self.target.new_hits(rays.len());
+        self.traced(py, rays, threads, |t, rows, job| {
+            t.first_hits(rows, job, &mut h)
+        })?;
+        Ok(h)
     }
 
     /// Whether each of `rays` is blocked.
@@ -163,7 +169,7 @@ impl Queries {
                 if h.t[i].is_finite() {
                     h.t[i]
                 } else {
-                    far.get(i)[6]
+                    far.raw(i)[6]
                 }
             })
             .collect();

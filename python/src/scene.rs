@@ -71,7 +71,12 @@ impl Built {
                         return;
                     }
                     batch.clear();
-                    batch.extend((k * BATCH..(n.min((k + 1) * BATCH))).map(|i| rays.get(i)));
+                    for i in k * BATCH..n.min((k + 1) * BATCH) {
+                        // A bad ray fails the whole query: its batch is
+                        // left as it is.
+                        let Some(r) = rays.get(i) else { return };
+                        batch.push(r);
+                    }
                     query(&self.0, batch, sc, out);
                 },
             );
@@ -80,9 +85,12 @@ impl Built {
 }
 
 impl Target for Built {
-    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Hits {
+    fn new_hits(&self, n: usize) -> Hits {
+        Hits::misses(n, false, false)
+    }
+
+    fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>, h: &mut Hits) {
         let flat = self.batched(rays, job, 8, first_hits);
-        let mut h = Hits::misses(rays.len, false, false);
         for (i, row) in flat.chunks_exact(8).enumerate() {
             if row[0].is_finite() {
                 h.t[i] = row[0];
@@ -91,7 +99,6 @@ impl Target for Built {
                 h.id[i] = row[7] as i64;
             }
         }
-        h
     }
 
     fn occluded(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Vec<bool> {

@@ -57,6 +57,52 @@ def test_threads_do_not_change_answers(face, rng):
     np.testing.assert_array_equal(face.occluded(o, d, threads=1), face.occluded(o, d, threads=3))
 
 
+def _copy(hits):
+    return {k: np.array(v, copy=True) for k, v in hits.items()}
+
+
+def _assert_same(hits, want):
+    assert hits.keys() == want.keys()
+    for k in want:
+        np.testing.assert_array_equal(hits[k], want[k], err_msg=k)
+
+
+@pytest.mark.parametrize("target", ["face", "scene"])
+def test_results_outlive_later_queries_and_freed_buffers_are_rewritten(face, rng, target):
+    """Queries write into the buffers of results numpy has freed: a result
+    still held (or a view of it) is never written, and a query into a freed
+    buffer writes every row, misses included."""
+    q = face if target == "face" else displace.Scene()
+    extent = (1.0, 1.0, 0.1) if target == "face" else (2.0, 2.0, 2.0)
+    n = 20000 if target == "face" else 3000
+    o1, d1 = rays_from_above(rng, n, extent, spread=1.2)
+    o2, d2 = rays_from_above(rng, n, extent, spread=0.3)
+    if target == "scene":
+        o1 -= 1.0
+        o2 -= 1.0
+    h1 = q.intersect(o1, d1)
+    want1 = _copy(h1)
+    h2 = q.intersect(o2, d2)
+    want2 = _copy(h2)
+    # Rows that miss in one and hit in the other: a stale row would show.
+    assert (~np.isfinite(want1["t"]) & np.isfinite(want2["t"])).sum() > 100
+    _assert_same(h1, want1)
+    del h2
+    h3 = q.intersect(o1, d1)  # may be written into h2's buffers
+    _assert_same(h3, want1)
+    _assert_same(h1, want1)
+    view = h3["position"][::3]
+    kept = view.copy()
+    del h3
+    for _ in range(3):
+        h4 = q.intersect(o2[: n // 2], d2[: n // 2])
+        del h4
+    np.testing.assert_array_equal(view, kept)
+    del h1
+    h5 = q.intersect(o2, d2)
+    _assert_same(h5, want2)
+
+
 def test_height_arrays_of_every_dtype_are_the_files_heights(tmp_path, rng):
     """A uint16 array and the 16-bit PNG of the same codes give one map; so
     do uint8 and float arrays of the same heights."""

@@ -69,6 +69,19 @@ pub struct PhysicalHit {
     pub iterations: u32,
 }
 
+/// Whether `ray` passes [`check_ray`], as a predicate: the same
+/// conditions without a message, cheap enough to run on each ray in the
+/// loop that traces it, so that rays given in bulk are read once; the
+/// message comes from [`check_ray`] for a ray that fails.
+#[inline]
+pub fn ray_is_valid(ray: &[f32; 7]) -> bool {
+    // NaN compares false: a NaN limit or component fails each test.
+    let t_max_ok = ray[6] > 0.0;
+    let bounded = ray[..6].iter().all(|v| v.abs() <= MAX_RAY_COMPONENT);
+    let len = Vec3::new(ray[3], ray[4], ray[5]).length();
+    t_max_ok && bounded && len > 0.0 && len.is_finite()
+}
+
 /// Checks one ray as given by a user: `ray` is origin xyz, direction xyz,
 /// and `t_max` (positive, or infinite for an unbounded ray). `what` names
 /// the ray in the message (such as "rays rays.npy: ray 12"); it is called
@@ -80,6 +93,16 @@ pub struct PhysicalHit {
 /// larger than [`MAX_RAY_COMPONENT`], a direction of no length, or a
 /// `t_max` that is NaN or not positive.
 pub fn check_ray(what: impl FnOnce() -> String, ray: &[f32; 7]) -> Result<()> {
+    if ray_is_valid(ray) {
+        return Ok(());
+    }
+    diagnose(what, ray)
+}
+
+/// [`check_ray`]'s message: the first condition `ray` fails, one test per
+/// condition (a test checks that it fails exactly where [`ray_is_valid`]
+/// does).
+fn diagnose(what: impl FnOnce() -> String, ray: &[f32; 7]) -> Result<()> {
     if ray[6].is_nan() || ray[6] <= 0.0 {
         return Err(Error::InvalidRay(format!(
             "{} has t_max {} in column 6, which must be positive (or inf)",
@@ -161,6 +184,49 @@ pub fn occluded(face: Face<'_>, opts: &TraceOptions, ray: &[f32; 7]) -> bool {
 mod tests {
     use super::*;
     use crate::{bake, BakeOptions};
+
+    #[test]
+    fn the_predicate_and_the_messages_refuse_the_same_rays() {
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-30,
+            f32::MIN_POSITIVE,
+            1e-45,
+            MAX_RAY_COMPONENT,
+            -MAX_RAY_COMPONENT,
+            2e18,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut pick = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            specials[(state % specials.len() as u64) as usize]
+        };
+        let (mut valid, mut invalid) = (0, 0);
+        for _ in 0..200_000 {
+            let ray: [f32; 7] = std::array::from_fn(|_| pick());
+            let ok = ray_is_valid(&ray);
+            assert_eq!(ok, diagnose(String::new, &ray).is_ok(), "{ray:?}");
+            assert_eq!(ok, check_ray(String::new, &ray).is_ok(), "{ray:?}");
+            if ok {
+                valid += 1;
+            } else {
+                invalid += 1;
+            }
+        }
+        assert!(
+            valid > 1000 && invalid > 1000,
+            "{valid} valid, {invalid} refused"
+        );
+    }
 
     fn flat_map(level: f32) -> DisplacementMap {
         let height = HeightMap::new(8, 8, vec![level; 64], crate::Address::Clamp).unwrap();
