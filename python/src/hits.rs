@@ -105,7 +105,7 @@ pub trait Target: Sync {
     fn first_hits(&self, rays: RayRows<'_>, job: &Arc<Job>, hits: &mut Hits);
     /// The columns [`Target::first_hits`] writes `n` rays' hits into,
     /// with the optional ones it fills: [`Hits::misses`], or
-    /// [`Hits::zeroed`] for a target that writes every row.
+    /// [`Hits::unwritten`] for a target that writes every row.
     fn new_hits(&self, n: usize) -> Hits;
     /// Whether each ray (read through [`RayRows::get`]) is blocked within
     /// its `t_max`.

@@ -13,8 +13,8 @@
 //! kept, up to [`KEEP_BYTES`] per element type, so the pool never holds
 //! more than what a caller has already had and let go.
 
-use numpy::ndarray::{ArrayView1, ArrayView2};
-use numpy::{Element, PyArray1, PyArray2};
+use numpy::ndarray::{ArrayView, Dimension, Ix1, Ix2};
+use numpy::{Element, PyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use std::sync::{Mutex, MutexGuard};
 
@@ -120,11 +120,11 @@ fn give_back<T: Pooled>(v: Vec<T>) {
 /// The owner of a returned array's buffer (the array's numpy `base`):
 /// gives the buffer back to its pool when numpy frees the array.
 #[pyclass(module = "displace", frozen)]
-pub struct Buffer(Mutex<Option<Column>>);
+pub struct Buffer(Option<Column>);
 
 impl Drop for Buffer {
     fn drop(&mut self) {
-        match self.0.get_mut().unwrap_or_else(|e| e.into_inner()).take() {
+        match self.0.take() {
             Some(Column::F32(v)) => give_back(v),
             Some(Column::I64(v)) => give_back(v),
             Some(Column::U32(v)) => give_back(v),
@@ -133,33 +133,37 @@ impl Drop for Buffer {
     }
 }
 
-/// `data` as an `(n, k)` numpy array over its own buffer (no copy), the
-/// buffer given back to the pool when numpy frees the array.
-pub fn rows<'py, T: Pooled>(
-    py: Python<'py>,
+/// `data` as a numpy array of shape `dim` over its own buffer (no copy),
+/// the buffer given back to the pool when numpy frees the array.
+fn owned<T: Pooled, D: Dimension>(
+    py: Python<'_>,
     data: Vec<T>,
-    n: usize,
-    k: usize,
-) -> PyResult<Bound<'py, PyArray2<T>>> {
-    assert_eq!(data.len(), n * k, "k values a row");
+    dim: D,
+) -> PyResult<Bound<'_, PyArray<T, D>>> {
+    assert_eq!(data.len(), dim.size(), "the shape's count of values");
     let ptr = data.as_ptr();
-    let owner = Bound::new(py, Buffer(Mutex::new(Some(T::column(data)))))?;
-    // SAFETY: `ptr` is the buffer of `n * k` initialised values that
+    let owner = Bound::new(py, Buffer(Some(T::column(data))))?;
+    // SAFETY: `ptr` is the buffer of `dim.size()` initialised values that
     // `owner` now holds; moving the Vec into it did not move its buffer,
     // and nothing reads or changes the Vec again until `owner` is dropped,
     // which numpy does when it frees the array (whose base `owner` is).
-    let view = unsafe { ArrayView2::from_shape_ptr((n, k), ptr) };
+    let view = unsafe { ArrayView::from_shape_ptr(dim, ptr) };
     // SAFETY: as above: the view's memory lives as long as `owner`.
-    Ok(unsafe { PyArray2::borrow_from_array(&view, owner.into_any()) })
+    Ok(unsafe { PyArray::borrow_from_array(&view, owner.into_any()) })
 }
 
-/// `data` as a 1-D numpy array, as [`rows`] makes one.
-pub fn column<'py, T: Pooled>(py: Python<'py>, data: Vec<T>) -> PyResult<Bound<'py, PyArray1<T>>> {
-    let ptr = data.as_ptr();
+/// `data` as an `(n, k)` numpy array, as [`owned`] makes one.
+pub fn rows<T: Pooled>(
+    py: Python<'_>,
+    data: Vec<T>,
+    n: usize,
+    k: usize,
+) -> PyResult<Bound<'_, PyArray2<T>>> {
+    owned(py, data, Ix2(n, k))
+}
+
+/// `data` as a 1-D numpy array, as [`owned`] makes one.
+pub fn column<T: Pooled>(py: Python<'_>, data: Vec<T>) -> PyResult<Bound<'_, PyArray1<T>>> {
     let n = data.len();
-    let owner = Bound::new(py, Buffer(Mutex::new(Some(T::column(data)))))?;
-    // SAFETY: as in `rows`.
-    let view = unsafe { ArrayView1::from_shape_ptr(n, ptr) };
-    // SAFETY: as in `rows`.
-    Ok(unsafe { PyArray1::borrow_from_array(&view, owner.into_any()) })
+    owned(py, data, Ix1(n))
 }
