@@ -296,6 +296,55 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     failed(&o, &["DISPLACE_MEMORY_LIMIT=lots"], &[]);
 }
 
+/// Under an address-space limit (`ulimit -v`, as a batch system or a
+/// shared machine sets), a bake the machine's memory would allow is refused
+/// by that limit up front, naming it, and `DISPLACE_MEMORY_LIMIT` cannot
+/// raise it: before, the bake died of `memory allocation of N bytes
+/// failed` (an abort). A small bake under the same limit still runs.
+#[test]
+fn bakes_past_an_address_space_limit_are_refused_not_aborted() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let limited = |args: &[&str], env_limit: Option<&str>| {
+        let mut c = Command::new("sh");
+        c.current_dir(d)
+            .env("DISPLACE_CACHE", "")
+            .arg("-c")
+            .arg("ulimit -v 1048576 && exec \"$0\" \"$@\"")
+            .arg(env!("CARGO_BIN_EXE_displace"))
+            .args(args);
+        if let Some(l) = env_limit {
+            c.env("DISPLACE_MEMORY_LIMIT", l);
+        }
+        c.output().unwrap()
+    };
+    let big = words("bake gen:flat --height-size 20000x20000 --size 64x64x8 -o m.npy");
+    for env_limit in [None, Some("64G")] {
+        let o = limited(&big, env_limit);
+        let msg = failed(
+            &o,
+            &[
+                "20000x20000",
+                "needs about",
+                "address-space limit (ulimit -v: 1.0 GiB",
+                "VmSize",
+                "hard limit",
+                "DISPLACE_MEMORY_LIMIT cannot raise",
+            ],
+            &["memory allocation of"],
+        );
+        assert!(
+            matches!(o.status.code(), Some(1 | 2)),
+            "{:?}: {msg}",
+            o.status
+        );
+        assert!(files(d).is_empty(), "{msg}");
+    }
+    let o = limited(&words("bake gen:gaussian --size 64x64x8 -o m.npy"), None);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files(d), ["m.npy"]);
+}
+
 /// A scene's textures count together in its memory estimate, each before
 /// it is decoded: two textures of 6 MiB each fit a 16 MiB limit (the
 /// same file twice is read once, and counted once), a third tips the scene

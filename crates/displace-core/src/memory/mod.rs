@@ -4,15 +4,20 @@
 //! map, the distance volume and its codes, the column ranges, the outputs),
 //! so a size every buffer of which passes can still need several times the
 //! machine's memory and end in the kernel's OOM killer. The estimate of the
-//! whole peak is compared with the memory the machine has available
-//! (`MemAvailable` of `/proc/meminfo`) or with [`LIMIT_ENV`] when set.
+//! whole peak is compared with the least limit in force ([`limit`]): the
+//! memory the machine has available (`MemAvailable` of `/proc/meminfo`) or
+//! [`LIMIT_ENV`] when set, and under either the hard limits of a cgroup or
+//! of `ulimit -v` and `-d` ([`hard_limits`]).
 
-use crate::{Error, Result};
+mod limits;
+
+pub use limits::{available, check, hard_limits, human, limit, parse_bytes, Limit};
 
 /// Environment variable that sets the memory limit of a command, in bytes
 /// with an optional `K`, `M`, `G` or `T` suffix (powers of 1024): set it
 /// higher than the available memory to allow a larger job (swap, memory
-/// about to be freed), or lower to keep a job small.
+/// about to be freed), or lower to keep a job small. It cannot raise a
+/// hard limit ([`hard_limits`]): those are kept below it.
 pub const LIMIT_ENV: &str = "DISPLACE_MEMORY_LIMIT";
 
 /// Bytes a bake holds per height-map texel at its peak: the map (4) and
@@ -228,120 +233,9 @@ pub fn streamed_bake_peak_bytes(b: &StreamedBake) -> u128 {
     load.max(distance).max(normals).max(cones)
 }
 
-/// The limit in force and where it comes from: [`LIMIT_ENV`] if set, else
-/// the available memory; `None` when neither is known (no `/proc`).
-pub fn limit() -> Result<Option<(u128, String)>> {
-    if let Some(v) = std::env::var_os(LIMIT_ENV) {
-        let s = v.to_string_lossy();
-        let bytes = parse_bytes(&s).ok_or_else(|| {
-            Error::InvalidSize(format!(
-                "{LIMIT_ENV}={s}: expected a number of bytes, optionally with a K, M, G or T suffix"
-            ))
-        })?;
-        return Ok(Some((bytes, format!("{LIMIT_ENV}={s}"))));
-    }
-    Ok(available().map(|b| (b, "the memory available (MemAvailable)".to_string())))
-}
-
-/// `MemAvailable` of `/proc/meminfo`, in bytes.
-pub fn available() -> Option<u128> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    meminfo_available(&info)
-}
-
-fn meminfo_available(info: &str) -> Option<u128> {
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let mut words = line.split_whitespace().skip(1);
-    let n: u128 = words.next()?.parse().ok()?;
-    match words.next() {
-        Some("kB") => Some(n * 1024),
-        None => Some(n),
-        _ => None,
-    }
-}
-
-/// `123`, `64K`, `1.5G`, `2T` (powers of 1024; a trailing `B` or `iB` is
-/// allowed).
-pub fn parse_bytes(s: &str) -> Option<u128> {
-    let s = s.trim();
-    let s = s
-        .strip_suffix("iB")
-        .or_else(|| s.strip_suffix('B'))
-        .unwrap_or(s);
-    let (num, scale) = match s.char_indices().last()? {
-        (i, c) if c.is_ascii_alphabetic() => {
-            let power = match c.to_ascii_uppercase() {
-                'K' => 1,
-                'M' => 2,
-                'G' => 3,
-                'T' => 4,
-                _ => return None,
-            };
-            (&s[..i], 1024f64.powi(power))
-        }
-        _ => (s, 1.0),
-    };
-    let v: f64 = num.trim().parse().ok()?;
-    (v.is_finite() && v >= 0.0).then_some((v * scale) as u128)
-}
-
-/// `1.5 GiB`, for messages.
-pub fn human(bytes: u128) -> String {
-    let mut v = bytes as f64;
-    for unit in ["bytes", "KiB", "MiB", "GiB"] {
-        if v < 1024.0 {
-            return if unit == "bytes" {
-                format!("{bytes} bytes")
-            } else {
-                format!("{v:.1} {unit}")
-            };
-        }
-        v /= 1024.0;
-    }
-    format!("{v:.1} TiB")
-}
-
-/// Refuses `what` (a description of the job, such as `bake of a 46000x46000
-/// height map into 32x32x8 voxels`) when its estimated peak of `bytes`
-/// exceeds [`limit`], naming the estimate, the limit and how to raise it.
-pub fn check(what: &str, bytes: u128) -> Result<()> {
-    let Some((limit, from)) = limit()? else {
-        return Ok(());
-    };
-    if bytes <= limit {
-        return Ok(());
-    }
-    Err(Error::OutOfMemory {
-        message: format!(
-            "{what} needs about {} ({bytes} bytes), more than {from}: {} ({limit} bytes); set {LIMIT_ENV}=BYTES (such as 64G) to allow more",
-            human(bytes),
-            human(limit)
-        ),
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn sizes_parse() {
-        assert_eq!(parse_bytes("123"), Some(123));
-        assert_eq!(parse_bytes("64K"), Some(64 << 10));
-        assert_eq!(parse_bytes("2g"), Some(2 << 30));
-        assert_eq!(parse_bytes("1.5GiB"), Some(3 << 29));
-        assert_eq!(parse_bytes("1T"), Some(1 << 40));
-        assert_eq!(parse_bytes("lots"), None);
-        assert_eq!(parse_bytes("-1"), None);
-        assert_eq!(parse_bytes("4X"), None);
-    }
-
-    #[test]
-    fn meminfo_is_read_in_kib() {
-        let info = "MemTotal:       24000000 kB\nMemFree:  1 kB\nMemAvailable:   22000000 kB\n";
-        assert_eq!(meminfo_available(info), Some(22_000_000 * 1024));
-        assert_eq!(meminfo_available("MemTotal: 1 kB\n"), None);
-    }
 
     #[test]
     fn the_issue_bake_is_about_twenty_bytes_a_texel() {
@@ -353,11 +247,5 @@ mod tests {
             bake_peak_bytes([2, 2], [2, 2, 2], true),
             4 * (24 + 8) + 8 * 9 + 4 * 12
         );
-    }
-
-    #[test]
-    fn human_sizes() {
-        assert_eq!(human(512), "512 bytes");
-        assert_eq!(human(3 << 29), "1.5 GiB");
     }
 }
