@@ -253,12 +253,14 @@ pub fn run(args: BakeArgs) -> Result<()> {
                 extent.aspect(),
                 args.cone_kind,
                 Some(&bar.callback()),
+                Some(&cancel_flag()),
             );
             bar.finish();
             let seconds = start.elapsed().as_secs_f64();
-            if cancel_flag().load(std::sync::atomic::Ordering::SeqCst) {
-                bail!("interrupted: nothing was written");
-            }
+            let cones = match cones {
+                Err(Error::Cancelled) => bail!("interrupted: nothing was written"),
+                other => other?,
+            };
             dio::npy::write_file(c, &[cones.height(), cones.width()], cones.data())
                 .with_context(|| format!("writing {}", c.display()))?;
             Some((cones, seconds, c))

@@ -88,3 +88,13 @@ pub fn cancel_flag() -> Arc<AtomicBool> {
     })
     .clone()
 }
+
+/// A scene's load with the Ctrl-C flag's end told as an interruption: the
+/// load stops in a bake or in a wait for another process's bake
+/// (`SceneOptions::cancel`) and nothing has been written.
+pub fn loaded<T>(r: std::result::Result<T, displace_scene::Error>) -> anyhow::Result<T> {
+    match r {
+        Err(displace_scene::Error::Cancelled) => anyhow::bail!("interrupted: nothing was written"),
+        other => Ok(other?),
+    }
+}

@@ -12,7 +12,7 @@ use displace_render::film::tiling::{tile_rect, TileArg, TileIndex};
 use displace_render::{render, Aov, Crop, RenderOptions, Scene, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -139,12 +139,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let pool = crate::threads::pool(args.threads)?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = cancel.clone();
-        // Ignore failure: another subcommand may own the handler in tests.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
+    let cancel = crate::progress::cancel_flag();
     let plan = Plan {
         size,
         crop,
@@ -183,12 +178,13 @@ fn render_one(
         } else {
             displace_render::default_cache_dir()
         },
+        cancel: Some(cancel.clone()),
     };
     let start = Instant::now();
-    let scene = pool.install(|| match &args.scene {
+    let scene = crate::progress::loaded(pool.install(|| match &args.scene {
         Some(p) => Scene::load(p, &opts),
         None => Scene::default_scene(&opts),
-    })?;
+    }))?;
     let setup = start.elapsed();
     let mut written = vec![("-o".to_string(), output.to_path_buf())];
     for &aov in &plan.aovs {

@@ -611,6 +611,82 @@ fn an_interrupted_bake_leaves_no_file() {
     assert!(start.elapsed() < Duration::from_secs(2));
 }
 
+/// `child` gone within `limit` of now; killed and the test failed if not.
+fn exits_within(mut child: std::process::Child, limit: Duration) -> Output {
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let o = child.wait_with_output().unwrap();
+            panic!("still running {limit:?} after the signal: {}", stderr(&o));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Work and waits that used to ignore signals stop on them: a relaxed cone
+/// bake (minutes at 512x512) ends within a texel's work of SIGINT, and a
+/// render waiting on a bake cache lock held by a live process says what it
+/// waits for and ends at SIGINT; neither leaves a file.
+#[test]
+fn cone_bakes_and_lock_waits_stop_on_signals() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let child = cmd(d)
+        .args(words(
+            "bake gen:noise --height-size 512x512 --size 16x16x4 --cone c.npy --cone-kind relaxed -o m.npy",
+        ))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    send("-INT", &child);
+    let o = exits_within(child, Duration::from_secs(5));
+    failed(&o, &["interrupted"], &[]);
+    assert!(files(d).is_empty(), "{:?}", files(d));
+
+    // The scene's bake lands in the cache; then its entry is removed and a
+    // lock planted in its place naming this host and a live process (this
+    // test), which never refreshes it.
+    let cache = tempfile::tempdir().unwrap();
+    write_displaced(d, "height_size = [16, 16], map_size = [16, 16, 4]");
+    let render = || {
+        let mut c = cmd(d);
+        c.env("DISPLACE_CACHE", cache.path())
+            .args(["render", "-q", "s.toml", "-o", "r.png"])
+            .stderr(Stdio::piped());
+        c
+    };
+    let o = render().output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_file(d.join("r.png")).unwrap();
+    let entries: Vec<_> = std::fs::read_dir(cache.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(entries.len(), 1, "{entries:?}");
+    std::fs::remove_file(&entries[0]).unwrap();
+    let mut lock = entries[0].clone().into_os_string();
+    lock.push(".lock");
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    std::fs::write(&lock, format!("{} {}\n", host.trim(), std::process::id())).unwrap();
+    let child = render().spawn().unwrap();
+    std::thread::sleep(Duration::from_millis(3500));
+    send("-INT", &child);
+    let o = exits_within(child, Duration::from_secs(3));
+    failed(
+        &o,
+        &[
+            "waiting for another process's bake",
+            ".lock is held by",
+            "interrupted",
+        ],
+        &[],
+    );
+    assert!(files(d) == ["s.toml"], "{:?}", files(d));
+}
+
 /// How this machine mounts a small tmpfs for one command without touching
 /// any other process: in a private mount namespace as root (`unshare -m`),
 /// else in a user namespace (`unshare -r -m`, where unprivileged user

@@ -9,7 +9,13 @@
 //! stale, and is broken, when its holder is on this host and no longer
 //! runs, or when it has not been refreshed for [`STALE_AFTER`] (a holder on
 //! another machine that died; long enough for NFS attribute caching, which
-//! can show a modification time up to a minute old). Correctness never
+//! can show a modification time up to a minute old). A waiter also watches
+//! the lock itself ([`observe`]): one whose holder and modification time do
+//! not change for [`STALE_AFTER`] by the waiter's own monotonic clock is
+//! taken over ([`take_over`]) whatever its holder or date say, so that a
+//! lock naming a live process that is not baking (a reused process id), or
+//! dated in the future by a machine with a wrong clock, cannot keep a
+//! render waiting for ever. Correctness never
 //! rests on the lock: entries are written under temporary names and
 //! renamed, so at worst a broken lock costs a second bake, never a
 //! half-written entry.
@@ -134,6 +140,35 @@ fn is_stale(path: &Path) -> bool {
         .ok()
         .and_then(|m| SystemTime::now().duration_since(m).ok())
         .is_some_and(|age| age > STALE_AFTER)
+}
+
+/// What a waiter sees of a lock: its holder (`host pid`) and when it was
+/// last refreshed. A holder that bakes refreshes it every [`HEARTBEAT`], so
+/// the same observation for [`STALE_AFTER`] means that no one is baking.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Observation {
+    /// The lock's text: `host pid`.
+    pub holder: String,
+    /// Its modification time, as the file system reports it.
+    pub modified: Option<SystemTime>,
+}
+
+/// The lock at `path` as it is now; `None` when it is gone.
+pub fn observe(path: &Path) -> Option<Observation> {
+    let meta = std::fs::metadata(path).ok()?;
+    Some(Observation {
+        holder: std::fs::read_to_string(path)
+            .unwrap_or_default()
+            .trim()
+            .to_string(),
+        modified: meta.modified().ok(),
+    })
+}
+
+/// Removes a lock that a waiter found unchanged for [`STALE_AFTER`]: the
+/// next [`try_lock`] takes it.
+pub fn take_over(path: &Path) {
+    break_lock(path);
 }
 
 /// Removes a stale lock: renamed away first, so that of several waiters

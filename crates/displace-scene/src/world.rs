@@ -45,6 +45,9 @@ pub struct SceneOptions {
     pub integrator: Option<Integrator>,
     /// Overrides `image.sampler` (`--sampler`).
     pub sampler: Option<SamplerKind>,
+    /// Raised to stop loading (Ctrl-C, SIGTERM): a bake in progress and a
+    /// wait for another process's bake end with [`crate::Error::Cancelled`].
+    pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// How the scene asks to be rendered (`[image]` and the command line's

@@ -18,9 +18,10 @@ use std::path::Path;
 pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Result<()> {
     let opts = SceneOptions {
         cache_dir: displace_render::default_cache_dir(),
+        cancel: Some(crate::progress::cancel_flag()),
         ..SceneOptions::default()
     };
-    let loaded = Scene::load(scene, &opts)?;
+    let loaded = crate::progress::loaded(Scene::load(scene, &opts))?;
     let written = [("-o".to_string(), output.to_path_buf())];
     crate::outputs::check_not_scene_inputs(&written, loaded.sources(), None)?;
     let surfaces = loaded

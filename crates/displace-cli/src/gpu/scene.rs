@@ -21,9 +21,10 @@ pub fn load(path: &Path, size: Option<[u32; 2]>, no_cache: bool) -> Result<World
         } else {
             displace_scene::default_cache_dir()
         },
+        cancel: Some(crate::progress::cancel_flag()),
         ..SceneOptions::default()
     };
-    let world = World::load(path, &opts)?;
+    let world = crate::progress::loaded(World::load(path, &opts))?;
     for w in &world.warnings {
         eprintln!("warning: {w}");
     }

@@ -32,11 +32,12 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
         } else {
             None
         },
+        cancel: Some(crate::progress::cancel_flag()),
         ..SceneOptions::default()
     };
     let start = Instant::now();
-    let scene =
-        Scene::load(scene, &opts).with_context(|| format!("loading scene {}", scene.display()))?;
+    let scene = crate::progress::loaded(Scene::load(scene, &opts))
+        .with_context(|| format!("loading scene {}", scene.display()))?;
     let written = [("-o".to_string(), output.to_path_buf())];
     crate::outputs::check_not_scene_inputs(&written, scene.sources(), None)?;
     println!(

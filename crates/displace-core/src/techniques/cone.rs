@@ -80,16 +80,34 @@ impl ConeMap {
     /// Bakes the cone map of `height` for a tile of `aspect` (shell depths),
     /// texels in parallel.
     pub fn build(height: &HeightMap, aspect: [f32; 2], kind: ConeKind) -> Self {
-        Self::build_with(height, aspect, kind, None)
+        Self::built(height, aspect, kind, None, &|| false)
     }
 
     /// [`Self::build`], telling `progress` `(rows done, rows)` as rows of
-    /// texels finish: relaxed cones of a large smooth map take minutes.
+    /// texels finish, and stopping within a texel's work when `cancel` is
+    /// raised ([`crate::Error::Cancelled`]): relaxed cones of a large smooth
+    /// map take minutes.
     pub fn build_with(
         height: &HeightMap,
         aspect: [f32; 2],
         kind: ConeKind,
         progress: Option<&Progress>,
+        cancel: Option<&std::sync::atomic::AtomicBool>,
+    ) -> crate::Result<Self> {
+        let stop = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+        let map = Self::built(height, aspect, kind, progress, &stop);
+        if stop() {
+            return Err(crate::Error::Cancelled);
+        }
+        Ok(map)
+    }
+
+    fn built(
+        height: &HeightMap,
+        aspect: [f32; 2],
+        kind: ConeKind,
+        progress: Option<&Progress>,
+        stop: &(dyn Fn() -> bool + Sync),
     ) -> Self {
         let (w, h) = (height.width(), height.height());
         let texel = Vec2::new(aspect[0] / w as f32, aspect[1] / h as f32);
@@ -101,8 +119,8 @@ impl ConeMap {
             }
         };
         let data = match kind {
-            ConeKind::Conservative => conservative(height, texel, &row_done),
-            ConeKind::Relaxed => relaxed(height, aspect, texel, &row_done),
+            ConeKind::Conservative => conservative(height, texel, &row_done, stop),
+            ConeKind::Relaxed => relaxed(height, aspect, texel, &row_done, stop),
         };
         Self {
             kind,
@@ -182,7 +200,14 @@ fn cell_slopes(height: &HeightMap, texel: Vec2) -> Vec<f32> {
         .collect()
 }
 
-fn conservative(height: &HeightMap, texel: Vec2, row_done: &(dyn Fn() + Sync)) -> Vec<f32> {
+/// The cones of every texel; a row started after `stop` holds is left
+/// empty (the caller discards the map).
+fn conservative(
+    height: &HeightMap,
+    texel: Vec2,
+    row_done: &(dyn Fn() + Sync),
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Vec<f32> {
     let (w, h) = (height.width() as i64, height.height() as i64);
     let ranges = footprint_ranges(height);
     let slopes = cell_slopes(height, texel);
@@ -192,6 +217,9 @@ fn conservative(height: &HeightMap, texel: Vec2, row_done: &(dyn Fn() + Sync)) -
         .into_par_iter()
         .flat_map_iter(|j| {
             let (range, slopes, peaks) = (&range, &slopes, &peaks);
+            if stop() {
+                return Vec::new();
+            }
             let row: Vec<f32> = (0..w)
                 .map(move |i| {
                     let lo = range(i, j).0;
@@ -256,6 +284,7 @@ fn relaxed(
     aspect: [f32; 2],
     texel: Vec2,
     row_done: &(dyn Fn() + Sync),
+    stop: &(dyn Fn() -> bool + Sync),
 ) -> Vec<f32> {
     let (w, h) = (height.width() as i64, height.height() as i64);
     let centre = |i: i64, j: i64| {
@@ -296,8 +325,15 @@ fn relaxed(
         .into_par_iter()
         .flat_map_iter(|j| {
             let peaks = &peaks;
+            if stop() {
+                return Vec::new();
+            }
             let row: Vec<f32> = (0..w)
                 .map(move |i| {
+                    // A texel's search can take seconds: checked per texel.
+                    if stop() {
+                        return MAX_RATIO;
+                    }
                     let apex_xy = centre(i, j);
                     let apex = height.texel(i, j);
                     let mut best = MAX_RATIO;
@@ -638,7 +674,8 @@ mod tests {
             let s = Arc::clone(&seen);
             let progress: Progress =
                 Arc::new(move |done, total| s.lock().unwrap().push((done, total)));
-            let cones = ConeMap::build_with(&height, [2.0, 1.5], kind, Some(&progress));
+            let cones = ConeMap::build_with(&height, [2.0, 1.5], kind, Some(&progress), None)
+                .expect("not cancelled");
             let mut seen = seen.lock().unwrap().clone();
             seen.sort_unstable();
             assert_eq!(
@@ -647,6 +684,34 @@ mod tests {
                 "{kind:?}"
             );
             assert_eq!(cones, ConeMap::build(&height, [2.0, 1.5], kind));
+        }
+    }
+
+    /// Raised after the first row, the flag stops both kinds of bake within
+    /// the rows in flight (no further row is started) and the bake ends in
+    /// `Cancelled`, not in a map.
+    #[test]
+    fn a_raised_cancel_flag_stops_the_bake() {
+        use std::sync::atomic::AtomicBool;
+        use std::sync::Arc;
+        let height = crate::generators::generate("gen:noise", 64, 64, crate::Address::Clamp)
+            .expect("generator");
+        for kind in [ConeKind::Conservative, ConeKind::Relaxed] {
+            let cancel = Arc::new(AtomicBool::new(false));
+            let rows = Arc::new(AtomicUsize::new(0));
+            let (c, r) = (Arc::clone(&cancel), Arc::clone(&rows));
+            let progress: Progress = Arc::new(move |_, _| {
+                r.fetch_add(1, Ordering::SeqCst);
+                c.store(true, Ordering::SeqCst);
+            });
+            let got =
+                ConeMap::build_with(&height, [1.0, 1.0], kind, Some(&progress), Some(&cancel));
+            assert!(matches!(got, Err(crate::Error::Cancelled)), "{kind:?}");
+            let done = rows.load(Ordering::SeqCst);
+            assert!(
+                done <= 1 + rayon::current_num_threads(),
+                "{kind:?}: {done} rows"
+            );
         }
     }
 

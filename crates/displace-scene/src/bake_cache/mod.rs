@@ -20,7 +20,7 @@
 
 mod entry;
 
-use crate::bake_lock::{lock_path, try_lock, Attempt};
+use crate::bake_lock::{lock_path, observe, take_over, try_lock, Attempt, STALE_AFTER};
 use crate::error::Result;
 use crate::sampler::hash;
 use displace_core::io::atomic::remove_stale_temps;
@@ -28,9 +28,13 @@ use displace_core::{bake, Address, BakeOptions, DisplacementMap, Extent, HeightM
 use entry::Entry;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+/// How long a render waits for another process's bake before it says so.
+const NOTICE_AFTER: Duration = Duration::from_secs(2);
 
 /// Bumped whenever the bake's output for the same inputs could change.
 /// (3: entries end with a checksum.)
@@ -61,6 +65,11 @@ pub struct BakeCache {
     loaded: AtomicUsize,
     shared: AtomicUsize,
     warnings: Mutex<Vec<String>>,
+    /// Raised to stop a bake or a wait ([`BakeCache::cancelled_by`]).
+    cancel: Option<Arc<AtomicBool>>,
+    /// How long a lock may stay unchanged before it is taken over
+    /// ([`STALE_AFTER`] unless a test sets it).
+    takeover_after: Option<Duration>,
 }
 
 /// Counts of what the cache did, for reports and tests.
@@ -89,6 +98,19 @@ impl BakeCache {
             dir,
             ..Self::default()
         }
+    }
+
+    /// The same cache, stopping its bakes and waits when `cancel` is raised
+    /// (they end in [`crate::Error::Cancelled`]).
+    pub fn cancelled_by(mut self, cancel: Option<Arc<AtomicBool>>) -> Self {
+        self.cancel = cancel;
+        self
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::SeqCst))
     }
 
     /// What the cache has done so far.
@@ -152,7 +174,12 @@ impl BakeCache {
         size: [usize; 3],
         extent: Extent,
     ) -> Result<DisplacementMap> {
-        let m = bake(height, &BakeOptions::new(size, extent))?;
+        let mut opts = BakeOptions::new(size, extent);
+        opts.cancel = self.cancel.clone();
+        let m = match bake(height, &opts) {
+            Err(displace_core::Error::Cancelled) => return Err(crate::Error::Cancelled),
+            m => m?,
+        };
         self.baked.fetch_add(1, Ordering::Relaxed);
         Ok(m)
     }
@@ -187,6 +214,12 @@ impl BakeCache {
         let dir = path.parent().unwrap_or(Path::new("."));
         let lock = lock_path(path);
         let mut wait = Duration::from_millis(20);
+        let takeover_after = self.takeover_after.unwrap_or(STALE_AFTER);
+        // The lock as last seen, and since when it has not changed.
+        let mut seen = None;
+        let mut since = Instant::now();
+        let started = Instant::now();
+        let mut told = false;
         loop {
             if let Ok(m) = read() {
                 return Ok(m);
@@ -219,6 +252,35 @@ impl BakeCache {
                     return Ok(m);
                 }
                 Attempt::Held => {
+                    if self.cancelled() {
+                        return Err(crate::Error::Cancelled);
+                    }
+                    let now = observe(&lock);
+                    if now != seen {
+                        seen = now;
+                        since = Instant::now();
+                    } else if since.elapsed() >= takeover_after {
+                        let holder = seen.take().map(|o| o.holder).unwrap_or_default();
+                        self.warn(format!(
+                            "bake cache lock {} (held by `{holder}`) was not refreshed for {} s: taken over",
+                            lock.display(),
+                            takeover_after.as_secs_f32()
+                        ));
+                        take_over(&lock);
+                        since = Instant::now();
+                        continue;
+                    }
+                    if !told && started.elapsed() >= NOTICE_AFTER {
+                        told = true;
+                        // Said at once, not with the warnings after the
+                        // load: the user is waiting now.
+                        eprintln!(
+                            "waiting for another process's bake: the bake cache lock {} is held by `{}`; it is taken over if not refreshed for {} s",
+                            lock.display(),
+                            seen.as_ref().map(|o| o.holder.as_str()).unwrap_or(""),
+                            takeover_after.as_secs_f32()
+                        );
+                    }
                     std::thread::sleep(wait);
                     wait = (wait * 2).min(Duration::from_millis(500));
                 }
@@ -332,6 +394,64 @@ mod tests {
             .get(&h, [8, 8, 4], Extent::new(2.0, 1.0, 0.5).unwrap())
             .unwrap();
         assert_eq!(again.stats().baked, 1);
+    }
+
+    /// A lock that names a live process on this host (our own) and is dated
+    /// an hour ahead, as a reused process id or a machine with a wrong
+    /// clock leave one: it is never refreshed, so the waiter takes it over
+    /// after the bound (shortened here), bakes, and says so; and a wait
+    /// ends at once, in `Cancelled`, when the cancel flag is raised.
+    #[test]
+    fn unrefreshed_locks_are_taken_over_and_waits_can_be_cancelled() {
+        let b = baked_entry([8, 8, 4]);
+        let lock = lock_path(&b.entry);
+        std::fs::remove_file(&b.entry).unwrap();
+        let plant = || {
+            let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+            std::fs::write(&lock, format!("{} {}\n", host.trim(), std::process::id())).unwrap();
+            std::fs::File::options()
+                .write(true)
+                .open(&lock)
+                .unwrap()
+                .set_modified(std::time::SystemTime::now() + Duration::from_secs(3600))
+                .unwrap();
+        };
+        plant();
+        let mut cache = BakeCache::new(Some(b.dir.path().to_path_buf()));
+        cache.takeover_after = Some(Duration::from_millis(300));
+        let start = Instant::now();
+        let m = cache.get(&b.h, [8, 8, 4], b.extent).unwrap();
+        assert!(start.elapsed() < Duration::from_secs(10));
+        assert_eq!(m.distance, b.map.distance);
+        assert_eq!(cache.stats().baked, 1);
+        let w = cache.warnings();
+        assert!(
+            w.iter()
+                .any(|w| w.contains("was not refreshed") && w.contains("taken over")),
+            "{w:?}"
+        );
+        assert!(!lock.exists());
+
+        std::fs::remove_file(&b.entry).unwrap();
+        plant();
+        let cancel = Arc::new(AtomicBool::new(false));
+        let cache =
+            BakeCache::new(Some(b.dir.path().to_path_buf())).cancelled_by(Some(cancel.clone()));
+        let start = Instant::now();
+        let got = std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(Duration::from_millis(300));
+                cancel.store(true, Ordering::SeqCst);
+            });
+            cache.get(&b.h, [8, 8, 4], b.extent)
+        });
+        assert!(
+            matches!(got, Err(crate::Error::Cancelled)),
+            "{:?}",
+            got.err()
+        );
+        assert!(start.elapsed() < Duration::from_secs(5));
+        assert_eq!(cache.stats().baked, 0);
     }
 
     /// Four caches (as four processes would) on one empty directory at

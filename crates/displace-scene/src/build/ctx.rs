@@ -57,7 +57,7 @@ impl<'a> Ctx<'a> {
         Self {
             name,
             base,
-            cache: BakeCache::new(opts.cache_dir.clone()),
+            cache: BakeCache::new(opts.cache_dir.clone()).cancelled_by(opts.cancel.clone()),
             heights: HashMap::new(),
             textures: HashMap::new(),
             method: opts.method,
