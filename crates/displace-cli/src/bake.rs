@@ -132,6 +132,10 @@ pub fn check_bake_memory(
 }
 
 pub fn run(args: BakeArgs) -> Result<()> {
+    // Installed before any file is created: a signal in the first moments
+    // (while the height map loads) must not kill the process with its
+    // temporary file left behind.
+    let cancel = cancel_flag();
     let size = parse_map_size(&args.size)?;
     let extent = args.extent;
     let kind = check_output(&args.output)?;
@@ -221,7 +225,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         size,
         extent,
         progress: Some(bar.callback()),
-        cancel: Some(cancel_flag()),
+        cancel: Some(cancel.clone()),
     };
     let baked = displace_core::bake_streamed(&height, &opts, slab, &mut stream);
     bar.finish();

@@ -24,6 +24,8 @@ use displace_core::techniques::Technique;
 use displace_core::{generators, Address, Extent, HeightMap};
 use measure::{csv, elevation_rays, measure_elevation, peak, prepare, ray_seed, Plan};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -266,6 +268,24 @@ impl Drop for OutputDir {
 }
 
 pub fn run(args: CompareArgs) -> Result<()> {
+    // Installed before anything is created: an interrupt stops the work at
+    // the next map, elevation or precomputation and leaves nothing behind
+    // (the output directory this run made is removed again).
+    let cancel = crate::progress::cancel_flag();
+    let result = compare(args, &cancel);
+    if cancel.load(std::sync::atomic::Ordering::SeqCst) {
+        bail!("interrupted: nothing was written");
+    }
+    result
+}
+
+fn compare(args: CompareArgs, cancel: &Arc<AtomicBool>) -> Result<()> {
+    let interrupted = || {
+        if cancel.load(std::sync::atomic::Ordering::SeqCst) {
+            bail!("interrupted: nothing was written");
+        }
+        Ok(())
+    };
     let (plan, size) = plan(&args)?;
     let mut sources: Vec<String> = if args.only_given {
         Vec::new()
@@ -324,7 +344,8 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let mut precompute = Vec::new();
     let mut grid_maps = None;
     for (k, (name, height)) in heights.into_iter().enumerate() {
-        let (maps, report) = prepare(height, args.extent, args.depth, &plan.techniques)?;
+        interrupted()?;
+        let (maps, report) = prepare(height, args.extent, args.depth, &plan.techniques, cancel)?;
         for p in report {
             precompute.push((name.clone(), p));
         }
@@ -333,6 +354,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
             let rays = elevation_rays(maps.aspect, elevation, plan.rays, seed);
             #[cfg_attr(not(feature = "gpu"), allow(unused_mut))]
             let mut measured = measure_elevation(&maps, &name, &plan, elevation, &rays)?;
+            interrupted()?;
             #[cfg(feature = "gpu")]
             if let Some((ctx, n)) = &gpu {
                 gpu_costs::time_on_gpu(ctx, &maps, &rays, *n, args.gpu_frames, &mut measured)?;

@@ -98,3 +98,45 @@ pub fn loaded<T>(r: std::result::Result<T, displace_scene::Error>) -> anyhow::Re
         other => Ok(other?),
     }
 }
+
+/// [`displace_core::io::atomic::write_atomic`] that stops at the Ctrl-C
+/// flag: a mesh export streams gigabytes through one writer, and an
+/// interrupt must end it with its temporary file removed, not run on (or,
+/// without a handler, die and leave the file).
+pub fn write_interruptible<F>(path: &std::path::Path, write: F) -> anyhow::Result<()>
+where
+    F: FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+{
+    use anyhow::Context;
+    let flag = cancel_flag();
+    let result = displace_core::io::atomic::write_atomic(path, |w| {
+        write(&mut Interruptible {
+            inner: w,
+            flag: &flag,
+        })
+    });
+    if flag.load(Ordering::SeqCst) {
+        anyhow::bail!("interrupted: nothing was written");
+    }
+    result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// A writer that fails once the flag is raised. Not with
+/// `ErrorKind::Interrupted`, which `write_all` retries for ever.
+struct Interruptible<'a> {
+    inner: &'a mut dyn std::io::Write,
+    flag: &'a AtomicBool,
+}
+
+impl std::io::Write for Interruptible<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.flag.load(Ordering::Relaxed) {
+            return Err(std::io::Error::other("interrupted"));
+        }
+        self.inner.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}

@@ -618,7 +618,7 @@ fn exits_within(mut child: std::process::Child, limit: Duration) -> Output {
         if start.elapsed() > limit {
             let _ = child.kill();
             let o = child.wait_with_output().unwrap();
-            panic!("still running {limit:?} after the signal: {}", stderr(&o));
+            panic!("still running {limit:?} after the signal: {o:?}");
         }
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -685,6 +685,44 @@ fn cone_bakes_and_lock_waits_stop_on_signals() {
         &[],
     );
     assert!(files(d) == ["s.toml"], "{:?}", files(d));
+}
+
+/// Commands that had no handler, or installed it only after their first
+/// file, stop on SIGINT and leave nothing: a mesh export streaming a large
+/// grid (it used to leave its temporary file, up to a gigabyte), a
+/// `compare` (it left its empty `--out` directory), and a bake interrupted
+/// while its height map is still being made (it left `.m.ktx2.PID.0.tmp`).
+#[test]
+fn exports_compares_and_early_bakes_stop_on_signals_leaving_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases: [(&str, u64); 3] = [
+        (
+            "export-mesh gen:noise --height-size 1024x1024 --scale 6 --extent 1,1,0.1 -o m.obj",
+            1500,
+        ),
+        (
+            "compare --only-given --height gen:noise --height-size 512x512 --out o/deeper",
+            1500,
+        ),
+        (
+            "bake gen:noise --height-size 2048x2048 --size 64x64x8 -o m.ktx2",
+            150,
+        ),
+    ];
+    for (command, after_ms) in cases {
+        let child = cmd(d)
+            .args(words(command))
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(after_ms));
+        send("-INT", &child);
+        let o = exits_within(child, Duration::from_secs(5));
+        let msg = failed(&o, &["interrupted"], &[]);
+        assert!(files(d).is_empty(), "{command}: {:?} {msg}", files(d));
+    }
 }
 
 /// How this machine mounts a small tmpfs for one command without touching

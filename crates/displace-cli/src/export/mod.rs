@@ -32,7 +32,6 @@ use crate::args::{load_height, FaceArgs, HeightArgs};
 use crate::outputs::check_not_inputs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use displace_core::io::atomic::write_atomic;
 use displace_core::{Extent, HeightMap, NormalMap};
 use format::{least_bytes, mesh_file, MeshFile};
 use std::io::Write;
@@ -135,6 +134,8 @@ impl Grid<'_> {
 }
 
 pub fn run(args: ExportMeshArgs) -> Result<()> {
+    // Installed before any file is created (see `write_interruptible`).
+    crate::progress::cancel_flag();
     let kind = mesh_file(&args.output)?;
     if let Some(scene) = &args.scene {
         check_not_inputs(&[("-o", &args.output)], &[("--scene", scene)])?;
@@ -187,8 +188,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
         MeshFile::Obj => write_obj(w, &grid),
         MeshFile::Ply => write_ply(w, &grid),
     };
-    write_atomic(&args.output, write)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    crate::progress::write_interruptible(&args.output, write)?;
     println!(
         "{} ({}x{} texels) at scale {}: {} vertices, {} triangles -> {}",
         source,

@@ -7,7 +7,6 @@
 
 use super::format::MeshFile;
 use anyhow::{bail, Context, Result};
-use displace_core::io::atomic::write_atomic;
 use displace_render::faces::displaced_surface::DisplacedSurface;
 use displace_render::{Scene, SceneOptions};
 use std::io::Write;
@@ -49,7 +48,7 @@ pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Res
         MeshFile::Obj => write_obj(w, &surfaces),
         MeshFile::Ply => write_ply(w, &surfaces, vertices, triangles),
     };
-    write_atomic(output, write).with_context(|| format!("writing {}", output.display()))?;
+    crate::progress::write_interruptible(output, write)?;
     let cuts: Vec<String> = surfaces
         .iter()
         .map(|s| s.subdivisions().to_string())

@@ -8,6 +8,8 @@
 use super::CompareError;
 use displace_core::techniques::{ConeKind, ConeMap, Maps, MaxPyramid, Needs, Technique};
 use displace_core::{bake, BakeOptions, Extent, HeightMap};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Time and memory of one precomputation: a row of `precompute.csv`.
@@ -25,35 +27,44 @@ pub struct Precompute {
 /// Builds every precomputation `techniques` need from `height`, timed. The
 /// distance map is always baked at `depth` slices, since the exact
 /// reference traces through it, and reported only when a distance technique
-/// is compared.
+/// is compared. Each build stops when `cancel` is raised (relaxed cones of
+/// a large map take minutes), in [`displace_core::Error::Cancelled`].
 pub fn prepare(
     height: HeightMap,
     extent: Extent,
     depth: usize,
     techniques: &[Technique],
+    cancel: &Arc<AtomicBool>,
 ) -> Result<(Maps, Vec<Precompute>), CompareError> {
     let aspect = extent.aspect();
     let mut maps = Maps::new(height.clone(), aspect);
     let mut report = Vec::new();
     let needs = |n: Needs| techniques.iter().any(|t| t.needs() == n);
     if needs(Needs::ConservativeCones) {
-        let build = || ConeMap::build(&height, aspect, ConeKind::Conservative);
-        maps.cones = Some(timed(&mut report, "cone map", build, ConeMap::bytes));
+        let build = || {
+            ConeMap::build_with(
+                &height,
+                aspect,
+                ConeKind::Conservative,
+                None,
+                Some(&**cancel),
+            )
+        };
+        let cones = timed(&mut report, "cone map", build, cone_bytes);
+        maps.cones = Some(cones.map_err(CompareError::Bake)?);
     }
     if needs(Needs::RelaxedCones) {
-        let build = || ConeMap::build(&height, aspect, ConeKind::Relaxed);
-        maps.relaxed = Some(timed(
-            &mut report,
-            "relaxed cone map",
-            build,
-            ConeMap::bytes,
-        ));
+        let build =
+            || ConeMap::build_with(&height, aspect, ConeKind::Relaxed, None, Some(&**cancel));
+        let cones = timed(&mut report, "relaxed cone map", build, cone_bytes);
+        maps.relaxed = Some(cones.map_err(CompareError::Bake)?);
     }
     if needs(Needs::Pyramid) {
         let build = || MaxPyramid::build(&height);
         maps.pyramid = Some(timed(&mut report, "max pyramid", build, MaxPyramid::bytes));
     }
-    let opts = BakeOptions::new([height.width(), height.height(), depth], extent);
+    let mut opts = BakeOptions::new([height.width(), height.height(), depth], extent);
+    opts.cancel = Some(Arc::clone(cancel));
     let start = Instant::now();
     let baked = bake(&height, &opts).map_err(CompareError::Bake)?;
     let seconds = start.elapsed().as_secs_f64();
@@ -69,6 +80,10 @@ pub fn prepare(
 }
 
 /// Builds one precomputation and reports the time it took and its size.
+fn cone_bytes(c: &displace_core::Result<ConeMap>) -> usize {
+    c.as_ref().map_or(0, ConeMap::bytes)
+}
+
 fn timed<T>(
     report: &mut Vec<Precompute>,
     name: &'static str,
