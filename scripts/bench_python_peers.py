@@ -55,7 +55,12 @@ and traced by the CLI, ``displace trace --height H --extent ... --size WxHxD
 --rays rays.npy -o hits.npy`` (its printed Mrays/s: the trace alone, not
 its bake), on RAYON_NUM_THREADS=1 and 2, against ``face.intersect`` on the
 same rays and threads (timed around the call: argument checks, the trace,
-the output arrays). The hits must be the same bits; the table says.
+the output arrays). The two are measured in pairs, in the displace worker
+while its face is built: a call of ``face.intersect``, then a run of the
+CLI, ``--repeat`` times over, the best of each side taken, so that both see
+the shared machine's load of the same minute (measured minutes apart, a
+2-thread row moved by 10-20 % between runs). The hits must be the same
+bits; the table says.
 
 Usage (from the repository's root; the release CLI for the overhead):
 
@@ -404,11 +409,25 @@ def worker(args):
     np.save(os.path.join(work, f"{tag}_occ.npy"), occl == 0)
 
     if args.worker == "displace":
-        # The binding's side of the overhead: face.intersect on the (N, 6)
-        # rays without t_max, as `displace trace` reads them.
+        # The overhead: face.intersect on the (N, 6) rays without t_max, as
+        # `displace trace` reads them, paired with runs of the CLI on the
+        # same rays, one after the other (see the module's docstring).
         for nt in threads:
-            s, fh = best_of(args.repeat, lambda: face.intersect(ho, hd, threads=nt))
-            res[f"intersect_{nt}"] = len(ho) / s
+            best, cli_best, cli_err = float("inf"), None, None
+            command = cli_command(args.cli, work, meta, nt, args.sub) if args.cli else None
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                fh = face.intersect(ho, hd, threads=nt)
+                best = min(best, time.perf_counter() - t0)
+                if command and not cli_err:
+                    rate, cli_err = cli_once(*command[:2])
+                    if rate:
+                        cli_best = max(cli_best or 0.0, rate)
+            res[f"intersect_{nt}"] = len(ho) / best
+            if command:
+                res[f"cli_{nt}"] = cli_best
+                res[f"cli_path_{nt}"] = command[2]
+                res[f"cli_error_{nt}"] = cli_err
         np.save(os.path.join(work, f"intersect{args.sub}.npy"),
                 np.column_stack([fh["t"], fh["position"], fh["iterations"].astype(np.float32)]))
     print(json.dumps(res))
@@ -424,25 +443,26 @@ def find_cli(given):
     return p if os.path.exists(p) else None
 
 
-def run_cli(exe, work, meta, nthreads, div, repeat):
+def cli_command(exe, work, meta, nthreads, div):
+    """`displace trace` on the case's first-hit rays: (argv, environment,
+    output path)."""
     w, h, d = map_size(meta["shape"], meta["depth"], div)
     ext = ",".join(f"{v:.9g}" for v in meta["extent"])
     out = os.path.join(work, f"cli{div}_{nthreads}.npy")
     cmd = [exe, "trace", "--height", os.path.join(work, "heights.tif"), "--extent", ext,
            "--size", f"{w}x{h}x{d}", "--rays", os.path.join(work, "hit_rays.npy"),
            "-o", out]
-    env = dict(os.environ, RAYON_NUM_THREADS=str(nthreads))
-    # Best of as many runs as the binding's best-of, so that both sides
-    # see the machine's noise alike.
-    best = None
-    for _ in range(repeat):
-        p = subprocess.run(cmd, capture_output=True, text=True, env=env)
-        if p.returncode != 0:
-            return None, None, (p.stderr.strip().splitlines() or ["?"])[-1]
-        m = re.search(r"\(([\d.]+) Mrays/s", p.stdout)
-        if m:
-            best = max(best or 0.0, float(m.group(1)) * 1e6)
-    return best, out, None
+    return cmd, dict(os.environ, RAYON_NUM_THREADS=str(nthreads)), out
+
+
+def cli_once(cmd, env):
+    """One run of the CLI: (its printed rays a second, None) or (None, the
+    error's last line)."""
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if p.returncode != 0:
+        return None, (p.stderr.strip().splitlines() or ["?"])[-1]
+    m = re.search(r"\(([\d.]+) Mrays/s", p.stdout)
+    return (float(m.group(1)) * 1e6 if m else None), None
 
 
 def same_bits(a, b):
@@ -489,9 +509,11 @@ def prepare_case(name, args, work):
     return meta, heights
 
 
-def run_worker(engine, sub, args, work):
+def run_worker(engine, sub, args, work, cli=None):
     cmd = [sys.executable, os.path.abspath(__file__), "--worker", engine, "--sub", str(sub),
            "--work", work, "--threads", args.threads, "--repeat", str(args.repeat)]
+    if cli and engine == "displace":
+        cmd += ["--cli", cli]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -538,6 +560,7 @@ def main(argv=None):
     # The worker mode (one engine in a fresh process).
     ap.add_argument("--worker", choices=["displace", "embreex"], help=argparse.SUPPRESS)
     ap.add_argument("--work", help=argparse.SUPPRESS)
+    ap.add_argument("--cli", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.repeat is None:
         args.repeat = 1 if args.quick else 3
@@ -569,7 +592,7 @@ def main(argv=None):
                     res = {"engine": engine, "sub": sub,
                            "error": f"skipped: needs ~{need / 2**30:.0f} GiB (--force to try)"}
                 else:
-                    res = run_worker(engine, sub, args, work)
+                    res = run_worker(engine, sub, args, work, cli)
                 print(f"  {engine_name(res, meta)}: "
                       f"{res.get('error') or 'done in %.1f s' % res['wall_s']}", flush=True)
                 results.append(res)
@@ -600,7 +623,10 @@ def main(argv=None):
                 div = res["sub"]
                 ref = np.load(os.path.join(work, f"intersect{div}.npy"))
                 for nt in threads:
-                    rate, path, err = run_cli(cli, work, meta, nt, div, args.repeat)
+                    rate, path, err = (res.get(f"cli_{nt}"), res.get(f"cli_path_{nt}"),
+                                       res.get(f"cli_error_{nt}"))
+                    if err:
+                        path = None
                     same = same_bits(np.load(path), ref) if path else None
                     overhead.append({"case": meta["label"], "map": engine_name(res, meta),
                                      "threads": nt, "cli": rate, "py": res.get(f"intersect_{nt}"),

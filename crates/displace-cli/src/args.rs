@@ -103,7 +103,25 @@ pub fn parse_map_size(s: &str) -> Result<[usize; 3]> {
 
 /// Loads `source`, with generated maps at `--height-size` or `default_size`.
 pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) -> Result<HeightMap> {
-    let size = match &args.height_size {
+    let opts = args.options(generated_size(source, args, default_size)?);
+    height::load(source, &opts).with_context(|| format!("loading height map `{source}`"))
+}
+
+/// The size [`load_height`] would load, from the file's header alone (or
+/// the generator's size): for checks made before anything is decoded.
+pub fn height_dimensions(
+    source: &str,
+    args: &HeightArgs,
+    default_size: [usize; 2],
+) -> Result<[usize; 2]> {
+    let opts = args.options(generated_size(source, args, default_size)?);
+    height::dimensions(source, &opts).with_context(|| format!("loading height map `{source}`"))
+}
+
+/// The size of a generated map: `--height-size`, else `default_size`
+/// (refused with a file, which has its own).
+fn generated_size(source: &str, args: &HeightArgs, default_size: [usize; 2]) -> Result<[usize; 2]> {
+    Ok(match &args.height_size {
         Some(s) if !source.starts_with(displace_core::generators::PREFIX) => bail!(
             "--height-size {s} sets the size of a generated height map (gen:...); `{source}` has its own size"
         ),
@@ -114,7 +132,5 @@ pub fn load_height(source: &str, args: &HeightArgs, default_size: [usize; 2]) ->
             size
         }
         None => default_size,
-    };
-    let opts = args.options(size);
-    height::load(source, &opts).with_context(|| format!("loading height map `{source}`"))
+    })
 }

@@ -140,9 +140,29 @@ pub(crate) fn image_size(s: &str) -> Result<[u32; 2]> {
     Ok([w as u32, h as u32])
 }
 
-fn bake_face(face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
+/// Bakes the face's map for `ctx`, refusing first, from the height map's
+/// header and the asked size, a map this GPU's textures cannot hold and a
+/// bake past the memory limit: nothing is decoded or baked for a map the
+/// GPU would then refuse.
+fn bake_face(ctx: &GpuContext, face: &FaceArgs, map_size: &str) -> Result<DisplacementMap> {
     let size = parse_size::<3>(map_size).with_context(|| format!("--map-size {map_size}"))?;
     DistanceMap::check_size(size).with_context(|| format!("--map-size {map_size}"))?;
+    let height_args = crate::args::HeightArgs {
+        height_size: None,
+        channel: None,
+        address: face.address,
+        height_range: face.height_range,
+    };
+    let dims = crate::args::height_dimensions(&face.height, &height_args, [size[0], size[1]])?;
+    displace_gpu::GpuMap::check_sizes(ctx, dims, size)
+        .with_context(|| format!("--height {} --map-size {map_size}", face.height))?;
+    crate::bake::check_bake_memory(
+        &face.height,
+        &height_args,
+        size,
+        false,
+        crate::bake::BakeHolds::Whole,
+    )?;
     let height = load(
         &face.height,
         &HeightOptions {
@@ -169,6 +189,28 @@ pub(crate) fn write_png_rgba8(
         .flat_map(|p| [p[0], p[1], p[2]])
         .collect();
     displace_render::film::output::write_png_rgb8(path, width, height, &rgb)
+}
+
+/// Refuses a `size` frame that this GPU cannot hold
+/// ([`displace_gpu::raster::Targets::check`]) or whose memory passes the
+/// limit, before anything is loaded or baked: the readback and the image
+/// on the host, the device's targets too where the device is the CPU
+/// (lavapipe), and the UV image's copy when it is written.
+fn check_frame(ctx: &GpuContext, [w, h]: [u32; 2], uv_aov: bool) -> Result<()> {
+    use displace_gpu::raster::{DEVICE_BYTES_PER_PIXEL, READBACK_BYTES_PER_PIXEL};
+    displace_gpu::raster::Targets::check(ctx, [w, h]).with_context(|| format!("--size {w}x{h}"))?;
+    let per_pixel = READBACK_BYTES_PER_PIXEL
+        + if ctx.is_software() {
+            DEVICE_BYTES_PER_PIXEL
+        } else {
+            0
+        }
+        + if uv_aov { 16 } else { 0 };
+    displace_core::memory::check(
+        &format!("a {w}x{h} GPU frame"),
+        u128::from(w) * u128::from(h) * per_pixel,
+    )?;
+    Ok(())
 }
 
 fn open_gpu() -> Result<GpuContext> {
@@ -273,6 +315,7 @@ fn run_scene(args: &GpuRenderArgs, path: &std::path::Path) -> Result<()> {
     let loaded = scene::load(path, size, args.no_cache)?;
     crate::outputs::check_not_scene_inputs(&written, &loaded.sources, Some(path))?;
     let ctx = open_gpu()?;
+    check_frame(&ctx, [loaded.width, loaded.height], args.uv_aov)?;
     let (draws, image) = scene::render(&ctx, &loaded, args.distance, args.shadows)
         .with_context(|| format!("rendering {}", path.display()))?;
     if !draws.left_out.is_empty() {
@@ -314,7 +357,9 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
             .collect();
         crate::outputs::check_not_inputs(&written, &[("--height", height)])?;
     }
-    let map = bake_face(&args.face, &args.face.map_size)?;
+    let ctx = open_gpu()?;
+    check_frame(&ctx, size, args.uv_aov)?;
+    let map = bake_face(&ctx, &args.face, &args.face.map_size)?;
     let mut scene = PlaneScene::for_map(&map, size);
     scene.draw.method = args.method;
     scene.draw.iterations = args.iterations;
@@ -325,7 +370,6 @@ pub fn run_render(args: GpuRenderArgs) -> Result<()> {
     if let Some(light) = args.light {
         scene.view.light = light;
     }
-    let ctx = open_gpu()?;
     let renderer = Renderer::new(&ctx, &map, args.distance).context("building the GPU renderer")?;
     let image = renderer
         .render(&ctx, &scene)
@@ -369,7 +413,7 @@ pub fn run_bench(args: BenchGpuArgs) -> Result<()> {
     println!("|---|---|---|---|---|---|---|---|---|");
     for (frame, map_size, iterations) in configs {
         let size = image_size(&frame)?;
-        let map = bake_face(&args.face, &map_size)?;
+        let map = bake_face(&ctx, &args.face, &map_size)?;
         for &n in &iterations {
             for row in bench_config(&ctx, &map, size, n, args.frames)
                 .with_context(|| format!("benchmarking {frame} at {n} iterations"))?

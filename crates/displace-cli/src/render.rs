@@ -179,6 +179,7 @@ fn render_one(
             displace_render::default_cache_dir()
         },
         cancel: Some(cancel.clone()),
+        no_image: false,
     };
     let start = Instant::now();
     let scene = crate::progress::loaded(pool.install(|| match &args.scene {

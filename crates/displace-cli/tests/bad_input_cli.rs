@@ -296,6 +296,71 @@ fn bakes_past_the_memory_limit_are_refused_with_their_estimate() {
     failed(&o, &["DISPLACE_MEMORY_LIMIT=lots"], &[]);
 }
 
+/// A small EXR whose header claims eight full-size channels of 20000x20000
+/// texels (1.5 KB on disk, 14 GB decoded): refused from its header with
+/// the decoder's bytes before anything is decoded, by `bake`, by
+/// `gpu-render --height` (which had no estimate at all) and by a scene;
+/// the same file at its real size decodes.
+#[test]
+fn exr_headers_claiming_huge_decodes_are_refused_before_decoding() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let channels: Vec<AnyChannel<FlatSamples>> = ["A", "B", "G", "R", "U", "V", "W", "Z"]
+        .iter()
+        .map(|n| AnyChannel::new(*n, FlatSamples::F32(vec![0.5; 64])))
+        .collect();
+    let layer = Layer::new(
+        (8, 8),
+        LayerAttributes::default(),
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(channels.into()),
+    );
+    Image::from_layer(layer)
+        .write()
+        .to_file(d.join("small.exr"))
+        .unwrap();
+    let mut bytes = std::fs::read(d.join("small.exr")).unwrap();
+    // dataWindow: box2i, 16 bytes: xmin ymin xmax ymax.
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&19999i32.to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&19999i32.to_le_bytes());
+    std::fs::write(d.join("huge.exr"), &bytes).unwrap();
+    let before = files(d);
+    let refused = |args: &[&str], needles: &[&str]| {
+        let o = cmd(d)
+            .args(args)
+            .env("DISPLACE_MEMORY_LIMIT", "6G")
+            .output()
+            .unwrap();
+        let msg = failed(&o, needles, &["memory allocation", "panicked"]);
+        assert_eq!(files(d), before, "{msg}");
+        msg
+    };
+    // `bake` streams: its estimate (3 GiB, the heights and one decoded
+    // channel) passes a 6 GiB limit; the decoder's own check does not.
+    let msg = refused(
+        &words("bake huge.exr --size 16x16x4 -o m.npy"),
+        &["needs about", "20000x20000"],
+    );
+    assert!(
+        msg.contains("decoding") && msg.contains("8 channels"),
+        "{msg}"
+    );
+    // The GPU's side limit (16384 on lavapipe) or the bake's estimate,
+    // whichever comes first: before anything is decoded either way.
+    refused(
+        &words("gpu-render --height huge.exr --map-size 16x16x4 -o r.png"),
+        &["20000x20000"],
+    );
+    let o = cmd(d)
+        .args(words("bake small.exr --size 8x8x4 -o m.npy"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Under an address-space limit (`ulimit -v`, as a batch system or a
 /// shared machine sets), a bake the machine's memory would allow is refused
 /// by that limit up front, naming it, and `DISPLACE_MEMORY_LIMIT` cannot
@@ -343,6 +408,34 @@ fn bakes_past_an_address_space_limit_are_refused_not_aborted() {
     let o = limited(&words("bake gen:gaussian --size 64x64x8 -o m.npy"), None);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(files(d), ["m.npy"]);
+}
+
+/// `trace --scene` makes no image: a scene whose 16384x16384 image alone
+/// passes a 1 GiB limit is traced (it used to be refused over the image it
+/// never allocates), while `render` still refuses it, naming the image.
+#[test]
+fn a_trace_of_a_scene_does_not_count_its_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let big = replaced(
+        SCENE,
+        "width = 8\nheight = 8",
+        "width = 16384\nheight = 16384",
+    );
+    std::fs::write(d.join("s.toml"), big).unwrap();
+    write_rays(&d.join("rays.npy"), &[[0.0, 0.0, 5.0, 0.0, 0.0, -1.0]; 4]);
+    let o = cmd(d)
+        .args(words("trace --scene s.toml --rays rays.npy -o hits.npy"))
+        .env("DISPLACE_MEMORY_LIMIT", "1G")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = cmd(d)
+        .args(words("render -q s.toml -o r.png"))
+        .env("DISPLACE_MEMORY_LIMIT", "1G")
+        .output()
+        .unwrap();
+    failed(&o, &["16384x16384 image", "needs about"], &[]);
 }
 
 /// A scene's textures count together in its memory estimate, each before

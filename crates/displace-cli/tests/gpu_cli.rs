@@ -76,6 +76,68 @@ fn gpu_render_refuses_bad_input_and_writes_nothing() {
     }
 }
 
+/// Frames and maps past what the device holds are refused before any work
+/// and without a panic: a 16384x16384 frame (a size `--size` accepts; wgpu's
+/// default error handler panicked allocating it), and a distance map wider
+/// than the device's 3D textures, by `gpu-render` and by `trace --backend
+/// gpu` (which baked it first, then refused it).
+#[test]
+fn frames_and_maps_past_the_device_are_refused_before_any_work() {
+    let Some(ctx) = test_context() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| {
+        displace()
+            .args(args)
+            .current_dir(d)
+            .env("DISPLACE_CACHE", "")
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "gpu-render",
+        "--size",
+        "16384x16384",
+        "--map-size",
+        "16x16x4",
+        "-o",
+        "big.png",
+    ]);
+    failed(&o, &["16384x16384"], &["panicked"]);
+    let wide = format!("{}x16x4", ctx.limits.max_texture_dimension_3d + 1);
+    let o = run(&["gpu-render", "--map-size", &wide, "-o", "wide.png"]);
+    failed(&o, &[&wide, "exceeds this GPU's limit"], &["panicked"]);
+    let rays: Vec<f32> = [0.5, 0.5, 2.0, 0.0, 0.0, -1.0].repeat(4);
+    displace_core::io::npy::write_file(&d.join("rays.npy"), &[4, 6], &rays).unwrap();
+    let o = run(&[
+        "trace",
+        "--backend",
+        "gpu",
+        "--height",
+        "gen:gaussian",
+        "--extent",
+        "1,1,0.1",
+        "--size",
+        &wide,
+        "--rays",
+        "rays.npy",
+        "-o",
+        "hits.npy",
+    ]);
+    failed(
+        &o,
+        &["--backend gpu", &wide, "exceeds this GPU's limit"],
+        &["panicked"],
+    );
+    let left: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, ["rays.npy"]);
+}
+
 #[test]
 fn bench_gpu_prints_a_row_per_path_and_variant() {
     if test_context().is_none() {

@@ -111,13 +111,17 @@ impl GpuContext {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 
-    /// Runs `f` inside a validation error scope and turns a captured error
-    /// into [`Error::Gpu`], so shader or binding mistakes surface as errors
-    /// rather than as the default handler's panic.
+    /// Runs `f` inside validation and out-of-memory error scopes and turns
+    /// a captured error into [`Error::Gpu`], so shader or binding mistakes
+    /// and allocations the device cannot make surface as errors rather than
+    /// as the default handler's panic.
     pub fn checked<T>(&self, during: &str, f: impl FnOnce() -> T) -> Result<T> {
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let out = f();
-        match pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(validation.pop());
+        let memory = pollster::block_on(memory.pop());
+        match validation.or(memory) {
             None => Ok(out),
             Some(e) => Err(Error::Gpu {
                 during: during.to_string(),

@@ -43,14 +43,13 @@ impl GpuMap {
         Self::build(ctx, height, aspect, None, DistanceTexture::R32Load)
     }
 
-    fn build(
-        ctx: &GpuContext,
-        height: &HeightMap,
-        aspect: [f32; 2],
-        distance: Option<&DistanceMap>,
-        texture: DistanceTexture,
-    ) -> Result<Self> {
-        let [w, h, d] = distance.map_or([2, 2, 2], DistanceMap::size);
+    /// Refuses a `height`-texel map with a `distance`-voxel distance map
+    /// that this device's textures cannot hold: called by [`Self::build`],
+    /// and by commands before they bake (from the height map's header and
+    /// the asked map size), so that seconds of work and gigabytes are not
+    /// spent on a map the GPU then refuses.
+    pub fn check_sizes(ctx: &GpuContext, height: [usize; 2], distance: [usize; 3]) -> Result<()> {
+        let [w, h, d] = distance;
         let max3 = ctx.limits.max_texture_dimension_3d as usize;
         if w.max(h).max(d) > max3 {
             return Err(Error::Limit {
@@ -59,7 +58,7 @@ impl GpuMap {
                 limit: format!("{max3} texels per side"),
             });
         }
-        let (hw, hh) = (height.width(), height.height());
+        let [hw, hh] = height;
         let max2 = ctx.limits.max_texture_dimension_2d as usize;
         if hw.max(hh) > max2 {
             return Err(Error::Limit {
@@ -68,6 +67,19 @@ impl GpuMap {
                 limit: format!("{max2} texels per side"),
             });
         }
+        Ok(())
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        height: &HeightMap,
+        aspect: [f32; 2],
+        distance: Option<&DistanceMap>,
+        texture: DistanceTexture,
+    ) -> Result<Self> {
+        let [w, h, d] = distance.map_or([2, 2, 2], DistanceMap::size);
+        let (hw, hh) = (height.width(), height.height());
+        Self::check_sizes(ctx, [hw, hh], [w, h, d])?;
         let height_tex = upload(
             ctx,
             "height",

@@ -229,7 +229,9 @@ fn bad_corner<'a>(corners: &[&'a str], counts: &[usize; 3]) -> Option<&'a str> {
     })
 }
 
-/// Refuses, with its line and column, a face corner that indexes outside
+/// Refuses, with its line and column, a finite coordinate past
+/// [`crate::build::MAX_COORDINATE`], and a face corner
+/// that indexes outside
 /// the vertices, texture coordinates or normals declared before it, before
 /// `tobj` reads the file: `tobj` multiplies such an index unchecked (a `vt`
 /// of 2^63 overflows in its `add_vertex`; found by tests/fuzz.rs). Streams
@@ -248,7 +250,29 @@ fn check_face_indices(path: &Path) -> Result<()> {
             continue;
         };
         let mut words = line.split_whitespace();
-        match words.next() {
+        let head = words.next();
+        if let Some("v" | "vt" | "vn") = head {
+            // A finite value past what single precision measures (1e30)
+            // would otherwise be blamed later on collinear vertices or a
+            // zero extent (NaN and infinities are named as non-finite
+            // where the file is read).
+            let far = words.clone().find(|w| {
+                w.parse::<f32>()
+                    .is_ok_and(|x| x.is_finite() && x.abs() > crate::build::MAX_COORDINATE)
+            });
+            if let Some(w) = far {
+                return Err(Error::Parse {
+                    path: path.to_path_buf(),
+                    line: n + 1,
+                    column: w.as_ptr() as usize - line.as_ptr() as usize + 1,
+                    message: format!(
+                        "`{w}` is out of range: coordinates are at most {:e} in size (their squared lengths must fit in single precision)",
+                        crate::build::MAX_COORDINATE
+                    ),
+                });
+            }
+        }
+        match head {
             Some("v") => counts[0] += 1,
             Some("vt") => counts[1] += 1,
             Some("vn") => counts[2] += 1,
@@ -406,5 +430,37 @@ mod tests {
         )
         .unwrap();
         assert_eq!(load(&marked).unwrap().triangles.len(), 1);
+    }
+
+    /// Coordinates past what single precision measures are named at their
+    /// line and column (they were blamed on collinear vertices, or on a
+    /// zero width), and coordinates at the bound load.
+    #[test]
+    fn coordinates_out_of_range_are_named_where_they_are() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.obj");
+        for (text, line, column, word) in [
+            ("v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n", 2, 3, "1e30"),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 1e30\nf 1 2 3\n",
+                4,
+                6,
+                "1e30",
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 -2e20\nf 1 2 3\n",
+                4,
+                8,
+                "-2e20",
+            ),
+            ("v 0 0 0\nv 1 0 0\nv 0 -3e38 0\nf 1 2 3\n", 3, 5, "-3e38"),
+        ] {
+            std::fs::write(&p, text).unwrap();
+            let e = load(&p).unwrap_err().to_string();
+            assert!(e.contains(&format!("m.obj:{line}:{column}")), "{e}");
+            assert!(e.contains(&format!("`{word}` is out of range")), "{e}");
+        }
+        std::fs::write(&p, "v 0 0 0\nv 1e18 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(load(&p).unwrap().triangles.len(), 1);
     }
 }

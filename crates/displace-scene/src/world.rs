@@ -45,6 +45,11 @@ pub struct SceneOptions {
     pub integrator: Option<Integrator>,
     /// Overrides `image.sampler` (`--sampler`).
     pub sampler: Option<SamplerKind>,
+    /// The caller makes no image of the scene (`trace --scene`,
+    /// `export-mesh --scene`): the image's film is left out of the memory
+    /// estimate, which it would otherwise refuse a scene over; the image's
+    /// size and samples are still checked, as the scene must stay valid.
+    pub no_image: bool,
     /// Raised to stop loading (Ctrl-C, SIGTERM): a bake in progress and a
     /// wait for another process's bake end with [`crate::Error::Cancelled`].
     pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,

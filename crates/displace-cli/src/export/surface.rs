@@ -18,6 +18,7 @@ pub fn run(scene: &Path, edge_texels: f32, kind: MeshFile, output: &Path) -> Res
     let opts = SceneOptions {
         cache_dir: displace_render::default_cache_dir(),
         cancel: Some(crate::progress::cancel_flag()),
+        no_image: true,
         ..SceneOptions::default()
     };
     let loaded = crate::progress::loaded(Scene::load(scene, &opts))?;

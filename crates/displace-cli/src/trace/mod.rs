@@ -128,12 +128,32 @@ pub fn run(args: TraceArgs) -> Result<()> {
             .context("--iterations with --backend gpu")?;
     }
     let rays = read_rays(&args.rays)?;
+    // The GPU is opened before any map is made, so that a map it cannot
+    // hold is refused before seconds of bake and gigabytes.
+    #[cfg(feature = "gpu")]
+    let gpu = match args.backend {
+        Backend::Gpu => {
+            Some(GpuContext::new_headless().context("opening a GPU for --backend gpu")?)
+        }
+        Backend::Cpu => None,
+    };
+    #[cfg(feature = "gpu")]
+    let fits_gpu = |height: [usize; 2], size: [usize; 3]| -> Result<()> {
+        if let Some(ctx) = &gpu {
+            displace_gpu::GpuMap::check_sizes(ctx, height, size).context("--backend gpu")?;
+        }
+        Ok(())
+    };
+    #[cfg(not(feature = "gpu"))]
+    let fits_gpu = |_: [usize; 2], _: [usize; 3]| -> Result<()> { Ok(()) };
     let address = args.face.height.address;
     let map = match &args.map {
         Some(path) => {
             let distance = dio::read_distance_map(path, extent, address)
                 .with_context(|| format!("reading distance map {}", path.display()))?;
             let [w, h, _] = distance.size();
+            let dims = crate::args::height_dimensions(height_source, &args.face.height, [w, h])?;
+            fits_gpu(dims, distance.size())?;
             let height = load_height(height_source, &args.face.height, [w, h])?;
             DisplacementMap {
                 normals: NormalMap::from_height(&height, extent),
@@ -144,6 +164,12 @@ pub fn run(args: TraceArgs) -> Result<()> {
         }
         None => {
             let size = parse_map_size(args.size.as_deref().unwrap_or("256x256x16"))?;
+            let dims = crate::args::height_dimensions(
+                height_source,
+                &args.face.height,
+                [size[0], size[1]],
+            )?;
+            fits_gpu(dims, size)?;
             crate::bake::check_bake_memory(
                 height_source,
                 &args.face.height,
@@ -181,11 +207,11 @@ pub fn run(args: TraceArgs) -> Result<()> {
         Backend::Gpu => bail!("--backend gpu: {}", crate::NO_GPU),
         #[cfg(feature = "gpu")]
         Backend::Gpu => {
-            let ctx = GpuContext::new_headless().context("opening a GPU for --backend gpu")?;
+            let ctx = gpu.as_ref().context("--backend gpu: no GPU opened")?;
             // Timed from upload to readback, the cost a caller sees.
             let start = Instant::now();
             let hits =
-                crate::gpu::trace_physical_gpu(&ctx, &map, &opts, DistanceTexture::R32Load, &rays)?;
+                crate::gpu::trace_physical_gpu(ctx, &map, &opts, DistanceTexture::R32Load, &rays)?;
             (hits, start.elapsed().as_secs_f64(), ctx.describe())
         }
     };

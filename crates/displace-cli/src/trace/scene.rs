@@ -33,6 +33,7 @@ pub fn run(scene: &Path, rays: &Path, output: &Path, any_hit: bool, cache: bool)
             None
         },
         cancel: Some(crate::progress::cancel_flag()),
+        no_image: true,
         ..SceneOptions::default()
     };
     let start = Instant::now();

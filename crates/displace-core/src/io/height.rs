@@ -266,6 +266,13 @@ fn format_name(format: image::ImageFormat) -> &'static str {
 
 /// The size of the first layer of a checked EXR file, from its header.
 fn exr_size(path: &Path) -> Result<exr::math::Vec2<usize>> {
+    Ok(exr_header(path)?.0)
+}
+
+/// The first layer's size, and the bytes a texel of it takes decoded: every
+/// channel at its sample type (the decoder holds all of them at once, full
+/// size, before one is chosen).
+fn exr_header(path: &Path) -> Result<(exr::math::Vec2<usize>, u128, usize)> {
     super::check_input(path, "height map", super::MAX_IMAGE_FILE_BYTES)?;
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| Error::image(path, format!("cannot read EXR: {e}")))?;
@@ -273,7 +280,12 @@ fn exr_size(path: &Path) -> Result<exr::math::Vec2<usize>> {
         .headers
         .first()
         .ok_or_else(|| Error::image(path, "EXR file has no layers"))?;
-    Ok(header.layer_size)
+    let channels = &header.channels.list;
+    let texel: u128 = channels
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample() as u128)
+        .sum();
+    Ok((header.layer_size, texel, channels.len()))
 }
 
 /// The extension of `path` in lower case, which picks its reader.
@@ -373,8 +385,21 @@ fn heights<T: Copy + Into<f32> + Sync>(
 
 fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
     use exr::prelude::*;
-    let size = exr_size(path)?;
+    let (size, texel, channels) = exr_header(path)?;
     HeightMap::check_size(size.width(), size.height()).map_err(|e| crate::Error::image(path, e))?;
+    // A header of a few hundred bytes can claim dozens of full-size
+    // channels: their decoded bytes (and the heights made from them) are
+    // checked against the memory limit before the decoder allocates any.
+    let texels = size.width() as u128 * size.height() as u128;
+    crate::memory::check(
+        &format!(
+            "decoding {} ({channels} channels of {}x{} texels)",
+            path.display(),
+            size.width(),
+            size.height()
+        ),
+        texels * (texel + crate::memory::HEIGHT_BYTES_PER_TEXEL),
+    )?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

@@ -31,7 +31,7 @@ pub use pipelines::Renderer;
 pub(crate) use pipelines::{Colour, Shape as RasterShape};
 pub use scene::{Draw, DrawShape, Face, PlaneScene, Shadows, MAX_IMAGE_EDGE};
 pub(crate) use targets::copy_to_readback;
-pub use targets::{Image, Targets, COLOR_FORMAT};
+pub use targets::{Image, Targets, COLOR_FORMAT, DEVICE_BYTES_PER_PIXEL, READBACK_BYTES_PER_PIXEL};
 pub use textures::checker_mips;
 pub(crate) use textures::texture_2d;
 pub use uniforms::FrameUniform;

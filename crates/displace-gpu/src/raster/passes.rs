@@ -24,7 +24,10 @@ impl Renderer {
     ) -> Result<crate::timing::Timing> {
         check_frame(&scene.view, &[(self, &scene.draw)])?;
         let groups = self.uniforms(ctx, &scene.view, &scene.draw)?;
-        let targets = Targets::new(ctx, scene.view.size);
+        Targets::check(ctx, scene.view.size)?;
+        let targets = ctx.checked("allocating the frame's targets", || {
+            Targets::new(ctx, scene.view.size)
+        })?;
         crate::timing::time_frames(ctx, frames, |encoder, query| {
             record(
                 encoder,
@@ -137,7 +140,10 @@ pub fn render_faces(
     // Sizes and vectors are checked before the targets are allocated
     // (and once more, for the frame, by `encode_faces`).
     check_frame(view, draws)?;
-    let targets = Targets::new(ctx, view.size);
+    Targets::check(ctx, view.size)?;
+    let targets = ctx.checked("allocating the frame's targets", || {
+        Targets::new(ctx, view.size)
+    })?;
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     encode_faces(ctx, &mut encoder, &targets, view, draws, clear)?;
     targets.read(ctx, encoder)

@@ -14,6 +14,16 @@ pub(super) const AOV_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Fl
 /// Format of the depth target that the fragments' exact depths are tested in.
 pub(super) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// Bytes a frame holds on the device per pixel: the colour (4), AOV (16)
+/// and depth (4) targets and the colour and AOV readback buffers (4 + 16).
+/// On a software adapter (lavapipe) these are the host's memory too.
+pub const DEVICE_BYTES_PER_PIXEL: u128 = 44;
+
+/// Bytes the host holds per pixel while a frame comes back
+/// ([`Targets::read`]): the mapped readbacks (20) and their unpadded copies
+/// in the [`Image`] (20).
+pub const READBACK_BYTES_PER_PIXEL: u128 = 40;
+
 /// A rendered frame: sRGB colour and the AOV `[u, v, hit kind, t]`
 /// (`kind` 0 where nothing was hit; [`crate::convention::HIT_PLAIN`] on a
 /// non-displaced shape, whose `t` is the world distance from the eye). The
@@ -44,6 +54,33 @@ pub struct Targets {
 }
 
 impl Targets {
+    /// Refuses a `w x h` frame this device cannot hold, before anything is
+    /// allocated: a side past its 2D texture limit, or an AOV readback
+    /// larger than its largest buffer (a 16384x16384 frame's is 4 GiB,
+    /// which wgpu would answer with a panic of the default error handler).
+    pub fn check(ctx: &GpuContext, [w, h]: [u32; 2]) -> Result<()> {
+        let max2 = ctx.limits.max_texture_dimension_2d;
+        if w.max(h) > max2 {
+            return Err(crate::Error::Limit {
+                what: "frame".into(),
+                size: format!("{w}x{h}"),
+                limit: format!("{max2} pixels per side"),
+            });
+        }
+        let aov = u64::from(readback_pitch(w, 16)) * u64::from(h);
+        if aov > ctx.limits.max_buffer_size {
+            return Err(crate::Error::Limit {
+                what: "frame".into(),
+                size: format!("{w}x{h}"),
+                limit: format!(
+                    "this GPU's largest buffer, {} bytes, under the {aov} bytes of its AOV readback",
+                    ctx.limits.max_buffer_size
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// Allocates the three targets at `w x h`.
     pub fn new(ctx: &GpuContext, [w, h]: [u32; 2]) -> Self {
         let make = |format, usage| {
@@ -83,8 +120,13 @@ impl Targets {
         mut encoder: wgpu::CommandEncoder,
     ) -> Result<Image> {
         let [w, h] = self.size;
-        let (cbuf, color_row) = copy_to_readback(ctx, &mut encoder, &self.color_tex, 4, self.size);
-        let (abuf, aov_row) = copy_to_readback(ctx, &mut encoder, &self.aov_tex, 16, self.size);
+        let ((cbuf, color_row), (abuf, aov_row)) =
+            ctx.checked("allocating the readback", || {
+                (
+                    copy_to_readback(ctx, &mut encoder, &self.color_tex, 4, self.size),
+                    copy_to_readback(ctx, &mut encoder, &self.aov_tex, 16, self.size),
+                )
+            })?;
         let commands = ctx.checked("finishing the render", || encoder.finish())?;
         ctx.queue.submit([commands]);
         let cbytes = ctx.read_buffer(&cbuf)?;

@@ -81,12 +81,14 @@ pub(super) fn film(cx: &mut Ctx, img: &ImageSpec, opts: &SceneOptions) -> Result
     // The film and its AOVs: at most a few colour-sized buffers, checked
     // on their own first, so that an image too big for the machine is named
     // as the image rather than as the first bake that comes after it.
-    cx.memory = width as u128 * height as u128 * IMAGE_BYTES_PER_PIXEL;
-    displace_core::memory::check(
-        &format!("the {width}x{height} image and its outputs"),
-        cx.memory,
-    )
-    .map_err(|e| cx.err(e.to_string()))?;
+    if !opts.no_image {
+        cx.memory = width as u128 * height as u128 * IMAGE_BYTES_PER_PIXEL;
+        displace_core::memory::check(
+            &format!("the {width}x{height} image and its outputs"),
+            cx.memory,
+        )
+        .map_err(|e| cx.err(e.to_string()))?;
+    }
     let spp = match opts.spp {
         Some(s) => cx.bounded(s as i64, MAX_SPP, "--spp")?,
         None => cx.bounded(img.spp, MAX_SPP, "image.spp")?,
