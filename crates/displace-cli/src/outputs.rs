@@ -14,9 +14,23 @@ pub fn check_output(path: &Path) -> Result<MapFile> {
     Ok(kind)
 }
 
-/// Refuses an output path whose directory does not exist, so that no work
-/// is done for a file that cannot be written.
+/// Longest file name the file systems in use take (`NAME_MAX`), in bytes.
+const NAME_MAX: usize = 255;
+
+/// Refuses an output path whose directory does not exist, or whose file
+/// name is longer than a file system takes, so that no work is done for a
+/// file that cannot be written.
 pub fn check_output_dir(path: &Path) -> Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    if let Some(name) = path.file_name() {
+        if name.as_bytes().len() > NAME_MAX {
+            bail!(
+                "output {}: its file name is {} bytes, more than the {NAME_MAX} a file system takes",
+                path.display(),
+                name.as_bytes().len()
+            );
+        }
+    }
     if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         if !dir.is_dir() {
             bail!(

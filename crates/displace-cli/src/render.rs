@@ -87,6 +87,9 @@ struct Plan {
     tile: Option<TileIndex>,
     pool: rayon::ThreadPool,
     cancel: Arc<AtomicBool>,
+    /// Every file the command writes, of every frame: the images and their
+    /// AOVs, each with the option that names it.
+    written: Vec<(String, std::path::PathBuf)>,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -127,9 +130,30 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bail!("--frame auto with --tile auto/N: both would take the one task index; give one of them explicitly");
     }
     let jobs = crate::frames::jobs(args.frame.as_deref(), args.frames.as_deref(), &args.output)?;
-    for (_, output) in &jobs {
-        crate::outputs::check_output_dir(output)?;
+    // Every file of every frame, named and checked before the first frame:
+    // a name too long, or two outputs on one file, found after frame 0 was
+    // written (or after a whole render) would lose the work.
+    let mut written = Vec::new();
+    for (frame, output) in &jobs {
+        let at = |name: &str| match frame {
+            Some(f) if jobs.len() > 1 => format!("{name} (frame {f})"),
+            _ => name.to_string(),
+        };
+        written.push((at("-o"), output.to_path_buf()));
+        for &aov in &aovs {
+            let (npy, png) = aov_paths(output, aov);
+            let name = at(&format!("--aov {}", aov.name()));
+            written.extend([(name.clone(), npy), (name, png)]);
+        }
     }
+    for (_, path) in &written {
+        crate::outputs::check_output_dir(path)?;
+    }
+    let named: Vec<(&str, &std::path::Path)> = written
+        .iter()
+        .map(|(n, p)| (n.as_str(), p.as_path()))
+        .collect();
+    crate::outputs::check_distinct_outputs(&named)?;
     if let (Some(range), Some((Some(last), _))) = (&args.frames, jobs.last()) {
         let count = Scene::animation_frames(args.scene.as_deref())?;
         let count =
@@ -141,6 +165,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let pool = crate::threads::pool(args.threads)?;
     let cancel = crate::progress::cancel_flag();
     let plan = Plan {
+        written,
         size,
         crop,
         aovs,
@@ -187,13 +212,10 @@ fn render_one(
         None => Scene::default_scene(&opts),
     }))?;
     let setup = start.elapsed();
-    let mut written = vec![("-o".to_string(), output.to_path_buf())];
-    for &aov in &plan.aovs {
-        let (npy, png) = aov_paths(output, aov);
-        let name = format!("--aov {}", aov.name());
-        written.extend([(name.clone(), npy), (name, png)]);
-    }
-    crate::outputs::check_not_scene_inputs(&written, scene.sources(), args.scene.as_deref())?;
+    // Every frame's outputs, not only this one's: at the first frame, a
+    // later frame's name that is one of the scene's files is refused before
+    // anything is written.
+    crate::outputs::check_not_scene_inputs(&plan.written, scene.sources(), args.scene.as_deref())?;
     let stats = scene.cache_stats();
     for w in scene.warnings() {
         eprintln!("warning: {w}");

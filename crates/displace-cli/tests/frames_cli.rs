@@ -163,3 +163,46 @@ fn bad_animations_and_frames_are_refused_by_name() {
         assert_eq!(files(d), before, "{expect}: files written");
     }
 }
+
+/// Every frame's outputs are checked before the first frame is rendered:
+/// a later frame whose name is one of the scene's files (frame 1 of
+/// `-o t.png` is `t_0001.png`, a texture here), and a name longer than a
+/// file system takes, used to be found after frame 0 was written, or after
+/// the whole render.
+#[test]
+fn every_frames_outputs_are_checked_before_the_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 100, 50]))
+        .save(d.join("t_0001.png"))
+        .unwrap();
+    let textured = replaced(
+        &still(),
+        "color = [0.5, 0.5, 0.5]",
+        "color = [0.5, 0.5, 0.5]\ntexture = \"t_0001.png\"",
+    );
+    std::fs::write(d.join("s.toml"), format!("{textured}{ANIMATION}")).unwrap();
+    let before = files(d);
+    let o = run(
+        &["render", "-q", "s.toml", "--frames", "0..3", "-o", "t.png"],
+        d,
+        &[],
+    );
+    let msg = stderr(&o);
+    assert!(!o.status.success(), "{msg}");
+    assert!(
+        msg.contains("t_0001.png") && msg.contains("(frame 1)") && msg.contains("is also an input"),
+        "{msg}"
+    );
+    assert_eq!(files(d), before);
+    let long = format!("{}.png", "n".repeat(300));
+    let o = run(
+        &["render", "-q", "s.toml", "--frames", "0..2", "-o", &long],
+        d,
+        &[],
+    );
+    let msg = stderr(&o);
+    assert!(!o.status.success(), "{msg}");
+    assert!(msg.contains("more than the 255"), "{msg}");
+    assert_eq!(files(d), before);
+}

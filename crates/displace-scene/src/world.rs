@@ -188,15 +188,73 @@ fn read_text(path: &Path) -> Result<String> {
     })
 }
 
-/// The scene file's TOML, parsed (not yet checked).
+/// The scene file's TOML, parsed (not yet checked). An error the parser
+/// gives no place for (its key-depth limit) is placed at the deepest key;
+/// one that cannot be placed is reported without a place rather than at
+/// a line 0 that does not exist.
 fn parse(text: &str, name: &Path) -> Result<spec::SceneSpec> {
     toml::from_str(text).map_err(|e| {
-        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-        Error::Parse {
-            path: name.to_path_buf(),
-            line,
-            column,
-            message: e.message().trim().to_string(),
+        let message = e.message().trim().to_string();
+        let at = match e.span() {
+            Some(s) => Some(line_column(text, s.start)),
+            None if message.contains("recursion") => deepest_key(text),
+            None => None,
+        };
+        match at {
+            Some((line, column)) => Error::Parse {
+                path: name.to_path_buf(),
+                line,
+                column,
+                message,
+            },
+            None => Error::Scene {
+                path: name.to_path_buf(),
+                at: None,
+                message: format!("not a TOML scene: {message}"),
+            },
         }
     })
+}
+
+/// Line and column of the first key (a table header's or before a `=`)
+/// with the most dotted parts in `text`, when one has more than one.
+fn deepest_key(text: &str) -> Option<(usize, usize)> {
+    let mut best: Option<(usize, (usize, usize))> = None;
+    for (n, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        let key = if trimmed.starts_with('[') {
+            trimmed.trim_start_matches('[').split(']').next()
+        } else {
+            trimmed.split_once('=').map(|(k, _)| k)
+        };
+        let Some(key) = key else { continue };
+        let parts = key.split('.').count();
+        if parts > 1 && best.is_none_or(|(p, _)| parts > p) {
+            let column = line[..line.len() - trimmed.len()].chars().count() + 1;
+            best = Some((parts, (n + 1, column)));
+        }
+    }
+    best.map(|(_, at)| at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A key nested past the parser's limit used to be reported at
+    /// `file:0:0`; it is placed at its line, and the parser's own spanned
+    /// errors keep their places.
+    #[test]
+    fn errors_without_a_span_are_placed_at_the_deepest_key() {
+        let deep = format!("[image]\nwidth = 8\n  [{}]\n", vec!["a"; 300].join("."));
+        let e = parse(&deep, Path::new("s.toml")).err().unwrap().to_string();
+        assert!(e.starts_with("s.toml:3:3: "), "{e}");
+        assert!(e.contains("recursion"), "{e}");
+        let e = parse("[image]\nwidth = = 8\n", Path::new("s.toml"))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.starts_with("s.toml:2:"), "{e}");
+        assert_eq!(deepest_key("a = 1\nb = 2\n"), None);
+    }
 }

@@ -206,28 +206,8 @@ pub fn to_bytes_with_keys(
     format: Format,
     extra: &[(&str, &str)],
 ) -> std::result::Result<Vec<u8>, FormatError> {
-    let own = key_values(map.address(), 0.0, extent, format, None);
-    if let Some((k, _)) = extra
-        .iter()
-        .find(|(k, _)| *k == "displace.r8_range" || own.iter().any(|(o, _)| o == k))
-    {
-        return Err(FormatError::Invalid(format!(
-            "key `{k}` is the writer's own"
-        )));
-    }
+    check_writable(map, extent, format, extra)?;
     let [w, h, d] = map.size();
-    let (a, b) = (map.aspect(), extent.aspect());
-    if (a[0] - b[0]).abs() > 1e-4 * a[0] || (a[1] - b[1]).abs() > 1e-4 * a[1] {
-        return Err(FormatError::Invalid(format!(
-            "the map was baked for aspect {a:?} but extent {},{},{} has aspect {b:?}",
-            extent.sx, extent.sy, extent.sz
-        )));
-    }
-    if [w, h, d].iter().any(|&n| n > u32::MAX as usize) {
-        return Err(FormatError::Unsupported(format!(
-            "{w}x{h}x{d} exceeds KTX2's 32-bit sizes"
-        )));
-    }
     let (q, range) = map.quantized(format);
     let mut out = header(
         [w, h, d],
@@ -256,6 +236,62 @@ pub fn to_bytes_with_keys(
         }
     }
     Ok(out)
+}
+
+/// Refuses a map [`to_bytes_with_keys`] cannot write: a key of the
+/// writer's own among `extra`, an `extent` of other proportions than the
+/// map was baked for, sizes past KTX2's 32 bits.
+fn check_writable(
+    map: &DistanceMap,
+    extent: Extent,
+    format: Format,
+    extra: &[(&str, &str)],
+) -> std::result::Result<(), FormatError> {
+    let own = key_values(map.address(), 0.0, extent, format, None);
+    if let Some((k, _)) = extra
+        .iter()
+        .find(|(k, _)| *k == "displace.r8_range" || own.iter().any(|(o, _)| o == k))
+    {
+        return Err(FormatError::Invalid(format!(
+            "key `{k}` is the writer's own"
+        )));
+    }
+    let [w, h, d] = map.size();
+    let (a, b) = (map.aspect(), extent.aspect());
+    if (a[0] - b[0]).abs() > 1e-4 * a[0] || (a[1] - b[1]).abs() > 1e-4 * a[1] {
+        return Err(FormatError::Invalid(format!(
+            "the map was baked for aspect {a:?} but extent {},{},{} has aspect {b:?}",
+            extent.sx, extent.sy, extent.sz
+        )));
+    }
+    if [w, h, d].iter().any(|&n| n > u32::MAX as usize) {
+        return Err(FormatError::Unsupported(format!(
+            "{w}x{h}x{d} exceeds KTX2's 32-bit sizes"
+        )));
+    }
+    Ok(())
+}
+
+/// The header (identifier, index, format descriptor, key/value data and
+/// padding) of [`to_bytes_with_keys`] in [`Format::R32F`], without the
+/// values: r32f stores the map's values as they are, so a writer can
+/// stream them after it from the map itself rather than build the whole
+/// file in memory (the bake cache's entries, as large as the map).
+pub fn r32f_header_with_keys(
+    map: &DistanceMap,
+    extent: Extent,
+    extra: &[(&str, &str)],
+) -> std::result::Result<Vec<u8>, FormatError> {
+    check_writable(map, extent, Format::R32F, extra)?;
+    Ok(header(
+        map.size(),
+        map.address(),
+        map.data_underestimate(),
+        extent,
+        Format::R32F,
+        None,
+        extra,
+    ))
 }
 
 /// Writes `map` as a KTX2 file, atomically.

@@ -189,9 +189,27 @@ pub fn read_tile_header(path: &Path) -> Result<TileHeader> {
             .iter()
             .any(|c| c.sample_type != SampleType::F32)
     {
+        // Named with their sample types: a half-float tile has the right
+        // names, and only its types are wrong.
+        let held: Vec<String> = header
+            .channels
+            .list
+            .iter()
+            .map(|c| {
+                let kind = match c.sample_type {
+                    SampleType::F16 => "16-bit float",
+                    SampleType::F32 => "32-bit float",
+                    SampleType::U32 => "32-bit unsigned integer",
+                };
+                format!("{} ({kind})", c.name)
+            })
+            .collect();
         return Err(bad(
             path,
-            format!("a tile holds 32-bit float R, G, B channels, this one {names:?}"),
+            format!(
+                "a tile holds 32-bit float R, G, B channels, this one {}",
+                held.join(", ")
+            ),
         ));
     }
     let attrs = [
@@ -419,6 +437,27 @@ mod tests {
         crate::film::output::write_image(&plain, &img).unwrap();
         let e = read_tile(&plain).unwrap_err().to_string();
         assert!(e.contains("plain.exr") && e.contains(HASH_ATTRIBUTE), "{e}");
+    }
+
+    /// A tile whose channels are half floats (the right names, the wrong
+    /// type) is refused saying so, not only by the channels' names.
+    #[test]
+    fn a_half_float_tile_is_named_as_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let (p, _, _) = written_sample(dir.path());
+        let mut bytes = std::fs::read(&p).unwrap();
+        let key = b"channels\0chlist\0";
+        let mut i = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+        // Each channel: its name, then its pixel type (1: half), pLinear
+        // and three reserved bytes, and two samplings.
+        for _ in 0..3 {
+            i += bytes[i..].iter().position(|&b| b == 0).unwrap() + 1;
+            bytes[i..i + 4].copy_from_slice(&1i32.to_le_bytes());
+            i += 16;
+        }
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_tile_header(&p).err().unwrap().to_string();
+        assert!(e.contains("t.exr") && e.contains("R (16-bit float)"), "{e}");
     }
 
     /// A tile whose pixels no longer match their checksum (bits flipped

@@ -35,12 +35,57 @@ const UNSET: &[u8; 16] = b"0000000000000000";
 /// atomically.
 pub(super) fn write(path: &Path, map: &DistanceMap, extent: Extent) -> displace_core::Result<()> {
     let unset = std::str::from_utf8(UNSET).expect("ASCII");
-    let mut bytes = ktx2::to_bytes_with_keys(map, extent, Format::R32F, &[(CHECKSUM_KEY, unset)])
+    // The header alone in memory; the values are hashed and then written
+    // from the map itself. Built whole, the file (and the r32f copy made on
+    // the way) held twice the map's memory again while it was written.
+    let mut head = ktx2::r32f_header_with_keys(map, extent, &[(CHECKSUM_KEY, unset)])
         .map_err(|e| e.at(path))?;
-    let at = checksum_at(&bytes).expect("the checksum key was just written");
-    let sum = format!("{:016x}", checksum(&bytes, at));
-    bytes[at..at + UNSET.len()].copy_from_slice(sum.as_bytes());
-    write_atomic(path, |w| w.write_all(&bytes))
+    let at = checksum_at(&head).expect("the checksum key was just written");
+    let sum = format!("{:016x}", streamed_checksum(&head, at, map.data()));
+    head[at..at + UNSET.len()].copy_from_slice(sum.as_bytes());
+    write_atomic(path, |w| {
+        w.write_all(&head)?;
+        let mut buf = Vec::with_capacity(1 << 16);
+        for chunk in map.data().chunks(1 << 14) {
+            buf.clear();
+            buf.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
+            w.write_all(&buf)?;
+        }
+        Ok(())
+    })
+}
+
+/// [`checksum`] of the file made of `head` and then the values `data` as
+/// little-endian r32f, without that file in memory: the same words (the
+/// length, then each part in words of eight from its own start, the last
+/// word of a part padded with zeros).
+fn streamed_checksum(head: &[u8], at: usize, data: &[f32]) -> u64 {
+    let len = head.len() + 4 * data.len();
+    let rest = head[at + UNSET.len()..]
+        .iter()
+        .copied()
+        .chain(data.iter().flat_map(|v| v.to_le_bytes()));
+    let words_of = |part: &[u8]| -> Vec<u64> { words(part.iter().copied()).collect() };
+    hash_iter(
+        std::iter::once(len as u64)
+            .chain(words_of(&head[..at]))
+            .chain(words_of(UNSET))
+            .chain(words(rest)),
+    )
+}
+
+/// `bytes` in little-endian words of eight, the last padded with zeros.
+fn words(mut bytes: impl Iterator<Item = u8>) -> impl Iterator<Item = u64> {
+    std::iter::from_fn(move || {
+        let mut word = [0u8; 8];
+        let mut n = 0;
+        while n < 8 {
+            let Some(b) = bytes.next() else { break };
+            word[n] = b;
+            n += 1;
+        }
+        (n > 0).then(|| u64::from_le_bytes(word))
+    })
 }
 
 /// What is at an entry's path.
@@ -122,4 +167,40 @@ fn checksum(bytes: &[u8], at: usize) -> u64 {
         u64::from_le_bytes(word)
     });
     hash_iter(std::iter::once(bytes.len() as u64).chain(words))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The streamed entry is the file the whole-file writer makes, byte for
+    /// byte, and its streamed checksum is the checksum of those bytes: on
+    /// maps whose headers put the digits at different word offsets.
+    #[test]
+    fn streamed_entries_equal_whole_ones() {
+        for (n, depth) in [(8, 4), (13, 3), (16, 8)] {
+            let h =
+                displace_core::generators::generate("gen:gaussian", n, n, Address::Clamp).unwrap();
+            let extent = Extent::new(1.0, 1.0, 1.0).unwrap();
+            let map =
+                displace_core::bake(&h, &displace_core::BakeOptions::new([n, n, depth], extent))
+                    .unwrap()
+                    .distance;
+            let unset = std::str::from_utf8(UNSET).unwrap();
+            let keys = [(CHECKSUM_KEY, unset)];
+            let whole = ktx2::to_bytes_with_keys(&map, extent, Format::R32F, &keys).unwrap();
+            let head = ktx2::r32f_header_with_keys(&map, extent, &keys).unwrap();
+            let streamed: Vec<u8> = head
+                .iter()
+                .copied()
+                .chain(map.data().iter().flat_map(|v| v.to_le_bytes()))
+                .collect();
+            assert_eq!(whole, streamed, "{n}x{n}x{depth}");
+            let at = checksum_at(&whole).unwrap();
+            assert_eq!(
+                streamed_checksum(&head, at, map.data()),
+                checksum(&whole, at)
+            );
+        }
+    }
 }
