@@ -361,6 +361,40 @@ fn exr_headers_claiming_huge_decodes_are_refused_before_decoding() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// A 16-bit RGBA PNG decodes to 8 bytes a texel, twice what `bake`'s
+/// estimate counts for a decoded image: the decoder checks its own samples
+/// and the heights against the limit before it allocates, naming the file,
+/// its size and its sample type; under a limit that holds them it bakes.
+#[test]
+fn png_decodes_are_budgeted_by_their_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    image::ImageBuffer::<image::Rgba<u16>, _>::from_pixel(2048, 2048, image::Rgba([9000; 4]))
+        .save(d.join("h.png"))
+        .unwrap();
+    let bake = |limit: &str| {
+        cmd(d)
+            .args(words("bake h.png --size 16x16x4 -o m.npy"))
+            .env("DISPLACE_MEMORY_LIMIT", limit)
+            .output()
+            .unwrap()
+    };
+    let o = bake("40M");
+    let msg = failed(
+        &o,
+        &[
+            "decoding",
+            "h.png",
+            "2048x2048 texels, Rgba16",
+            "needs about",
+        ],
+        &[],
+    );
+    assert_eq!(files(d), ["h.png"], "{msg}");
+    let o = bake("1G");
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Under an address-space limit (`ulimit -v`, as a batch system or a
 /// shared machine sets), a bake the machine's memory would allow is refused
 /// by that limit up front, naming it, and `DISPLACE_MEMORY_LIMIT` cannot

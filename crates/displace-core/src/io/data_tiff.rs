@@ -193,6 +193,12 @@ pub(super) fn read(
     // The samples, and what a strip or tile is decoded through, within
     // the checked size.
     let bytes = w * h * usize::from(bits / 8);
+    // With the values in `f32` and their oriented copy, against the memory
+    // limit before the decoder allocates.
+    crate::memory::check(
+        &format!("decoding {} ({w}x{h} {bits}-bit samples)", path.display()),
+        bytes as u128 + (w * h) as u128 * 8,
+    )?;
     let mut limits = Limits::default();
     limits.decoding_buffer_size = bytes;
     limits.intermediate_buffer_size = limits.intermediate_buffer_size.max(bytes);

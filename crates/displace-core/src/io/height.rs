@@ -306,6 +306,18 @@ fn load_raster(path: &Path, format: image::ImageFormat, opts: &HeightOptions) ->
     let (decoder, orientation) = raster_decoder(path, format)?;
     let [w, h] = shown_size(decoder.dimensions(), orientation);
     HeightMap::check_size(w, h).map_err(|e| Error::image(path, e))?;
+    // The decoded samples (up to 8 bytes a texel: 16-bit RGBA) and the
+    // heights made from them, against the memory limit before the decoder
+    // allocates: the header's claim is all there is to go on.
+    let texels = w as u128 * h as u128;
+    crate::memory::check(
+        &format!(
+            "decoding {} ({w}x{h} texels, {:?})",
+            path.display(),
+            decoder.color_type()
+        ),
+        u128::from(decoder.total_bytes()) + texels * crate::memory::HEIGHT_BYTES_PER_TEXEL,
+    )?;
     let mut img = DynamicImage::from_decoder(decoder)
         .map_err(|e| Error::image(path, format!("cannot decode {name}: {e}")))?;
     // A camera's photograph is stored as the sensor read it and shown as
