@@ -14,17 +14,15 @@ use crate::settings::Integrator;
 use glam::Vec3;
 
 /// What a thread's tiles reuse from tile to tile, whichever integrator
-/// runs (the Whitted tracer's batch buffers, the path tracer's wavefront).
+/// runs (each integrator's wavefront buffers).
 #[derive(Default)]
 pub(crate) struct Scratch {
-    whitted: whitted::PixelScratch,
+    whitted: whitted::WaveScratch,
     path: path::WaveScratch,
 }
 
 /// The estimates of `pixels` (in that order, onto `out`) by the integrator
-/// the scene's settings name: the Whitted tracer pixel by pixel (each
-/// pixel's rays in batches), the path tracer as one wavefront over the
-/// tile's samples.
+/// the scene's settings name, each as a wavefront over the tile's samples.
 pub(crate) fn tile(
     scene: &Scene,
     pixels: &[(u32, u32)],
@@ -32,11 +30,7 @@ pub(crate) fn tile(
     out: &mut Vec<Vec3>,
 ) {
     match scene.integrator {
-        Integrator::Whitted => {
-            for &(x, y) in pixels {
-                out.push(whitted::pixel(scene, x, y, &mut scratch.whitted));
-            }
-        }
+        Integrator::Whitted => whitted::tile(scene, pixels, &mut scratch.whitted, out),
         Integrator::Path => path::tile(scene, pixels, &mut scratch.path, out),
     }
 }

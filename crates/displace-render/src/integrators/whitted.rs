@@ -43,7 +43,7 @@ pub struct PixelSample {
 /// ray), bounded by the scene's `max_depth`; `sample` is `Some` only for a
 /// camera ray, whose shadow rays it stratifies over the pixel (reflection
 /// rays pass `None`). The one-ray reference that the render loop's batched
-/// pixels ([`radiance_deferred`]) must match bit for bit.
+/// pixels (the wavefront of [`tile`]) must match bit for bit.
 pub fn radiance(
     scene: &Scene,
     ray: &Ray,
@@ -217,27 +217,34 @@ impl<'a> Surface<'a> {
     /// The mirror or glossy reflection (drawn after the light samples, from
     /// the same generator).
     fn reflected(&self, scene: &Scene, ray: &Ray, depth: u32, rng: &mut Rng) -> Vec3 {
+        match self.reflection(scene, ray, depth, rng) {
+            Some(r) => self.mat.reflect * radiance(scene, &r, depth + 1, None, rng),
+            None => Vec3::ZERO,
+        }
+    }
+
+    /// The reflection ray, or `None` where the material does not reflect,
+    /// the depth is spent or the drawn direction goes under the surface.
+    fn reflection(&self, scene: &Scene, ray: &Ray, depth: u32, rng: &mut Rng) -> Option<Ray> {
         if self.mat.reflects() && depth < scene.max_depth {
             let dir = self.mat.reflection_dir(ray.dir, self.ns, rng);
             if dir.dot(self.ng) > 0.0 {
-                return self.mat.reflect
-                    * radiance(scene, &Ray::new(self.p, dir), depth + 1, None, rng);
+                return Some(Ray::new(self.p, dir));
             }
         }
-        Vec3::ZERO
+        None
     }
 }
 
-/// A first hit's shading with its shadow rays held back, so that a pixel's
+/// A vertex's shading with its shadow rays held back, so that a wave's
 /// shadow rays are traced together ([`Scene::occluded_many`]) and then
 /// summed by [`Deferred::finish`] exactly as [`radiance`] sums them.
 #[derive(Clone, Copy, Debug)]
-pub struct Deferred {
+struct Deferred {
     emitted: Vec3,
-    reflected: Vec3,
     lit: bool,
-    /// This hit's shadow rays: `terms[first..first + count]` of the pixel's
-    /// list.
+    /// This vertex's shadow rays: `terms[first..first + count]` of the
+    /// wave's list.
     first: usize,
     count: usize,
 }
@@ -248,42 +255,40 @@ pub struct Deferred {
 /// [`Deferred::finish`] sums these per light, in the order they were
 /// appended, so the held-back sums equal [`radiance`]'s.
 #[derive(Clone, Copy, Debug)]
-pub struct Term {
+struct Term {
     /// The shadow ray to trace.
-    pub query: ShadowQuery,
+    query: ShadowQuery,
     /// Index of the light sampled, in the scene's `lights`: which light's
     /// sum (divided by its sample count) the term goes to.
-    pub light: u32,
+    light: u32,
     /// BRDF times the light sample's weight times the receiver's cosine:
     /// what the term adds when the ray is not blocked.
-    pub value: Vec3,
+    value: Vec3,
 }
 
-/// [`radiance`] of a camera ray whose first hit (or miss) is already
-/// known, its shadow rays appended to `terms` instead of traced.
-///
-/// Camera rays are intersected together and their shadow rays traced
-/// together (batch queries, [`crate::scene::batch`]), which is faster
-/// through displaced faces; this splits [`radiance`] at the shadow rays so
-/// that the image stays the one-ray tracer's. The reflection ray is still
-/// traced here, one at a time. Pass the result to [`Deferred::finish`].
-pub fn radiance_deferred(
+/// [`shade`] of a vertex whose hit (or miss) is already known, split where
+/// it would trace: its shadow rays appended to `terms`, its reflection
+/// returned as `(weight, ray)` for the next level of the wave. The light
+/// samples and then the reflection direction are drawn from `rng`, in
+/// [`shade`]'s order.
+fn shade_deferred(
     scene: &Scene,
     ray: &Ray,
     hit: Option<&Interaction>,
+    depth: u32,
     sample: Option<PixelSample>,
     rng: &mut Rng,
     terms: &mut Vec<Term>,
-) -> Deferred {
+) -> (Deferred, Option<(Vec3, Ray)>) {
     let first = terms.len();
     let Some(hit) = hit else {
-        return Deferred {
+        let miss = Deferred {
             emitted: scene.environment.radiance(ray.dir),
-            reflected: Vec3::ZERO,
             lit: false,
             first,
             count: 0,
         };
+        return (miss, None);
     };
     let emitted = emitted(scene, ray, hit);
     let at = Surface::new(scene, ray, hit);
@@ -302,20 +307,23 @@ pub fn radiance_deferred(
             }
         }
     }
-    let reflected = at.reflected(scene, ray, 0, rng);
-    Deferred {
+    let reflection = at
+        .reflection(scene, ray, depth, rng)
+        .map(|r| (at.mat.reflect, r));
+    let d = Deferred {
         emitted,
-        reflected,
         lit,
         first,
         count: terms.len() - first,
-    }
+    };
+    (d, reflection)
 }
 
 impl Deferred {
-    /// The radiance, given which of the pixel's held-back shadow rays are
-    /// blocked: the sums of [`radiance`], in its order.
-    pub fn finish(&self, scene: &Scene, terms: &[Term], blocked: &[bool]) -> Vec3 {
+    /// The vertex's own radiance (its reflection apart), given which of
+    /// the wave's held-back shadow rays are blocked: the sums of
+    /// [`shade`], in its order.
+    fn finish(&self, scene: &Scene, terms: &[Term], blocked: &[bool]) -> Vec3 {
         let mut l = self.emitted;
         if self.lit {
             let mine = self.first..self.first + self.count;
@@ -332,88 +340,187 @@ impl Deferred {
                 l += sum / n as f32;
             }
         }
-        l + self.reflected
+        l
     }
 }
 
-/// What one tile's pixels reuse from pixel to pixel: the batch queries'
-/// buffers and the pixel's rays, hits and held-back shadow rays.
+/// Camera samples one wave of a tile holds at most: a 16x16 tile at 16
+/// samples a pixel in one wave, bounded so that a tile at thousands of
+/// samples a pixel keeps its buffers to a few megabytes.
+const WAVE_SAMPLES: u64 = 4096;
+
+/// No reflection vertex follows.
+const NO_CHILD: u32 = u32::MAX;
+
+/// What a thread's tiles reuse from tile to tile: the batch queries'
+/// buffers, the wave's vertices and its held-back shadow rays, so that a
+/// render allocates nothing after its first tile.
 #[derive(Default)]
-pub(crate) struct PixelScratch {
+pub(crate) struct WaveScratch {
     batch: Batch,
+    /// The level being traced: its vertices (indices into the per-vertex
+    /// columns below), their rays and ranges, and their hits.
+    level: Vec<u32>,
     rays: Vec<Ray>,
-    rngs: Vec<Rng>,
     limits: Vec<f32>,
     hits: Vec<Option<(u32, Interaction)>>,
+    /// The next level: reflection vertices and their rays.
+    next: Vec<u32>,
+    next_rays: Vec<Ray>,
+    /// Per vertex of the wave, every level (a parent before its child):
+    /// the generator its path draws from, its camera sample (`None` past
+    /// the camera vertex), its own radiance, its reflection's vertex and
+    /// weight.
+    rngs: Vec<Rng>,
+    samples: Vec<Option<PixelSample>>,
+    pixel: Vec<u32>,
+    local: Vec<Vec3>,
+    child: Vec<u32>,
+    weight: Vec<Vec3>,
+    /// One level's shading and its held-back shadow rays.
     shaded: Vec<Deferred>,
     terms: Vec<Term>,
     shadow_rays: Vec<Ray>,
     shadow_limits: Vec<f32>,
     blocked: Vec<bool>,
+    /// Per pixel of the tile: the sum of its samples so far.
+    sums: Vec<Vec3>,
 }
 
-/// Camera samples traced together: a pixel's at most, so that what a
-/// sample sees never depends on its neighbours' (the packet tracer's hits
-/// are the one-ray tracer's anyway).
-const SAMPLES_PER_BATCH: u32 = 64;
-
-/// The mean of the pixel's stratified samples. Its camera rays are traced
-/// together (the displaced faces' eight at a time), then shaded one by
-/// one with their shadow rays held back, which are then traced together
-/// too and summed as [`radiance`] sums them: the same image as tracing
-/// each sample on its own.
-pub(crate) fn pixel(scene: &Scene, x: u32, y: u32, scratch: &mut PixelScratch) -> Vec3 {
-    let mut sum = Vec3::ZERO;
-    let mut s0 = 0;
-    while s0 < scene.spp {
-        let s1 = (s0 + SAMPLES_PER_BATCH).min(scene.spp);
-        let sc = &mut *scratch;
-        sc.rays.clear();
-        sc.rngs.clear();
-        for s in s0..s1 {
-            let (ray, rng) = camera_sample(scene, x, y, s);
-            sc.rays.push(ray);
-            sc.rngs.push(rng);
-        }
-        sc.limits.clear();
-        sc.limits.resize(sc.rays.len(), f32::INFINITY);
-        scene.intersect_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
-        sc.terms.clear();
-        sc.shaded.clear();
-        for (k, s) in (s0..s1).enumerate() {
-            let sample = PixelSample {
-                index: s,
-                count: scene.spp,
-            };
-            let hit = sc.hits[k].as_ref().map(|(_, h)| h);
-            let d = radiance_deferred(
-                scene,
-                &sc.rays[k],
-                hit,
-                Some(sample),
-                &mut sc.rngs[k],
-                &mut sc.terms,
-            );
-            sc.shaded.push(d);
-        }
-        sc.shadow_rays.clear();
-        sc.shadow_rays.extend(sc.terms.iter().map(|t| t.query.ray));
-        sc.shadow_limits.clear();
-        sc.shadow_limits
-            .extend(sc.terms.iter().map(|t| t.query.t_max));
-        scene.occluded_many(
-            &sc.shadow_rays,
-            0.0,
-            &sc.shadow_limits,
-            &mut sc.batch,
-            &mut sc.blocked,
-        );
-        for d in &sc.shaded {
-            sum += d.finish(scene, &sc.terms, &sc.blocked);
-        }
-        s0 = s1;
+/// The Whitted estimates of `pixels` (onto `out`, in that order), as a
+/// wavefront over the tile's samples (Laine, Karras and Aila 2013,
+/// "Megakernels considered harmful"; pbrt-v4's wavefront integrator):
+/// the camera rays of up to [`WAVE_SAMPLES`] samples are traced as one
+/// batch ([`Scene::intersect_many`], the displaced faces' rays in packets),
+/// every hit is shaded with its shadow rays and reflection held back, the
+/// shadow rays are traced as one batch ([`Scene::occluded_many`]), and the
+/// reflection rays form the next level of the wave. Each vertex draws the
+/// same numbers in the same order as [`radiance`], and the terms are summed
+/// in its order (a vertex's own light, then its reflection's, deepest
+/// first; a pixel's samples in sample order): the image is the one-sample
+/// tracer's bit for bit.
+pub(crate) fn tile(
+    scene: &Scene,
+    pixels: &[(u32, u32)],
+    sc: &mut WaveScratch,
+    out: &mut Vec<Vec3>,
+) {
+    let spp = scene.spp as u64;
+    let total = pixels.len() as u64 * spp;
+    sc.sums.clear();
+    sc.sums.resize(pixels.len(), Vec3::ZERO);
+    let mut k0 = 0;
+    while k0 < total {
+        let k1 = (k0 + WAVE_SAMPLES).min(total);
+        wave(scene, pixels, k0..k1, sc);
+        k0 = k1;
     }
-    sum / scene.spp as f32
+    out.extend(sc.sums.iter().map(|s| *s / scene.spp as f32));
+}
+
+/// One wave: samples `range` of the tile, numbered pixel by pixel
+/// (`pixel * spp + sample`), added to `sc.sums`.
+fn wave(scene: &Scene, pixels: &[(u32, u32)], range: std::ops::Range<u64>, sc: &mut WaveScratch) {
+    let spp = scene.spp as u64;
+    sc.rngs.clear();
+    sc.samples.clear();
+    sc.pixel.clear();
+    sc.level.clear();
+    sc.rays.clear();
+    for k in range {
+        let (p, s) = ((k / spp) as usize, (k % spp) as u32);
+        let (x, y) = pixels[p];
+        let (ray, rng) = camera_sample(scene, x, y, s);
+        sc.level.push(sc.rngs.len() as u32);
+        sc.rays.push(ray);
+        sc.rngs.push(rng);
+        sc.samples.push(Some(PixelSample {
+            index: s,
+            count: scene.spp,
+        }));
+        sc.pixel.push(p as u32);
+    }
+    let cameras = sc.rngs.len();
+    sc.local.clear();
+    sc.local.resize(cameras, Vec3::ZERO);
+    sc.child.clear();
+    sc.child.resize(cameras, NO_CHILD);
+    sc.weight.clear();
+    sc.weight.resize(cameras, Vec3::ZERO);
+    let mut depth = 0;
+    while !sc.level.is_empty() {
+        level(scene, depth, sc);
+        std::mem::swap(&mut sc.level, &mut sc.next);
+        std::mem::swap(&mut sc.rays, &mut sc.next_rays);
+        depth += 1;
+    }
+    // Children come after their parents: fold each reflection into its
+    // parent, deepest first, as the recursion returns.
+    for v in (0..sc.local.len()).rev() {
+        let c = sc.child[v];
+        if c != NO_CHILD {
+            let reflected = sc.weight[v] * sc.local[c as usize];
+            sc.local[v] += reflected;
+        }
+    }
+    for v in 0..cameras {
+        sc.sums[sc.pixel[v] as usize] += sc.local[v];
+    }
+}
+
+/// Traces and shades one level of the wave (`sc.level`, its rays in
+/// `sc.rays`), leaving its reflection vertices in `sc.next`.
+fn level(scene: &Scene, depth: u32, sc: &mut WaveScratch) {
+    sc.limits.clear();
+    sc.limits.resize(sc.rays.len(), f32::INFINITY);
+    scene.intersect_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
+    sc.terms.clear();
+    sc.shaded.clear();
+    sc.next.clear();
+    sc.next_rays.clear();
+    for (k, &v) in sc.level.iter().enumerate() {
+        let v = v as usize;
+        let hit = sc.hits[k].as_ref().map(|(_, h)| h);
+        let (d, reflection) = shade_deferred(
+            scene,
+            &sc.rays[k],
+            hit,
+            depth,
+            sc.samples[v],
+            &mut sc.rngs[v],
+            &mut sc.terms,
+        );
+        sc.shaded.push(d);
+        if let Some((weight, ray)) = reflection {
+            let c = sc.rngs.len() as u32;
+            let rng = sc.rngs[v].clone();
+            sc.rngs.push(rng);
+            sc.samples.push(None);
+            sc.pixel.push(sc.pixel[v]);
+            sc.local.push(Vec3::ZERO);
+            sc.child.push(NO_CHILD);
+            sc.weight.push(Vec3::ZERO);
+            sc.child[v] = c;
+            sc.weight[v] = weight;
+            sc.next.push(c);
+            sc.next_rays.push(ray);
+        }
+    }
+    sc.shadow_rays.clear();
+    sc.shadow_rays.extend(sc.terms.iter().map(|t| t.query.ray));
+    sc.shadow_limits.clear();
+    sc.shadow_limits
+        .extend(sc.terms.iter().map(|t| t.query.t_max));
+    scene.occluded_many(
+        &sc.shadow_rays,
+        0.0,
+        &sc.shadow_limits,
+        &mut sc.batch,
+        &mut sc.blocked,
+    );
+    for (d, &v) in sc.shaded.iter().zip(&sc.level) {
+        sc.local[v as usize] = d.finish(scene, &sc.terms, &sc.blocked);
+    }
 }
 
 #[cfg(test)]
@@ -438,10 +545,12 @@ mod tests {
     }
 
     #[test]
-    fn batched_pixels_are_the_one_ray_pixels_bit_for_bit() {
+    fn the_wavefront_is_the_one_ray_tracer_bit_for_bit() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
         // Soft shadows from an area light, a mirror, a gaussian floor, and
-        // meshes: every kind of term the batch holds back.
+        // meshes: every kind of term the wave holds back. Nine samples of
+        // 576 pixels make two waves, one pixel's samples split between
+        // them.
         for name in [
             "cornell_studded_shadows.toml",
             "cornell_stud_reflection.toml",
@@ -450,18 +559,19 @@ mod tests {
         ] {
             let opts = SceneOptions {
                 size: Some([24, 24]),
-                spp: Some(5),
+                spp: Some(9),
                 ..SceneOptions::default()
             };
             let scene = Scene::load(&dir.join(name), &opts).unwrap();
-            let mut scratch = PixelScratch::default();
+            let pixels: Vec<(u32, u32)> =
+                (0..24).flat_map(|y| (0..24).map(move |x| (x, y))).collect();
+            assert!(pixels.len() as u64 * 9 > WAVE_SAMPLES);
+            let mut out = Vec::new();
+            tile(&scene, &pixels, &mut WaveScratch::default(), &mut out);
             let mut lit = 0;
-            for y in 0..24 {
-                for x in 0..24 {
-                    let batched = pixel(&scene, x, y, &mut scratch);
-                    assert_eq!(batched, pixel_one_ray(&scene, x, y), "{name} ({x}, {y})");
-                    lit += usize::from(batched != Vec3::ZERO);
-                }
+            for (&(x, y), &waved) in pixels.iter().zip(&out) {
+                assert_eq!(waved, pixel_one_ray(&scene, x, y), "{name} ({x}, {y})");
+                lit += usize::from(waved != Vec3::ZERO);
             }
             assert!(lit > 100, "{name}: only {lit} pixels lit");
         }
