@@ -97,6 +97,16 @@ pub fn exr(data: &[u8]) {
     image(data, "h.exr");
 }
 
+/// A farm tile (OpenEXR with the tile's attributes) as `merge` reads it:
+/// the header alone, the whole tile, and a merge of that one tile.
+pub fn tile(data: &[u8]) {
+    use displace_render::film::{merge, tile_file};
+    let path = file(data, "t.exr");
+    let _ = tile_file::read_tile_header(&path);
+    let _ = tile_file::read_tile(&path);
+    let _ = merge::merge_files(&[path]);
+}
+
 /// The map a bake-cache entry is read for, baked once through the cache
 /// itself, and the entry's file name (its key).
 struct Entry {

@@ -361,6 +361,53 @@ fn exr_headers_claiming_huge_decodes_are_refused_before_decoding() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// An 8x8 OpenEXR whose display window claims 4194312x8 texels (1.2 KB
+/// on disk; the decoder fills the display window, 0.8 GB, as the seeded
+/// fuzzer found): as a scene's texture or environment it is refused from
+/// its header against the memory limit, before it is decoded, and no
+/// output is written. At these limits the scene's estimate (the float copy
+/// and the texels kept: 0.8 GB for a texture, 1.2 GB for an environment
+/// map, which keeps its sampling tables too) passes; the decoder's own
+/// samples on top of it do not.
+#[test]
+fn exr_display_windows_past_the_memory_limit_are_refused_as_textures() {
+    use exr::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let pixels = SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5f32, 0.5f32));
+    Image::from_channels((8, 8), pixels)
+        .write()
+        .to_file(d.join("wide.exr"))
+        .unwrap();
+    let mut bytes = std::fs::read(d.join("wide.exr")).unwrap();
+    // displayWindow: box2i, 16 bytes: xmin ymin xmax ymax.
+    let key = b"displayWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&4_194_311i32.to_le_bytes());
+    std::fs::write(d.join("wide.exr"), &bytes).unwrap();
+    let scene = |key: &str| {
+        format!(
+            "[image]\nwidth = 4\nheight = 4\n{}[camera]\nposition = [0.5, -1, 1]\nlook_at = [0.5, 0.5, 0]\n\
+             [materials.m]\ntype = \"lambert\"\ncolor = [0.5, 0.5, 0.5]\n{}\
+             [[shapes]]\ntype = \"quad\"\norigin = [0, 0, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 1, 0]\nmaterial = \"m\"\n",
+            if key == "environment" { "environment = \"wide.exr\"\n" } else { "" },
+            if key == "texture" { "texture = \"wide.exr\"\n" } else { "" },
+        )
+    };
+    for (key, limit) in [("texture", "1G"), ("environment", "1400M")] {
+        std::fs::write(d.join("s.toml"), scene(key)).unwrap();
+        let before = files(d);
+        let o = cmd(d)
+            .args(words("render s.toml -o r.png"))
+            .env("DISPLACE_MEMORY_LIMIT", limit)
+            .output()
+            .unwrap();
+        let msg = failed(&o, &["wide.exr", "decoding", "needs about"], &["panicked"]);
+        assert!(msg.contains("4194312x8"), "{key}: {msg}");
+        assert_eq!(files(d), before, "{key}: {msg}");
+    }
+}
+
 /// A 16-bit RGBA PNG decodes to 8 bytes a texel, twice what `bake`'s
 /// estimate counts for a decoded image: the decoder checks its own samples
 /// and the heights against the limit before it allocates, naming the file,

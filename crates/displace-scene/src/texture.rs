@@ -83,6 +83,17 @@ pub(crate) fn read_rgb32f(
     image::Limits::default()
         .reserve(decoder.total_bytes())
         .map_err(|e| image_err(path, e.to_string()))?;
+    // And against the memory limit in force (machine, cgroup, ulimit): the
+    // decoder's own samples on top of `bytes_per_texel` (the float copy and
+    // what the caller keeps), which a scene's estimate does not count. An
+    // OpenEXR header alone can claim millions of texels (a display window
+    // past its data window is decoded as filled texels), so a file of a
+    // kilobyte may ask for gigabytes.
+    let (w, h) = decoder.dimensions();
+    displace_core::memory::check(
+        &format!("decoding {} ({w}x{h} texels) as a {kind}", path.display()),
+        u128::from(decoder.total_bytes()) + u128::from(w) * u128::from(h) * bytes_per_texel,
+    )?;
     // A photograph is shown as its orientation tag says (none: as stored).
     let orientation = decoder
         .orientation()
