@@ -56,11 +56,88 @@ fn batches_answer_as_the_one_ray_queries_do() {
         "cornell_studded_shadows.toml",
         "cornell_gaussian.toml",
         "gpu_meshes.toml",
+        "stone.toml",
     ] {
         let mut o = opts();
         o.size = Some([48, 48]);
         let scene = Scene::load(&scenes_dir().join(name), &o).unwrap();
-        let rays = rays(&scene, 600, 11);
+        answers_as_one_ray(name, &scene, &rays(&scene, 600, 11));
+    }
+}
+
+/// A displaced face with a scene normal map and a colour texture (the
+/// hit's shading normal and tint come from files, sampled in the batch's
+/// eight-hit resolution as in the one-ray one), clamped and repeating.
+#[test]
+fn textured_faces_batch_as_one_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = SplitMix64::new(5);
+    let mut byte = || (rng.next_f32() * 255.0) as u8;
+    let normals = image::RgbImage::from_fn(16, 16, |_, _| image::Rgb([byte(), byte(), 200]));
+    normals.save(dir.path().join("n.png")).unwrap();
+    let colors = image::RgbImage::from_fn(8, 8, |_, _| image::Rgb([byte(), byte(), byte()]));
+    colors.save(dir.path().join("c.png")).unwrap();
+    for (address, tiles) in [("clamp", "[1, 1]"), ("repeat", "[3, 2]")] {
+        let text = format!(
+            r#"
+[image]
+width = 32
+height = 32
+[camera]
+position = [0.5, -0.6, 1.1]
+look_at = [0.5, 0.5, 0.0]
+vfov = 50
+[materials.m]
+type = "lambert"
+color = [0.8, 0.8, 0.8]
+texture = "c.png"
+[[lights]]
+type = "point"
+position = [0.2, 0.3, 1.0]
+intensity = [1, 1, 1]
+[[shapes]]
+type = "quad"
+origin = [0, 0, 0]
+edge_u = [1, 0, 0]
+edge_v = [0, 1, 0]
+material = "m"
+[shapes.displacement]
+height = "gen:gaussian"
+height_size = [64, 64]
+depth = 0.2
+map_size = [32, 32, 8]
+normal_map = "n.png"
+address = "{address}"
+tiles = {tiles}
+"#
+        );
+        let scene =
+            Scene::from_toml(&text, &dir.path().join("t.toml"), dir.path(), &opts()).unwrap();
+        // Camera rays onto the middle of the view, nearly all on the face, so
+        // that whole packets of eight hits are resolved together; then the
+        // mixed set.
+        let mut rng = SplitMix64::new(9);
+        let mut onto: Vec<(Ray, f32)> = (0..400)
+            .map(|_| {
+                let film = Vec2::new(0.3 + 0.4 * rng.next_f32(), 0.3 + 0.4 * rng.next_f32());
+                (scene.camera().ray(film, Vec2::splat(0.5)), f32::INFINITY)
+            })
+            .collect();
+        let hits = onto
+            .iter()
+            .filter(|(r, _)| scene.intersect(r, 0.0, f32::INFINITY).is_some())
+            .count();
+        assert!(hits * 100 >= onto.len() * 95, "{address}: {hits} middle rays hit");
+        onto.extend(rays(&scene, 400, 11));
+        answers_as_one_ray(address, &scene, &onto);
+    }
+}
+
+/// Every ray's nearest hit (primitive, distance, position, normals,
+/// texture coordinate, tint, steps) and any-hit answer from the batch
+/// queries, in batches of uneven sizes, against the one-ray queries.
+fn answers_as_one_ray(name: &str, scene: &Scene, rays: &[(Ray, f32)]) {
+    {
         let (world, limits): (Vec<Ray>, Vec<f32>) = rays.iter().copied().unzip();
         let mut batch = Batch::default();
         let mut hits = Vec::new();
@@ -88,6 +165,9 @@ fn batches_answer_as_the_one_ray_queries_do() {
                         assert_eq!(a.geometric_normal, b.geometric_normal, "{name} ray {r}");
                         assert_eq!(a.shading_normal, b.shading_normal, "{name} ray {r}");
                         assert_eq!(a.uv, b.uv, "{name} ray {r}");
+                        assert_eq!(a.tint, b.tint, "{name} ray {r}: tint");
+                        assert_eq!(a.material, b.material, "{name} ray {r}: material");
+                        assert_eq!(a.iterations, b.iterations, "{name} ray {r}: steps");
                         let g = geometry[k].expect("the geometric query finds the hit");
                         assert_eq!((g.prim, g.t), (*pb, b.t), "{name} ray {r}: geometry");
                         assert_eq!(g.position, b.position, "{name} ray {r}: geometry");

@@ -361,27 +361,82 @@ impl DisplacedFace {
         position: &[Lanes8; 3],
         normal: &[Lanes8; 3],
     ) -> [[Lanes8; 3]; 2] {
-        let (pm, nm) = (rows_of(&self.to_world), rows_of(&self.normal_to_world));
+        let pm = rows_of(&self.to_world);
         let base = self.origin.to_array();
-        let mut out = [[[0.0f32; 8]; 3]; 2];
-        let mut n = [[0.0f32; 8]; 3];
+        let mut p = [[0.0f32; 8]; 3];
         for l in 0..8 {
             for a in 0..3 {
                 let (x, y, z) = pm[a];
-                out[0][a][l] =
-                    base[a] + (x * position[0][l] + y * position[1][l] + z * position[2][l]);
+                p[a][l] = base[a] + (x * position[0][l] + y * position[1][l] + z * position[2][l]);
+            }
+        }
+        [p, self.normals_to_world8(normal)]
+    }
+
+    /// `(normal_to_world * n).normalize()` for eight map-space directions
+    /// (columns), in glam's order of operations, lane by lane.
+    #[inline]
+    fn normals_to_world8(&self, normal: &[Lanes8; 3]) -> [Lanes8; 3] {
+        let nm = rows_of(&self.normal_to_world);
+        let mut n = [[0.0f32; 8]; 3];
+        for l in 0..8 {
+            for a in 0..3 {
                 let (x, y, z) = nm[a];
                 n[a][l] = x * normal[0][l] + y * normal[1][l] + z * normal[2][l];
             }
         }
+        let mut out = [[0.0f32; 8]; 3];
         for l in 0..8 {
             let len = (n[0][l] * n[0][l] + n[1][l] * n[1][l] + n[2][l] * n[2][l]).sqrt();
             let inv = 1.0 / len;
             for a in 0..3 {
-                out[1][a][l] = n[a][l] * inv;
+                out[a][l] = n[a][l] * inv;
             }
         }
         out
+    }
+
+    /// [`Self::resolve`] for eight hits at once: the world positions and
+    /// both normals as columns (the baked normals' blend and its carry to
+    /// the world in lanes, [`displace_core::NormalMap::blend8`]), in the
+    /// one-hit order of operations, so lane `l` is `resolve(hits[l])` bit
+    /// for bit. A scene's normal map is sampled hit by hit.
+    pub fn resolve8(&self, hits: &[&MapHit; 8]) -> [DisplacedHit; 8] {
+        let column = |f: fn(&MapHit) -> Vec3| -> [Lanes8; 3] {
+            let v = hits.map(f);
+            [v.map(|p| p.x), v.map(|p| p.y), v.map(|p| p.z)]
+        };
+        let [p, ng] = self.world_geometry8(&column(|h| h.position), &column(|h| h.normal));
+        let uv = hits.map(|h| h.uv + self.uv_offset);
+        let ns = match self.normal_map.as_deref() {
+            Some(tex) => {
+                let n: [Vec3; 8] = std::array::from_fn(|l| {
+                    (tex.sample(uv[l]) * 2.0 - Vec3::ONE).normalize_or(Vec3::Z)
+                });
+                self.normals_to_world8(&[n.map(|v| v.x), n.map(|v| v.y), n.map(|v| v.z)])
+            }
+            None => {
+                let st = hits.map(|h| match self.map.address() {
+                    Address::Repeat => Vec2::new(h.uv.x.rem_euclid(1.0), h.uv.y.rem_euclid(1.0)),
+                    Address::Clamp => h.uv,
+                });
+                let n = self.map.normals.blend8(&st.map(|s| s.x), &st.map(|s| s.y));
+                self.normals_to_world8(&n)
+            }
+        };
+        let at = |v: &[Lanes8; 3], l: usize| Vec3::new(v[0][l], v[1][l], v[2][l]);
+        std::array::from_fn(|l| {
+            let wall = hits[l].kind == HitKind::Wall;
+            let geometric_normal = at(&ng, l);
+            DisplacedHit {
+                position: at(&p, l),
+                geometric_normal,
+                shading_normal: if wall { geometric_normal } else { at(&ns, l) },
+                uv: uv[l],
+                iterations: hits[l].iterations,
+                wall,
+            }
+        })
     }
 
     /// [`Self::resolve`] without the shading normal (the geometric normal

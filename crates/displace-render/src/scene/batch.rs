@@ -77,11 +77,49 @@ impl Scene {
     ) {
         self.nearest_many(rays, t_min, t_max, batch);
         out.clear();
-        out.extend(
-            batch.best.iter().zip(rays).map(|(b, ray)| {
+        for (best, rays) in batch.best.chunks(8).zip(rays.chunks(8)) {
+            if self.displaced_interactions8(best, out) {
+                continue;
+            }
+            out.extend(best.iter().zip(rays).map(|(b, ray)| {
                 b.map(|(i, t, local)| (i, self.resolve_with(i, ray, t, local, true)))
+            }));
+        }
+    }
+
+    /// Eight nearest hits on one displaced face, resolved together
+    /// ([`crate::faces::displaced::DisplacedFace::resolve8`]) onto `out`;
+    /// `false` (and nothing added) unless `best` is eight such hits.
+    fn displaced_interactions8(
+        &self,
+        best: &[Option<(u32, f32, Local)>],
+        out: &mut Vec<Option<(u32, Interaction)>>,
+    ) -> bool {
+        let Some(&Some((prim, _, _))) = best.first() else {
+            return false;
+        };
+        let Shape::Displaced(face) = &self.prims[prim as usize].shape else {
+            return false;
+        };
+        let mut hits = [None; 8];
+        if best.len() != 8 {
+            return false;
+        }
+        for (h, b) in hits.iter_mut().zip(best) {
+            match b {
+                Some((p, t, Local::Map(m))) if *p == prim => *h = Some((*t, m)),
+                _ => return false,
+            }
+        }
+        let hits = hits.map(|h| h.expect("every lane checked"));
+        let resolved = face.resolve8(&hits.map(|(_, m)| m));
+        let color = face.color.as_deref();
+        out.extend(
+            hits.iter().zip(&resolved).map(|(&(t, _), r)| {
+                Some((prim, self.displaced_interaction(prim, t, r, color, true)))
             }),
         );
+        true
     }
 
     /// The nearest hit of each of `rays` as a geometric query reports it:

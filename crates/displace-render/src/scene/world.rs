@@ -246,17 +246,39 @@ impl Scene {
                     (Shape::Curved(c), Local::Curved(h)) => (c.resolve(&h, shading), &c.color),
                     _ => unreachable!("matched above"),
                 };
-                out.position = r.position;
-                out.geometric_normal = r.geometric_normal;
-                out.shading_normal = r.shading_normal;
-                out.uv = r.uv;
-                out.iterations = r.iterations;
-                if let (true, Some(tex)) = (shading, color) {
-                    out.tint = tex.sample(r.uv);
-                }
+                return self.displaced_interaction(i, t, &r, color.as_deref(), shading);
             }
             _ => unreachable!("a hit is resolved by the shape that produced it"),
         }
         out
+    }
+
+    /// The interaction of a displaced (or curved) face's hit `r` on
+    /// primitive `i` at distance `t`, its colour texture sampled when
+    /// `shading`: shared by the one-hit [`Self::resolve_with`] and the
+    /// eight-hit batches.
+    pub(super) fn displaced_interaction(
+        &self,
+        i: u32,
+        t: f32,
+        r: &crate::faces::displaced::DisplacedHit,
+        color: Option<&crate::texture::Texture>,
+        shading: bool,
+    ) -> Interaction {
+        let prim = &self.prims[i as usize];
+        Interaction {
+            t,
+            position: r.position,
+            geometric_normal: r.geometric_normal,
+            shading_normal: r.shading_normal,
+            uv: r.uv,
+            material: prim.material,
+            emitter: prim.emitter,
+            iterations: r.iterations,
+            tint: match (shading, color) {
+                (true, Some(tex)) => tex.sample(r.uv),
+                _ => Vec3::ONE,
+            },
+        }
     }
 }
