@@ -127,7 +127,10 @@ tiles = {tiles}
             .iter()
             .filter(|(r, _)| scene.intersect(r, 0.0, f32::INFINITY).is_some())
             .count();
-        assert!(hits * 100 >= onto.len() * 95, "{address}: {hits} middle rays hit");
+        assert!(
+            hits * 100 >= onto.len() * 95,
+            "{address}: {hits} middle rays hit"
+        );
         onto.extend(rays(&scene, 400, 11));
         answers_as_one_ray(address, &scene, &onto);
     }
