@@ -11,6 +11,7 @@
 //! (`cell`: the CPU tracer one ray and eight at a time, no trilinear loop;
 //! `one`: one ray at a time only; `many`: eight at a time only.)
 
+use displace_core::cell_trace::{with_kernel, Kernel};
 use displace_core::{
     bake, generators, Address, BakeOptions, DisplacementMap, Extent, MapRay, TraceOptions,
 };
@@ -92,44 +93,50 @@ fn main() {
         } else {
             time(&|r| map.trace(r, &opts).map(|h| h.iterations))
         };
-        // Eight at a time (`trace_many`), the same hits.
+        // In packets (`trace_many`, `occluded_many`), under each kernel
+        // this CPU runs: the same hits, at what speed.
         let all_opts = vec![opts; rays.len()];
         let mut hits = vec![None; rays.len()];
         let runs = if mode == "one" { 0 } else { 3 };
-        let best = best_of(runs, || map.trace_many(&rays, &all_opts, &mut hits));
-        let many = rays.len() as f64 / best / 1e6;
-        println!(
-            "{name}: packets of eight {many:.2} Mrays/s ({} hits)",
-            hits.iter().flatten().count()
-        );
-        // The render's shadow rays: from each hit, just off the surface on
-        // the camera's side, to the benchmark's point light (any-hit).
-        let light = Vec3::from(LIGHT) / depth;
-        let (shadow, shadow_opts): (Vec<MapRay>, Vec<TraceOptions>) = hits
-            .iter()
-            .flatten()
-            .filter_map(|h| {
-                let o = h.position + h.normal * (1e-4 / depth);
-                let to = light - o;
-                (to.dot(h.normal) > 0.0).then(|| {
-                    let o2 = TraceOptions {
-                        t_max: to.length() * (1.0 - 1e-4),
-                        ..opts
-                    };
-                    (MapRay::new(o, to), o2)
-                })
-            })
-            .unzip();
-        let mut blocked = vec![false; shadow.len()];
-        let best = best_of(runs, || {
-            map.occluded_many(&shadow, &shadow_opts, &mut blocked)
-        });
-        println!(
-            "{name}: shadow rays in packets {:.2} Mrays/s ({} of {} blocked)",
-            shadow.len() as f64 / best / 1e6,
-            blocked.iter().filter(|&&b| b).count(),
-            shadow.len()
-        );
+        for kernel in Kernel::available() {
+            with_kernel(kernel, || {
+                let best = best_of(runs, || map.trace_many(&rays, &all_opts, &mut hits));
+                let many = rays.len() as f64 / best / 1e6;
+                println!(
+                    "{name}: {kernel:?} packets {many:.2} Mrays/s ({} hits)",
+                    hits.iter().flatten().count()
+                );
+                // The render's shadow rays: from each hit, just off the
+                // surface on the camera's side, to the benchmark's point
+                // light (any-hit).
+                let light = Vec3::from(LIGHT) / depth;
+                let (shadow, shadow_opts): (Vec<MapRay>, Vec<TraceOptions>) = hits
+                    .iter()
+                    .flatten()
+                    .filter_map(|h| {
+                        let o = h.position + h.normal * (1e-4 / depth);
+                        let to = light - o;
+                        (to.dot(h.normal) > 0.0).then(|| {
+                            let o2 = TraceOptions {
+                                t_max: to.length() * (1.0 - 1e-4),
+                                ..opts
+                            };
+                            (MapRay::new(o, to), o2)
+                        })
+                    })
+                    .unzip();
+                let mut blocked = vec![false; shadow.len()];
+                let best = best_of(runs, || {
+                    map.occluded_many(&shadow, &shadow_opts, &mut blocked)
+                });
+                println!(
+                    "{name}: {kernel:?} shadow rays in packets {:.2} Mrays/s ({} of {} blocked)",
+                    shadow.len() as f64 / best / 1e6,
+                    blocked.iter().filter(|&&b| b).count(),
+                    shadow.len()
+                );
+            });
+        }
         println!(
             "{name}: trilinear {old:.2} Mrays/s ({h0} hits, {:.1} fetches/hit), cell {new:.2} Mrays/s ({h1} hits, {:.1} fetches/hit)",
             i0 as f64 / h0.max(1) as f64,

@@ -1,4 +1,5 @@
-//! The packet tracer (eight rays at a time) against the scalar one: every
+//! The packet tracer (eight or sixteen rays at a time, each kernel the CPU
+//! runs forced in turn) against the scalar one: every
 //! ray's first hit and any-hit answer are the same, bit for bit, whatever
 //! the packet's other rays do (mixed starts, directions, ranges, methods
 //! and budgets in one packet, and packets cut short).
@@ -6,6 +7,7 @@
 mod common_ref;
 
 use common_ref::{face_case, random_face, Rng};
+use displace_core::cell_trace::{with_kernel, Kernel};
 use displace_core::{MapRay, Method, TraceOptions};
 use glam::Vec3;
 use proptest::prelude::*;
@@ -58,18 +60,29 @@ proptest! {
                 }
             })
             .collect();
-        let mut hits = vec![None; n];
-        map.trace_many(&rays, &opts, &mut hits);
-        let mut blocked = vec![false; n];
-        map.occluded_many(&rays, &opts, &mut blocked);
-        let mut found = 0;
-        for i in 0..n {
-            let one = map.trace(&rays[i], &opts[i]);
-            prop_assert_eq!(hits[i], one, "ray {} {:?} {:?}", i, rays[i], opts[i]);
-            prop_assert_eq!(blocked[i], map.occluded(&rays[i], &opts[i]), "any-hit ray {}", i);
-            found += usize::from(one.is_some());
+        // Every kernel this CPU runs, each forced in turn (AVX-512's
+        // sixteen-lane packets, AVX2's eight, one ray at a time).
+        for kernel in Kernel::available() {
+            let (hits, blocked) = with_kernel(kernel, || {
+                let mut hits = vec![None; n];
+                map.trace_many(&rays, &opts, &mut hits);
+                let mut blocked = vec![false; n];
+                map.occluded_many(&rays, &opts, &mut blocked);
+                (hits, blocked)
+            });
+            let mut found = 0;
+            for i in 0..n {
+                let one = map.trace(&rays[i], &opts[i]);
+                prop_assert_eq!(hits[i], one, "{:?}: ray {} {:?} {:?}", kernel, i, rays[i], opts[i]);
+                prop_assert_eq!(
+                    blocked[i],
+                    map.occluded(&rays[i], &opts[i]),
+                    "{:?}: any-hit ray {}", kernel, i
+                );
+                found += usize::from(one.is_some());
+            }
+            // The cases are not all misses: the comparison means something.
+            prop_assert!(n < 16 || found > 0, "no ray of {} hit", n);
         }
-        // The cases are not all misses: the comparison means something.
-        prop_assert!(n < 16 || found > 0, "no ray of {} hit", n);
     }
 }

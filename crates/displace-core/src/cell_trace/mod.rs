@@ -70,7 +70,7 @@ pub fn occluded(
 
 mod packet;
 
-pub use packet::LANES;
+pub use packet::{with_kernel, Kernel, LANES, WIDE_LANES};
 
 /// [`trace`] for many rays, each with its own options, eight at a time
 /// where the CPU allows (packets of [`LANES`] rays in AVX2 lanes): `out[i]`

@@ -15,14 +15,101 @@
 //!
 //! Runs where the CPU has AVX2 (detected at run time, as the bake's
 //! envelope kernel does) and the map is clamped; elsewhere every ray takes
-//! the scalar loop.
+//! the scalar loop. A sixteen-lane kernel for AVX-512 (the step phase,
+//! whose rounds are bound by one gather's latency, sixteen lanes a round;
+//! each half of the packet through the eight-lane walk) is held to the
+//! same hits and measured against the others, but not chosen by default:
+//! it is slower in fixed packets ([`Kernel`] names the three;
+//! [`with_kernel`] forces one for tests and measurements).
 
 use super::{Constants, Lane, Outcome};
 use crate::sphere_trace::{MapRay, Method, TraceOptions};
 use crate::{Address, DistanceMap, HeightMap};
 
-/// Rays per packet.
+/// Rays per packet of the AVX2 kernel.
 pub const LANES: usize = 8;
+
+/// Rays per packet of the AVX-512 kernel.
+pub const WIDE_LANES: usize = 16;
+
+/// Which kernel steps the packets: chosen at run time from what the CPU
+/// has (AVX2 where present, the measured choice), unless [`with_kernel`]
+/// forces one. Every kernel's hits are the scalar tracer's, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// One ray at a time (the scalar loop every kernel is held to).
+    Scalar,
+    /// Eight lanes: AVX2 gathers and blends.
+    Avx2,
+    /// Sixteen lanes in the step phase (AVX-512F gathers and mask
+    /// registers), the eight-lane walk on each half.
+    Avx512,
+}
+
+impl Kernel {
+    /// The kernels this CPU can run, narrowest first.
+    pub fn available() -> Vec<Kernel> {
+        let mut k = vec![Kernel::Scalar];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                k.push(Kernel::Avx2);
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    k.push(Kernel::Avx512);
+                }
+            }
+        }
+        k
+    }
+
+    /// The kernel packets use unless one is forced: AVX2 where the CPU has
+    /// it, even beside AVX-512. Measured on an AVX-512 Xeon
+    /// (`examples/trace_profile`, first hits and shadow rays of two faces),
+    /// sixteen-lane packets are 4-11% slower than eight: a packet steps
+    /// until its last lane parks, and twice the lanes wait twice as long
+    /// for their slowest; the sixteen-lane steps pay where lanes are
+    /// refilled from a queue as they leave, which fixed packets do not do.
+    fn best() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Kernel::Avx2;
+            }
+        }
+        Kernel::Scalar
+    }
+}
+
+std::thread_local! {
+    static FORCED: std::cell::Cell<Option<Kernel>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` with the packets of this thread stepped by `kernel` instead of
+/// the widest the CPU has: for the tests that hold each kernel to the
+/// scalar tracer, and for measuring one against another.
+///
+/// # Panics
+/// If this CPU cannot run `kernel` ([`Kernel::available`]).
+pub fn with_kernel<R>(kernel: Kernel, f: impl FnOnce() -> R) -> R {
+    assert!(
+        Kernel::available().contains(&kernel),
+        "this CPU cannot run the {kernel:?} kernel"
+    );
+    let before = FORCED.with(|c| c.replace(Some(kernel)));
+    struct Restore(Option<Kernel>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            FORCED.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(before);
+    f()
+}
+
+/// The kernel this thread's packets use now.
+fn kernel() -> Kernel {
+    FORCED.with(|c| c.get()).unwrap_or_else(Kernel::best)
+}
 
 /// Traces every ray of `rays` with its own options, handing each outcome to
 /// `emit` with the ray's index. The outcomes are those of the scalar
@@ -36,11 +123,20 @@ pub(super) fn run_all<const ANY: bool>(
 ) {
     debug_assert_eq!(rays.len(), opts.len());
     let c = Constants::new(height, distance);
-    let vector = vector_kernel() && eligible(height, distance);
+    let kernel = if eligible(height, distance) {
+        kernel()
+    } else {
+        Kernel::Scalar
+    };
+    let width = if kernel == Kernel::Avx512 {
+        WIDE_LANES
+    } else {
+        LANES
+    };
     let mut k = 0;
     while k < rays.len() {
-        let n = LANES.min(rays.len() - k);
-        let mut lanes: [Option<Lane>; LANES] = Default::default();
+        let n = width.min(rays.len() - k);
+        let mut lanes: [Option<Lane>; WIDE_LANES] = Default::default();
         for l in 0..n {
             let (ray, o) = (&rays[k + l], &opts[k + l]);
             if o.method != Method::Sphere {
@@ -52,19 +148,29 @@ pub(super) fn run_all<const ANY: bool>(
                 Err(out) => emit(k + l, out),
             }
         }
-        if vector {
+        match kernel {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 is present (`vector_kernel`), and the map's
-            // voxel indices fit the kernel's 32-bit gathers (`eligible`).
-            unsafe {
-                avx2::steps::<ANY>(height, distance, &c, &mut lanes, &mut |l, out| {
+            // SAFETY: AVX2 and AVX-512F are present (`Kernel::available`,
+            // `Kernel::best`), and the map's voxel indices fit the kernel's
+            // 32-bit gathers (`eligible`).
+            Kernel::Avx512 => unsafe {
+                avx512::steps::<ANY>(height, distance, &c, &mut lanes, &mut |l, out| {
                     emit(k + l, out)
                 });
-            }
-        } else {
-            for (l, lane) in lanes.iter_mut().enumerate() {
-                if let Some(lane) = lane {
-                    emit(k + l, lane.finish::<ANY>(height, distance, &c));
+            },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 is present, and the indices fit, as above.
+            Kernel::Avx2 => unsafe {
+                let eight: &mut [Option<Lane>; LANES] = (&mut lanes[..LANES])
+                    .try_into()
+                    .expect("a packet's first eight lanes");
+                avx2::steps::<ANY>(height, distance, &c, eight, &mut |l, out| emit(k + l, out));
+            },
+            _ => {
+                for (l, lane) in lanes.iter_mut().enumerate() {
+                    if let Some(lane) = lane {
+                        emit(k + l, lane.finish::<ANY>(height, distance, &c));
+                    }
                 }
             }
         }
@@ -83,17 +189,6 @@ fn eligible(height: &HeightMap, distance: &DistanceMap) -> bool {
         && (height.width() as u64) * (height.height() as u64) <= i32::MAX as u64
 }
 
-fn vector_kernel() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::super::{walk_after, Cursor, Next, SurfaceHit, Walk};
@@ -104,16 +199,16 @@ mod avx2 {
 
     /// A lane's walk in progress, in the vector kernel's arrays.
     #[derive(Clone, Copy, Default)]
-    struct WalkState {
-        t1: f32,
-        last: bool,
+    pub(super) struct WalkState {
+        pub(super) t1: f32,
+        pub(super) last: bool,
     }
 
     /// The lanes of bit set `m`, lowest first: one iteration a set bit
     /// (a loop over all eight with a test each mispredicts on every lane
     /// that changes).
     #[inline(always)]
-    fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
+    pub(super) fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
         std::iter::from_fn(move || {
             (m != 0).then(|| {
                 let l = m.trailing_zeros() as usize;
@@ -329,7 +424,7 @@ mod avx2 {
     /// Walks the lanes of `live` over their bands together; returns the
     /// lanes that step on.
     #[target_feature(enable = "avx2")]
-    unsafe fn walk_phase<const ANY: bool>(
+    pub(super) unsafe fn walk_phase<const ANY: bool>(
         height: &HeightMap,
         c: &Constants,
         lanes: &mut [Option<Lane>; LANES],
@@ -655,5 +750,187 @@ mod avx2 {
         corners: [f32; 4],
         at: Cursor,
         tb: f32,
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::super::Next;
+    use super::avx2::{lanes_of, walk_phase, WalkState};
+    use super::{Constants, Lane, Outcome, LANES, WIDE_LANES};
+    use crate::{DistanceMap, HeightMap};
+    use std::arch::x86_64::*;
+
+    /// [`super::avx2::steps`] for a packet of sixteen lanes: the same
+    /// alternation of phases, the steps sixteen lanes a round in AVX-512
+    /// registers (one gather of sixteen voxels, the lane masks in mask
+    /// registers), the walks of each half of the packet through the
+    /// eight-lane walk. Every operation on a lane's values is the scalar
+    /// tracer's, in its order, so the hits are its hits bit for bit.
+    ///
+    /// # Safety
+    /// AVX2 and AVX-512F must be present, the distance map's voxel count
+    /// must fit in an `i32`, and the map must be clamped.
+    #[target_feature(enable = "avx2,avx512f")]
+    pub(super) unsafe fn steps<const ANY: bool>(
+        height: &HeightMap,
+        distance: &DistanceMap,
+        c: &Constants,
+        lanes: &mut [Option<Lane>; WIDE_LANES],
+        emit: &mut impl FnMut(usize, Outcome),
+    ) {
+        let mut walks = [WalkState::default(); WIDE_LANES];
+        let mut pending = lanes
+            .iter()
+            .enumerate()
+            .fold(0u32, |m, (l, s)| m | (u32::from(s.is_some()) << l));
+        while pending != 0 {
+            let mut stepping = 0u32;
+            let mut walking = 0u32;
+            for l in lanes_of(pending) {
+                let lane = lanes[l].as_mut().expect("a pending lane");
+                match lane.check() {
+                    Next::Step => stepping |= 1 << l,
+                    Next::Done(out) => emit(l, out),
+                    Next::Walk { t1, last } => {
+                        walks[l] = WalkState { t1, last };
+                        walking |= 1 << l;
+                    }
+                }
+            }
+            if stepping != 0 {
+                let (parked, parked_walks) = step_phase(distance, c, lanes, stepping, emit);
+                walking |= parked;
+                for l in lanes_of(parked) {
+                    walks[l] = parked_walks[l];
+                }
+            }
+            pending = 0;
+            let (low, high) = lanes.split_at_mut(LANES);
+            let halves: [(&mut [Option<Lane>], usize); 2] = [(low, 0), (high, LANES)];
+            for (half, base) in halves {
+                let live = (walking >> base) & 0xff;
+                if live == 0 {
+                    continue;
+                }
+                let half: &mut [Option<Lane>; LANES] =
+                    half.try_into().expect("half a packet: eight lanes");
+                let half_walks: [WalkState; LANES] = std::array::from_fn(|l| walks[base + l]);
+                let resume =
+                    walk_phase::<ANY>(height, c, half, live, &half_walks, &mut |l, out| {
+                        emit(base + l, out)
+                    });
+                pending |= resume << base;
+            }
+        }
+    }
+
+    /// Steps the lanes of `live` until each has parked for a walk or
+    /// ended; returns the parked lanes and their walks
+    /// ([`super::avx2`]'s step phase, sixteen lanes a round).
+    #[target_feature(enable = "avx2,avx512f")]
+    unsafe fn step_phase(
+        distance: &DistanceMap,
+        c: &Constants,
+        lanes: &mut [Option<Lane>; WIDE_LANES],
+        mut live: u32,
+        emit: &mut impl FnMut(usize, Outcome),
+    ) -> (u32, [WalkState; WIDE_LANES]) {
+        let [w, h, d] = distance.size();
+        let [sx, sy, sz] = distance.cell_scale();
+        let data = distance.data();
+        let mut o = [[0.0f32; WIDE_LANES]; 3];
+        let mut dir = [[0.0f32; WIDE_LANES]; 3];
+        let mut t_out = [0.0f32; WIDE_LANES];
+        let mut max_steps = [0i32; WIDE_LANES];
+        let mut t = [0.0f32; WIDE_LANES];
+        let mut steps = [0i32; WIDE_LANES];
+        for (l, slot) in lanes.iter().enumerate() {
+            if let Some(lane) = slot {
+                let (ro, rd) = (lane.ray.origin, lane.ray.dir);
+                (o[0][l], o[1][l], o[2][l]) = (ro.x, ro.y, ro.z);
+                (dir[0][l], dir[1][l], dir[2][l]) = (rd.x, rd.y, rd.z);
+                t_out[l] = lane.t_out;
+                max_steps[l] = lane.max_steps.min(i32::MAX as u32) as i32;
+                t[l] = lane.t;
+                steps[l] = lane.steps.min(i32::MAX as u32) as i32;
+            }
+        }
+        let load = |v: &[f32; WIDE_LANES]| _mm512_loadu_ps(v.as_ptr());
+        let loadi = |v: &[i32; WIDE_LANES]| _mm512_loadu_si512(v.as_ptr().cast());
+        let (ox, oy, oz) = (load(&o[0]), load(&o[1]), load(&o[2]));
+        let (dx, dy, dz) = (load(&dir[0]), load(&dir[1]), load(&dir[2]));
+        let t_out_v = load(&t_out);
+        let max_steps_v = loadi(&max_steps);
+        let scale = [_mm512_set1_ps(sx), _mm512_set1_ps(sy), _mm512_set1_ps(sz)];
+        let top = [w, h, d].map(|n| _mm512_set1_ps((n - 1) as f32));
+        let (wv, hv) = (_mm512_set1_epi32(w as i32), _mm512_set1_epi32(h as i32));
+        let zero = _mm512_setzero_ps();
+        let tau = _mm512_set1_ps(c.tau);
+        let one = _mm512_set1_epi32(1);
+        let mut tv = load(&t);
+        let mut sv = loadi(&steps);
+        let mut parked = 0u32;
+        let mut walks = [WalkState::default(); WIDE_LANES];
+        let mut s = [0.0f32; WIDE_LANES];
+        while live != 0 {
+            let live_k = live as __mmask16;
+            let clamped = |p: __m512, a: usize| {
+                let x = _mm512_mul_ps(p, scale[a]);
+                _mm512_cvttps_epi32(_mm512_min_ps(_mm512_max_ps(x, zero), top[a]))
+            };
+            let i = clamped(_mm512_add_ps(ox, _mm512_mul_ps(dx, tv)), 0);
+            let j = clamped(_mm512_add_ps(oy, _mm512_mul_ps(dy, tv)), 1);
+            let k = clamped(_mm512_add_ps(oz, _mm512_mul_ps(dz, tv)), 2);
+            let idx = _mm512_add_epi32(
+                _mm512_mullo_epi32(_mm512_add_epi32(_mm512_mullo_epi32(k, hv), j), wv),
+                i,
+            );
+            // Only the live lanes load (the others keep zero).
+            let value = _mm512_mask_i32gather_ps::<4>(zero, live_k, idx, data.as_ptr());
+            let next_t = _mm512_add_ps(tv, value);
+            let next_steps = _mm512_add_epi32(sv, one);
+            // A lane stays in the vector loop while its step is a sphere
+            // step that keeps it in the shell and in budget, exactly as in
+            // the eight-lane kernel.
+            let fast = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(value, tau)
+                & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(next_t, t_out_v)
+                & _mm512_cmpgt_epi32_mask(max_steps_v, next_steps);
+            let fast_live = fast & live_k;
+            tv = _mm512_mask_blend_ps(fast_live, tv, next_t);
+            sv = _mm512_mask_blend_epi32(fast_live, sv, next_steps);
+            let slow = live & !u32::from(fast_live);
+            if slow == 0 {
+                continue;
+            }
+            _mm512_storeu_ps(t.as_mut_ptr(), tv);
+            _mm512_storeu_si512(steps.as_mut_ptr().cast(), sv);
+            _mm512_storeu_ps(s.as_mut_ptr(), value);
+            for l in lanes_of(slow) {
+                let lane = lanes[l].as_mut().expect("a live lane");
+                lane.t = t[l];
+                lane.steps = steps[l] as u32;
+                let mut next = lane.take_step(c, s[l]);
+                if matches!(next, Next::Step) {
+                    next = lane.check();
+                }
+                live &= !(1 << l);
+                match next {
+                    Next::Step => {
+                        live |= 1 << l;
+                        t[l] = lane.t;
+                        steps[l] = lane.steps as i32;
+                    }
+                    Next::Done(out) => emit(l, out),
+                    Next::Walk { t1, last } => {
+                        walks[l] = WalkState { t1, last };
+                        parked |= 1 << l;
+                    }
+                }
+            }
+            tv = load(&t);
+            sv = loadi(&steps);
+        }
+        (parked, walks)
     }
 }
