@@ -266,9 +266,32 @@ mod avx2 {
         lanes: &mut [Option<Lane>; LANES],
         emit: &mut impl FnMut(usize, Outcome),
     ) {
-        let mut walks = [WalkState::default(); LANES];
-        // Lanes at the top of the scalar loop: every lane at first, then
-        // those a walk hands back to the steps.
+        drive(
+            lanes,
+            emit,
+            // SAFETY: the caller's guarantees, which both phases share.
+            |lanes, live, emit| unsafe { step_phase(distance, c, lanes, live, emit) },
+            |lanes, live, walks, emit| unsafe {
+                walk_phase::<ANY>(height, c, lanes, live, walks, emit)
+            },
+        );
+    }
+
+    /// The alternation of phases of a packet of `N` lanes, whichever
+    /// kernel runs them: the lanes at the top of the scalar loop (every
+    /// lane at first, then those a walk hands back) are checked, the
+    /// stepping ones stepped together by `step` until each parks or ends,
+    /// and the parked ones walked together by `walk`, which returns the
+    /// lanes that step on. Inlined into each kernel, so the phases inline
+    /// with their target features.
+    #[inline(always)]
+    pub(super) fn drive<const N: usize, E: FnMut(usize, Outcome)>(
+        lanes: &mut [Option<Lane>; N],
+        emit: &mut E,
+        mut step: impl FnMut(&mut [Option<Lane>; N], u32, &mut E) -> (u32, [WalkState; N]),
+        mut walk: impl FnMut(&mut [Option<Lane>; N], u32, &[WalkState; N], &mut E) -> u32,
+    ) {
+        let mut walks = [WalkState::default(); N];
         let mut pending = lanes
             .iter()
             .enumerate()
@@ -288,14 +311,14 @@ mod avx2 {
                 }
             }
             if stepping != 0 {
-                let (parked, parked_walks) = step_phase(distance, c, lanes, stepping, emit);
+                let (parked, parked_walks) = step(lanes, stepping, emit);
                 walking |= parked;
                 for l in lanes_of(parked) {
                     walks[l] = parked_walks[l];
                 }
             }
             pending = if walking != 0 {
-                walk_phase::<ANY>(height, c, lanes, walking, &walks, emit)
+                walk(lanes, walking, &walks, emit)
             } else {
                 0
             };
@@ -756,7 +779,7 @@ mod avx2 {
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use super::super::Next;
-    use super::avx2::{lanes_of, walk_phase, WalkState};
+    use super::avx2::{drive, lanes_of, walk_phase, WalkState};
     use super::{Constants, Lane, Outcome, LANES, WIDE_LANES};
     use crate::{DistanceMap, HeightMap};
     use std::arch::x86_64::*;
@@ -779,50 +802,33 @@ mod avx512 {
         lanes: &mut [Option<Lane>; WIDE_LANES],
         emit: &mut impl FnMut(usize, Outcome),
     ) {
-        let mut walks = [WalkState::default(); WIDE_LANES];
-        let mut pending = lanes
-            .iter()
-            .enumerate()
-            .fold(0u32, |m, (l, s)| m | (u32::from(s.is_some()) << l));
-        while pending != 0 {
-            let mut stepping = 0u32;
-            let mut walking = 0u32;
-            for l in lanes_of(pending) {
-                let lane = lanes[l].as_mut().expect("a pending lane");
-                match lane.check() {
-                    Next::Step => stepping |= 1 << l,
-                    Next::Done(out) => emit(l, out),
-                    Next::Walk { t1, last } => {
-                        walks[l] = WalkState { t1, last };
-                        walking |= 1 << l;
+        drive(
+            lanes,
+            emit,
+            // SAFETY: the caller's guarantees, which both phases share.
+            |lanes, live, emit| unsafe { step_phase(distance, c, lanes, live, emit) },
+            |lanes, walking, walks, emit| {
+                let mut resume = 0u32;
+                let (low, high) = lanes.split_at_mut(LANES);
+                for (half, base) in [(low, 0), (high, LANES)] {
+                    let live = (walking >> base) & 0xff;
+                    if live == 0 {
+                        continue;
                     }
+                    let half: &mut [Option<Lane>; LANES] =
+                        half.try_into().expect("half a packet: eight lanes");
+                    let half_walks: [WalkState; LANES] = std::array::from_fn(|l| walks[base + l]);
+                    // SAFETY: as above (AVX2 is present beside AVX-512F).
+                    let walked = unsafe {
+                        walk_phase::<ANY>(height, c, half, live, &half_walks, &mut |l, out| {
+                            emit(base + l, out)
+                        })
+                    };
+                    resume |= walked << base;
                 }
-            }
-            if stepping != 0 {
-                let (parked, parked_walks) = step_phase(distance, c, lanes, stepping, emit);
-                walking |= parked;
-                for l in lanes_of(parked) {
-                    walks[l] = parked_walks[l];
-                }
-            }
-            pending = 0;
-            let (low, high) = lanes.split_at_mut(LANES);
-            let halves: [(&mut [Option<Lane>], usize); 2] = [(low, 0), (high, LANES)];
-            for (half, base) in halves {
-                let live = (walking >> base) & 0xff;
-                if live == 0 {
-                    continue;
-                }
-                let half: &mut [Option<Lane>; LANES] =
-                    half.try_into().expect("half a packet: eight lanes");
-                let half_walks: [WalkState; LANES] = std::array::from_fn(|l| walks[base + l]);
-                let resume =
-                    walk_phase::<ANY>(height, c, half, live, &half_walks, &mut |l, out| {
-                        emit(base + l, out)
-                    });
-                pending |= resume << base;
-            }
-        }
+                resume
+            },
+        );
     }
 
     /// Steps the lanes of `live` until each has parked for a walk or

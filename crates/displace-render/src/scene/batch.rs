@@ -15,6 +15,7 @@
 
 use super::world::{Local, Shape};
 use super::{Interaction, Scene};
+use crate::faces::displaced::DisplacedFace;
 use crate::geometry::Ray;
 use displace_core::{MapHit, MapRay, TraceOptions};
 use glam::Vec3;
@@ -63,6 +64,9 @@ pub struct Batch {
     best: Vec<Option<(u32, f32, Local)>>,
 }
 
+/// Eight hits on one displaced face: each one's distance and map hit.
+type FaceHits8<'a> = [(f32, &'a MapHit); 8];
+
 impl Scene {
     /// The nearest hit of each of `rays` with `t` in `[t_min, t_max[i]]`
     /// and the primitive it lies on: `out[i]` is what
@@ -95,23 +99,9 @@ impl Scene {
         best: &[Option<(u32, f32, Local)>],
         out: &mut Vec<Option<(u32, Interaction)>>,
     ) -> bool {
-        let Some(&Some((prim, _, _))) = best.first() else {
+        let Some((prim, face, hits)) = self.one_displaced_face8(best) else {
             return false;
         };
-        let Shape::Displaced(face) = &self.prims[prim as usize].shape else {
-            return false;
-        };
-        let mut hits = [None; 8];
-        if best.len() != 8 {
-            return false;
-        }
-        for (h, b) in hits.iter_mut().zip(best) {
-            match b {
-                Some((p, t, Local::Map(m))) if *p == prim => *h = Some((*t, m)),
-                _ => return false,
-            }
-        }
-        let hits = hits.map(|h| h.expect("every lane checked"));
         let resolved = face.resolve8(&hits.map(|(_, m)| m));
         let color = face.color.as_deref();
         out.extend(
@@ -152,6 +142,28 @@ impl Scene {
     /// together ([`crate::faces::displaced::DisplacedFace::world_geometry8`]);
     /// `None` unless `best` is eight such hits.
     fn displaced_geometry8(&self, best: &[Option<(u32, f32, Local)>]) -> Option<[GeometryHit; 8]> {
+        let (prim, face, hits) = self.one_displaced_face8(best)?;
+        let column = |f: fn(&MapHit) -> Vec3| -> [[f32; 8]; 3] {
+            let v = hits.map(|(_, m)| f(m));
+            [v.map(|p| p.x), v.map(|p| p.y), v.map(|p| p.z)]
+        };
+        let [p, n] = face.world_geometry8(&column(|m| m.position), &column(|m| m.normal));
+        Some(std::array::from_fn(|l| GeometryHit {
+            prim,
+            t: hits[l].0,
+            position: Vec3::new(p[0][l], p[1][l], p[2][l]),
+            normal: Vec3::new(n[0][l], n[1][l], n[2][l]),
+        }))
+    }
+
+    /// `best` as eight map-space hits on one displaced face (its index, the
+    /// face and each hit's distance and map hit), the case the eight-lane
+    /// resolutions take; `None` for fewer than eight, a miss, another
+    /// shape or a second face among them.
+    fn one_displaced_face8<'a>(
+        &'a self,
+        best: &'a [Option<(u32, f32, Local)>],
+    ) -> Option<(u32, &'a DisplacedFace, FaceHits8<'a>)> {
         let &Some((prim, _, _)) = best.first()? else {
             return None;
         };
@@ -168,18 +180,7 @@ impl Scene {
                 _ => return None,
             }
         }
-        let hits = hits.map(|h| h.expect("every lane checked"));
-        let column = |f: fn(&MapHit) -> Vec3| -> [[f32; 8]; 3] {
-            let v = hits.map(|(_, m)| f(m));
-            [v.map(|p| p.x), v.map(|p| p.y), v.map(|p| p.z)]
-        };
-        let [p, n] = face.world_geometry8(&column(|m| m.position), &column(|m| m.normal));
-        Some(std::array::from_fn(|l| GeometryHit {
-            prim,
-            t: hits[l].0,
-            position: Vec3::new(p[0][l], p[1][l], p[2][l]),
-            normal: Vec3::new(n[0][l], n[1][l], n[2][l]),
-        }))
+        Some((prim, face, hits.map(|h| h.expect("every lane checked"))))
     }
 
     /// One nearest hit as a geometric query reports it.
