@@ -3,7 +3,7 @@
 //! Volume Hierarchies", 2007; pbrt-v4 section 7.3) and traversed front to
 //! back.
 
-use crate::geometry::{Aabb, Ray};
+use crate::geometry::{Aabb, Ray, Rays8, PACKET};
 use glam::Vec3;
 
 const BINS: usize = 16;
@@ -173,6 +173,88 @@ impl Bvh {
             }
             sp -= 1;
             node = stack[sp] as usize;
+        }
+    }
+
+    /// [`Bvh::traverse`] of up to eight rays at once, all of one octant
+    /// (the signs of their directions, which order the walk, are read
+    /// from lane 0): each node's box is tested against the lanes that reached
+    /// it ([`Aabb::hit8`]), and `visit(index, lanes, t_max)` is called
+    /// for the lanes whose boxes hold the primitive, returning those that
+    /// found a closer hit (having shortened their `t_max`). With `any`, a
+    /// lane that found one leaves the walk.
+    ///
+    /// Each lane meets the nodes and primitives its own [`Bvh::traverse`]
+    /// would, in the same order and with the same `t_max`: rays of one
+    /// octant visit children in the same order, so the packet's walk is
+    /// every lane's walk with the lanes a node misses masked off (Wald,
+    /// Slusallek, Benthin and Wagner 2001, section 3.2). Returns the lanes
+    /// that found a hit, or `None` where the walk is deeper than its stack
+    /// (the caller walks those rays one at a time instead, undoing what
+    /// `visit` did).
+    ///
+    /// [`Aabb::hit8`]: crate::geometry::Aabb::hit8
+    #[inline]
+    pub fn traverse8(
+        &self,
+        rays: &Rays8,
+        t_min: f32,
+        t_max: &mut [f32; PACKET],
+        mut live: u32,
+        any: bool,
+        mut visit: impl FnMut(u32, u32, &mut [f32; PACKET]) -> u32,
+    ) -> Option<u32> {
+        let mut found = 0;
+        if self.nodes.is_empty() {
+            return Some(found);
+        }
+        let negative = rays.dir.map(|d| d[0] < 0.0);
+        let mut stack = [(0u32, 0u32); 64];
+        let mut sp = 0usize;
+        let (mut node, mut lanes) = (0usize, live);
+        loop {
+            let n = &self.nodes[node];
+            let hit = n.bounds.hit8(rays, t_min, t_max) & lanes;
+            if hit != 0 {
+                if n.count > 0 {
+                    let mut visiting = hit;
+                    for k in n.offset..n.offset + n.count as u32 {
+                        let f = visit(self.order[k as usize], visiting, t_max);
+                        found |= f;
+                        if any {
+                            visiting &= !f;
+                            live &= !f;
+                            if visiting == 0 {
+                                break;
+                            }
+                        }
+                    }
+                } else {
+                    let (first, second) = if negative[n.axis as usize] {
+                        (n.offset as usize, node + 1)
+                    } else {
+                        (node + 1, n.offset as usize)
+                    };
+                    if sp == stack.len() {
+                        return None;
+                    }
+                    stack[sp] = (second as u32, hit);
+                    sp += 1;
+                    (node, lanes) = (first, hit);
+                    continue;
+                }
+            }
+            loop {
+                if sp == 0 || live == 0 {
+                    return Some(found);
+                }
+                sp -= 1;
+                let (next, m) = stack[sp];
+                (node, lanes) = (next as usize, m & live);
+                if lanes != 0 {
+                    break;
+                }
+            }
         }
     }
 
@@ -378,5 +460,126 @@ mod tests {
             });
             assert_eq!(best, brute);
         }
+    }
+
+    /// A random ray for the lane tests: some start on a box's face and
+    /// run along an axis (an infinite reciprocal, NaN slabs), where the
+    /// slab test's ordering of minima and maxima decides.
+    fn ray(rng: &mut Rng, on: &[Aabb]) -> Ray {
+        let mut o =
+            Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 120.0 - Vec3::splat(10.0);
+        let mut d = Vec3::new(
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+            rng.next_f32() - 0.5,
+        );
+        if rng.next_f32() < 0.3 {
+            let b = on[(rng.next_f32() * on.len() as f32) as usize % on.len()];
+            let axis = (rng.next_f32() * 3.0) as usize % 3;
+            o[axis] = if rng.next_f32() < 0.5 {
+                b.min[axis]
+            } else {
+                b.max[axis]
+            };
+            d[(axis + 1) % 3] = 0.0;
+        }
+        Ray::new(o, d)
+    }
+
+    /// Each lane of a packet walk meets the primitives its own walk meets,
+    /// in the same order and with the same `t_max`, both for nearest hits
+    /// and for any-hit walks, on random boxes and rays (a lane's packet
+    /// mates are the rays of its octant drawn around it).
+    #[test]
+    fn packet_walks_are_each_lanes_own_walk() {
+        let mut rng = Rng::new(11, 5);
+        let boxes: Vec<Aabb> = (0..300)
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
+                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0;
+                Aabb {
+                    min: c - e,
+                    max: c + e,
+                }
+            })
+            .collect();
+        let bvh = Bvh::build(&boxes);
+        let octant = |r: &Ray| [r.dir.x < 0.0, r.dir.y < 0.0, r.dir.z < 0.0];
+        let (mut visits, mut hits) = (0, 0);
+        for round in 0..400 {
+            let any = round % 2 == 1;
+            let first = ray(&mut rng, &boxes);
+            let mut rays = vec![first];
+            while rays.len() < 1 + round % PACKET {
+                let r = ray(&mut rng, &boxes);
+                if octant(&r) == octant(&first) {
+                    rays.push(r);
+                }
+            }
+            // A primitive "hits" at its box's entry when that is within
+            // the lane's limit: t_max shrinks along the walk.
+            let hit = |i: u32, ray: &Ray, t_max: f32| boxes[i as usize].hit(ray, 0.0, t_max * 0.9);
+            let own: Vec<(Vec<(u32, f32)>, bool)> = rays
+                .iter()
+                .map(|r| {
+                    let mut seen = Vec::new();
+                    let found = bvh.traverse(r, 0.0, 1e3, any, |i, t_max| {
+                        seen.push((i, t_max));
+                        hit(i, r, t_max)
+                    });
+                    (seen, found)
+                })
+                .collect();
+            let index: Vec<u32> = (0..rays.len() as u32).collect();
+            let packet = Rays8::gather(&rays, &index);
+            let mut seen = vec![Vec::new(); rays.len()];
+            let mut limits = [1e3; PACKET];
+            let live = (1u32 << rays.len()) - 1;
+            let found = bvh
+                .traverse8(&packet, 0.0, &mut limits, live, any, |i, lanes, t_max| {
+                    let mut f = 0;
+                    for l in (0..PACKET).filter(|l| lanes & (1 << l) != 0) {
+                        seen[l].push((i, t_max[l]));
+                        if let Some(t) = hit(i, &rays[l], t_max[l]) {
+                            t_max[l] = t;
+                            f |= 1 << l;
+                        }
+                    }
+                    f
+                })
+                .expect("a shallow tree");
+            for (l, (own_seen, own_found)) in own.iter().enumerate() {
+                assert_eq!(&seen[l], own_seen, "round {round} lane {l}");
+                assert_eq!(found & (1 << l) != 0, *own_found, "round {round} lane {l}");
+                visits += own_seen.len();
+                hits += usize::from(*own_found);
+            }
+        }
+        assert!(visits > 5000 && hits > 300, "{visits} visits, {hits} hits");
+    }
+
+    /// The lane box test answers as [`Aabb::hit`] does, lane by lane,
+    /// rays along an axis and starting on a slab's plane included.
+    #[test]
+    fn box_tests_in_lanes_are_the_one_ray_tests() {
+        let mut rng = Rng::new(12, 5);
+        let mut met = 0;
+        for _ in 0..2000 {
+            let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
+            let b = Aabb {
+                min: c - Vec3::splat(20.0),
+                max: c + Vec3::splat(20.0),
+            };
+            let rays: Vec<Ray> = (0..PACKET).map(|_| ray(&mut rng, &[b])).collect();
+            let index: Vec<u32> = (0..PACKET as u32).collect();
+            let limits: [f32; PACKET] = std::array::from_fn(|l| 40.0 * l as f32);
+            let m = b.hit8(&Rays8::gather(&rays, &index), 0.0, &limits);
+            for (l, r) in rays.iter().enumerate() {
+                let one = b.hit(r, 0.0, limits[l]).is_some();
+                assert_eq!(m & (1 << l) != 0, one);
+                met += usize::from(one);
+            }
+        }
+        assert!(met > 1000, "{met}");
     }
 }

@@ -16,9 +16,9 @@
 use super::world::{Local, Shape};
 use super::{Interaction, Scene};
 use crate::faces::displaced::DisplacedFace;
-use crate::geometry::Ray;
+use crate::geometry::{Ray, Rays8, PACKET};
 use displace_core::{MapHit, MapRay, TraceOptions};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A first hit as a geometric query reports it (what Embree's
 /// `rtcIntersect` answers): where it is and the surface's normal there,
@@ -61,6 +61,8 @@ pub struct Batch {
     owners: Vec<u32>,
     blocked: Vec<bool>,
     answers: Vec<bool>,
+    /// Ray indices grouped by octant, for the packet walks.
+    order: Vec<u32>,
     best: Vec<Option<(u32, f32, Local)>>,
 }
 
@@ -203,27 +205,135 @@ impl Scene {
     }
 
     /// The nearest primitive, distance and local hit of each ray into
-    /// `batch.best`: the BVH walked ray by ray, the plain shapes met on the
-    /// way intersected there, the displaced faces traced together.
+    /// `batch.best`: the BVH walked by packets of eight rays of one octant
+    /// ([`Bvh::traverse8`], quads tested in lanes), the other plain shapes
+    /// met on the way intersected lane by lane, the displaced faces
+    /// gathered and traced together.
+    ///
+    /// [`Bvh::traverse8`]: crate::bvh::Bvh::traverse8
     fn nearest_many(&self, rays: &[Ray], t_min: f32, t_max: &[f32], batch: &mut Batch) {
         assert_eq!(rays.len(), t_max.len());
         batch.pending.clear();
         batch.best.clear();
-        for (r, ray) in rays.iter().enumerate() {
-            let mut best: Option<(u32, f32, Local)> = None;
-            let pending = &mut batch.pending;
-            self.bvh.traverse(ray, t_min, t_max[r], false, |i, t_max| {
-                if let Shape::Displaced(_) = &self.prims[i as usize].shape {
-                    pending.push((i, r as u32));
-                    return None;
-                }
-                let (t, local) = self.hit_prim(i, ray, t_min, t_max)?;
-                best = Some((i, t, local));
-                Some(t)
-            });
-            batch.best.push(best);
+        batch.best.resize(rays.len(), None);
+        let starts = by_octant(rays, &mut batch.order);
+        for o in 0..8 {
+            for k in (starts[o]..starts[o + 1]).step_by(PACKET) {
+                let end = (k + PACKET).min(starts[o + 1]);
+                self.nearest8(rays, k..end, t_min, t_max, batch);
+            }
         }
         self.trace_pending(rays, t_min, t_max, batch, false);
+    }
+
+    /// The rays `batch.order[range]` (at most eight, of one octant) walked
+    /// together: what each one's own walk ([`Self::nearest_one`]) leaves
+    /// in `batch.best` and `batch.pending`.
+    fn nearest8(
+        &self,
+        rays: &[Ray],
+        range: std::ops::Range<usize>,
+        t_min: f32,
+        t_max: &[f32],
+        batch: &mut Batch,
+    ) {
+        let Batch {
+            order,
+            pending,
+            best,
+            ..
+        } = batch;
+        let group = &order[range];
+        let before = pending.len();
+        let walked = self.walk8(
+            rays,
+            group,
+            t_min,
+            t_max,
+            false,
+            |i, lanes, packet, limits| {
+                let mut hits = 0;
+                match &self.prims[i as usize].shape {
+                    Shape::Displaced(_) => {
+                        pending.extend(lanes_of(lanes).map(|l| (i, group[l])));
+                    }
+                    Shape::Quad(q) => {
+                        let (mut t, mut ab) = ([0.0; PACKET], [Vec2::ZERO; PACKET]);
+                        hits = q.intersect8(packet, lanes, t_min, limits, &mut t, &mut ab);
+                        for l in lanes_of(hits) {
+                            limits[l] = t[l];
+                            best[group[l] as usize] = Some((i, t[l], Local::Param(ab[l])));
+                        }
+                    }
+                    _ => {
+                        for l in lanes_of(lanes) {
+                            let r = group[l] as usize;
+                            if let Some((t, local)) = self.hit_prim(i, &rays[r], t_min, limits[l]) {
+                                limits[l] = t;
+                                best[r] = Some((i, t, local));
+                                hits |= 1 << l;
+                            }
+                        }
+                    }
+                }
+                hits
+            },
+        );
+        if walked.is_none() {
+            pending.truncate(before);
+            for &r in group {
+                let r = r as usize;
+                best[r] = self.nearest_one(&rays[r], r, t_min, t_max[r], pending);
+            }
+        }
+    }
+
+    /// The BVH walk of the rays `group` (at most eight, of one octant) as
+    /// one packet ([`crate::bvh::Bvh::traverse8`]), `visit` also handed the
+    /// packet's columns.
+    fn walk8(
+        &self,
+        rays: &[Ray],
+        group: &[u32],
+        t_min: f32,
+        t_max: &[f32],
+        any: bool,
+        mut visit: impl FnMut(u32, u32, &Rays8, &mut [f32; PACKET]) -> u32,
+    ) -> Option<u32> {
+        let packet = Rays8::gather(rays, group);
+        let mut limits =
+            std::array::from_fn(|l| t_max[group[if l < group.len() { l } else { 0 }] as usize]);
+        let live = (1u32 << group.len()) - 1;
+        self.bvh.traverse8(
+            &packet,
+            t_min,
+            &mut limits,
+            live,
+            any,
+            |i, lanes, limits| visit(i, lanes, &packet, limits),
+        )
+    }
+
+    /// One ray's walk: its nearest plain hit, its displaced faces pending.
+    fn nearest_one(
+        &self,
+        ray: &Ray,
+        r: usize,
+        t_min: f32,
+        t_max: f32,
+        pending: &mut Vec<(u32, u32)>,
+    ) -> Option<(u32, f32, Local)> {
+        let mut best: Option<(u32, f32, Local)> = None;
+        self.bvh.traverse(ray, t_min, t_max, false, |i, t_max| {
+            if let Shape::Displaced(_) = &self.prims[i as usize].shape {
+                pending.push((i, r as u32));
+                return None;
+            }
+            let (t, local) = self.hit_prim(i, ray, t_min, t_max)?;
+            best = Some((i, t, local));
+            Some(t)
+        });
+        best
     }
 
     /// Whether anything lies on each of `rays` within `[t_min, t_max[i]]`:
@@ -239,27 +349,101 @@ impl Scene {
         assert_eq!(rays.len(), t_max.len());
         batch.pending.clear();
         out.clear();
-        for (r, ray) in rays.iter().enumerate() {
-            let pending = &mut batch.pending;
-            let mut deferred = 0;
-            let blocked = self.bvh.traverse(ray, t_min, t_max[r], true, |i, t_max| {
-                if let Shape::Displaced(_) = &self.prims[i as usize].shape {
-                    pending.push((i, r as u32));
-                    deferred += 1;
-                    return None;
-                }
-                self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t)
-            });
-            if blocked {
-                // A plain shape blocks it: its displaced faces need no trace.
-                pending.truncate(pending.len() - deferred);
+        out.resize(rays.len(), false);
+        let starts = by_octant(rays, &mut batch.order);
+        for o in 0..8 {
+            for k in (starts[o]..starts[o + 1]).step_by(PACKET) {
+                let end = (k + PACKET).min(starts[o + 1]);
+                self.occluded8(rays, k..end, t_min, t_max, batch, out);
             }
-            out.push(blocked);
         }
         self.trace_pending(rays, t_min, t_max, batch, true);
         for (&(_, r), &b) in batch.pending.iter().zip(&batch.blocked) {
             out[r as usize] |= b;
         }
+    }
+
+    /// The any-hit walks of the rays `batch.order[range]` (at most eight,
+    /// of one octant) together: a ray a plain shape blocks is answered
+    /// (and its displaced faces need no trace), the others' displaced
+    /// faces are left pending, as each ray's own walk leaves them.
+    fn occluded8(
+        &self,
+        rays: &[Ray],
+        range: std::ops::Range<usize>,
+        t_min: f32,
+        t_max: &[f32],
+        batch: &mut Batch,
+        out: &mut [bool],
+    ) {
+        let Batch { order, pending, .. } = batch;
+        let group = &order[range];
+        let before = pending.len();
+        let blocked = self.walk8(
+            rays,
+            group,
+            t_min,
+            t_max,
+            true,
+            |i, lanes, packet, limits| match &self.prims[i as usize].shape {
+                Shape::Displaced(_) => {
+                    pending.extend(lanes_of(lanes).map(|l| (i, group[l])));
+                    0
+                }
+                Shape::Quad(q) => {
+                    let (mut t, mut ab) = ([0.0; PACKET], [Vec2::ZERO; PACKET]);
+                    q.intersect8(packet, lanes, t_min, limits, &mut t, &mut ab)
+                }
+                _ => lanes_of(lanes)
+                    .filter(|&l| {
+                        let r = group[l] as usize;
+                        self.hit_prim(i, &rays[r], t_min, limits[l]).is_some()
+                    })
+                    .fold(0, |m, l| m | (1 << l)),
+            },
+        );
+        match blocked {
+            Some(b) => {
+                for (l, &r) in group.iter().enumerate() {
+                    out[r as usize] = b & (1 << l) != 0;
+                }
+            }
+            None => {
+                pending.truncate(before);
+                for &r in group {
+                    out[r as usize] = self.occluded_one(rays, r as usize, t_min, t_max, pending);
+                }
+            }
+        }
+        // A plain shape blocks them: their displaced faces need no trace.
+        let mut kept = before;
+        for k in before..pending.len() {
+            if !out[pending[k].1 as usize] {
+                pending[kept] = pending[k];
+                kept += 1;
+            }
+        }
+        pending.truncate(kept);
+    }
+
+    /// One ray's any-hit walk: whether a plain shape blocks it, its
+    /// displaced faces pending otherwise.
+    fn occluded_one(
+        &self,
+        rays: &[Ray],
+        r: usize,
+        t_min: f32,
+        t_max: &[f32],
+        pending: &mut Vec<(u32, u32)>,
+    ) -> bool {
+        let ray = &rays[r];
+        self.bvh.traverse(ray, t_min, t_max[r], true, |i, t_max| {
+            if let Shape::Displaced(_) = &self.prims[i as usize].shape {
+                pending.push((i, r as u32));
+                return None;
+            }
+            self.hit_prim(i, ray, t_min, t_max).map(|(t, _)| t)
+        })
     }
 
     /// Traces the gathered displaced faces, face by face: first hits into
@@ -365,4 +549,43 @@ impl Scene {
             start = end;
         }
     }
+}
+
+/// Ray indices grouped by the octant of their directions into `order`
+/// (in ray order within each), and where each octant's run starts:
+/// octant `o` is `order[starts[o]..starts[o + 1]]`. Rays of one octant
+/// walk a BVH in one order ([`crate::bvh::Bvh::traverse8`]).
+fn by_octant(rays: &[Ray], order: &mut Vec<u32>) -> [usize; 9] {
+    let octant = |r: &Ray| {
+        usize::from(r.dir.x < 0.0)
+            | usize::from(r.dir.y < 0.0) << 1
+            | usize::from(r.dir.z < 0.0) << 2
+    };
+    let mut starts = [0usize; 9];
+    for r in rays {
+        starts[octant(r) + 1] += 1;
+    }
+    for o in 0..8 {
+        starts[o + 1] += starts[o];
+    }
+    let mut next = starts;
+    order.clear();
+    order.resize(rays.len(), 0);
+    for (i, r) in rays.iter().enumerate() {
+        let o = octant(r);
+        order[next[o]] = i as u32;
+        next[o] += 1;
+    }
+    starts
+}
+
+/// The lanes of bit set `m`, lowest first.
+fn lanes_of(mut m: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            l
+        })
+    })
 }
