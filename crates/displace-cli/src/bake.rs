@@ -240,7 +240,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         .finish()
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(n) = &args.normals {
-        let normals = NormalMap::from_height(&height, extent);
+        let normals = NormalMap::from_height(&height, extent)?;
         displace_core::io::png::write_normal_map_png(n, &normals)
             .with_context(|| format!("writing {}", n.display()))?;
     }

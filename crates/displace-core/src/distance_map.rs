@@ -383,7 +383,7 @@ impl DistanceMap {
         }
         let range = R8Range::for_min(lo);
         let encoder = range.encoder();
-        let mut codes = vec![0u8; data.len()];
+        let mut codes = crate::memory::zeroed::<u8>("the distance map's 8-bit codes", data.len())?;
         codes
             .par_chunks_mut(1 << 16)
             .zip(data.par_chunks(1 << 16))

@@ -40,11 +40,14 @@ impl NormalMap {
     /// opposite edge; clamp addressing uses the one-sided difference at the
     /// border texels (the clamped half-texel beyond them is flat and says
     /// nothing about the slope at the centre).
-    pub fn from_height(height: &HeightMap, extent: Extent) -> Self {
+    ///
+    /// # Errors
+    /// [`crate::Error::OutOfMemory`] where the allocator refuses the map.
+    pub fn from_height(height: &HeightMap, extent: Extent) -> crate::Result<Self> {
         let [ax, ay] = extent.aspect();
         let (w, h) = (height.width(), height.height());
         let address = height.address();
-        let mut data = vec![Vec3::Z; w * h];
+        let mut data = crate::memory::filled("the normal map", w * h, Vec3::Z)?;
         data.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
             let (j0, j1, dv) = neighbours(j, h, address);
             for (i, n) in row.iter_mut().enumerate() {
@@ -54,12 +57,12 @@ impl NormalMap {
                 *n = Vec3::new(-dh_du / ax, -dh_dv / ay, 1.0).normalize();
             }
         });
-        Self {
+        Ok(Self {
             width: w,
             height: h,
             data,
             address,
-        }
+        })
     }
 
     /// Normal at texel `(i, j)`, addressing applied.
@@ -198,7 +201,7 @@ mod tests {
         ) {
             let address = if repeat { Address::Repeat } else { Address::Clamp };
             let m = HeightMap::new(7, 4, heights, address).unwrap();
-            let n = NormalMap::from_height(&m, Extent::new(1.0, 2.0, 0.3).unwrap());
+            let n = NormalMap::from_height(&m, Extent::new(1.0, 2.0, 0.3).unwrap()).unwrap();
             let lanes = n.blend8(&uv.map(|p| p.0), &uv.map(|p| p.1));
             for (l, &(u, v)) in uv.iter().enumerate() {
                 let one = n.blend(u, v);
@@ -221,7 +224,7 @@ mod tests {
             let extent = Extent::new(sx, sy, sz).unwrap();
             let [ax, ay] = extent.aspect();
             let expected = Vec3::new(-b / ax, -c / ay, 1.0).normalize();
-            let n = NormalMap::from_height(&m, extent);
+            let n = NormalMap::from_height(&m, extent).unwrap();
             for (k, got) in n.data.iter().enumerate() {
                 prop_assert!(close(*got, expected, 1e-4), "texel {k}: {got} vs {expected}");
             }
@@ -233,7 +236,7 @@ mod tests {
     fn depth_and_aspect_change_the_normals_as_the_ray_tracer_paper_says() {
         let m = plane(16, 16, 0.2, 0.5, 0.25, Address::Clamp);
         let slopes = |e: Extent| {
-            let n = NormalMap::from_height(&m, e).data[5 * 16 + 7];
+            let n = NormalMap::from_height(&m, e).unwrap().data[5 * 16 + 7];
             (-n.x / n.z, -n.y / n.z)
         };
         let base = slopes(Extent::new(1.0, 1.0, 0.1).unwrap());
@@ -256,7 +259,7 @@ mod tests {
         // symmetric derivative is their mean, 0.2 per texel = 1.0 per unit u.
         let row = [0.0, 0.2, 1.0, 0.6, 0.0];
         let m = HeightMap::new(5, 2, [row, row].concat(), Address::Clamp).unwrap();
-        let n = NormalMap::from_height(&m, Extent::new(1.0, 1.0, 1.0).unwrap());
+        let n = NormalMap::from_height(&m, Extent::new(1.0, 1.0, 1.0).unwrap()).unwrap();
         assert!(close(
             n.texel(2, 0),
             Vec3::new(-1.0, 0.0, 1.0).normalize(),
@@ -272,7 +275,8 @@ mod tests {
         let r = NormalMap::from_height(
             &m.clone().with_address(Address::Repeat),
             Extent::new(1.0, 1.0, 1.0).unwrap(),
-        );
+        )
+        .unwrap();
         assert!(close(
             r.texel(0, 0),
             Vec3::new(-0.5, 0.0, 1.0).normalize(),
@@ -288,7 +292,7 @@ mod tests {
             .collect();
         let m = HeightMap::new(w, 8, data, Address::Repeat).unwrap();
         let extent = Extent::new(1.0, 1.0, 0.5).unwrap();
-        let n = NormalMap::from_height(&m, extent);
+        let n = NormalMap::from_height(&m, extent).unwrap();
         assert_eq!(n.address, Address::Repeat);
         // A periodic surface: the edge texels get the same treatment as the
         // interior, so the map is symmetric about the peak at u = 1/4.
@@ -312,20 +316,24 @@ mod tests {
         let mean = (n.texel(-1, 3) + n.texel(0, 3)).normalize();
         assert!(close(edge, mean, 1e-5), "{edge} vs {mean}");
         // Clamp holds the edge texel instead.
-        let c = NormalMap::from_height(&m.clone().with_address(Address::Clamp), extent);
+        let c = NormalMap::from_height(&m.clone().with_address(Address::Clamp), extent).unwrap();
         assert!(close(c.sample(0.0, 0.5), c.texel(0, 3), 1e-6));
     }
 
     #[test]
     fn rgb_is_opengl_convention_in_image_rows() {
         let flat = plane(4, 4, 0.5, 0.0, 0.0, Address::Clamp);
-        let rgb = NormalMap::from_height(&flat, Extent::new(1.0, 1.0, 1.0).unwrap()).to_rgb8();
+        let rgb = NormalMap::from_height(&flat, Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap()
+            .to_rgb8();
         assert_eq!(rgb.len(), 48);
         assert!(rgb.chunks(3).all(|p| p == [128, 128, 255]));
         // Height rising with u (to the right) and with v (down the image):
         // the surface faces left and up the image, so red < 128, green > 128.
         let ramp = plane(4, 4, 0.1, 0.4, 0.4, Address::Clamp);
-        let rgb = NormalMap::from_height(&ramp, Extent::new(1.0, 1.0, 1.0).unwrap()).to_rgb8();
+        let rgb = NormalMap::from_height(&ramp, Extent::new(1.0, 1.0, 1.0).unwrap())
+            .unwrap()
+            .to_rgb8();
         let n = Vec3::new(-0.4, -0.4, 1.0).normalize();
         let expected = [n.x, -n.y, n.z].map(|c| ((c * 0.5 + 0.5) * 255.0).round() as u8);
         assert!(

@@ -248,17 +248,22 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
         .collect::<Result<_>>()?;
 
     let (cw, ch) = (crop.width as usize, crop.height as usize);
-    let mut pixels = vec![Vec3::ZERO; cw * ch];
+    let mut pixels = displace_core::memory::filled("the image", cw * ch, Vec3::ZERO)?;
     let mut aovs: Vec<AovImage> = opts
         .aovs
         .iter()
-        .map(|&a| AovImage {
-            aov: a,
-            width: crop.width,
-            height: crop.height,
-            data: vec![0.0; cw * ch * a.channels()],
+        .map(|&a| {
+            Ok(AovImage {
+                aov: a,
+                width: crop.width,
+                height: crop.height,
+                data: displace_core::memory::zeroed(
+                    &format!("the {} image", a.name()),
+                    cw * ch * a.channels(),
+                )?,
+            })
         })
-        .collect();
+        .collect::<Result<_>>()?;
     for (&(tx, ty), (px, aov)) in tiles.iter().zip(&results) {
         let w = TILE.min(crop.width - tx) as usize;
         for (k, p) in px.iter().enumerate() {

@@ -176,7 +176,7 @@ pub fn run(args: ExportMeshArgs) -> Result<()> {
     };
     displace_core::io::atomic::check_free_space(&args.output, least_bytes(kind, nu, nv))?;
     let height = load_height(&source, &args.face.height, DEFAULT_HEIGHT_SIZE)?;
-    let normals = NormalMap::from_height(&height, extent);
+    let normals = NormalMap::from_height(&height, extent)?;
     let grid = Grid {
         us: axis(height.width(), args.scale as usize),
         vs: axis(height.height(), args.scale as usize),
@@ -287,7 +287,7 @@ mod tests {
         let data: Vec<f32> = (0..6).map(|k| k as f32 / 8.0).collect();
         let h = HeightMap::new(3, 2, data.clone(), Address::Clamp).unwrap();
         let e = Extent::new(2.0, 1.0, 0.5).unwrap();
-        let n = NormalMap::from_height(&h, e);
+        let n = NormalMap::from_height(&h, e).unwrap();
         let g = Grid {
             us: axis(3, 1),
             vs: axis(2, 1),
@@ -319,7 +319,7 @@ mod tests {
             let data: Vec<f32> = (0..w * hgt).map(|k| (k % 7) as f32 / 7.0).collect();
             let h = HeightMap::new(w, hgt, data, Address::Clamp).unwrap();
             let e = Extent::new(1.0, 1.0, 0.1).unwrap();
-            let n = NormalMap::from_height(&h, e);
+            let n = NormalMap::from_height(&h, e).unwrap();
             let g = Grid {
                 us: axis(w, scale),
                 vs: axis(hgt, scale),

@@ -156,7 +156,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
             fits_gpu(dims, distance.size())?;
             let height = load_height(height_source, &args.face.height, [w, h])?;
             DisplacementMap {
-                normals: NormalMap::from_height(&height, extent),
+                normals: NormalMap::from_height(&height, extent)?,
                 height,
                 distance,
                 extent,

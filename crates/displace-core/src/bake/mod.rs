@@ -30,7 +30,7 @@ use plan::{check_promise, BakePlan};
 pub fn bake(height: &HeightMap, opts: &BakeOptions) -> Result<DisplacementMap> {
     let distance = bake_distance(height, opts)?;
     Ok(DisplacementMap {
-        normals: NormalMap::from_height(height, opts.extent),
+        normals: NormalMap::from_height(height, opts.extent)?,
         height: height.clone(),
         distance,
         extent: opts.extent,
@@ -47,7 +47,7 @@ pub fn bake_distance(height: &HeightMap, opts: &BakeOptions) -> Result<DistanceM
     let plan = BakePlan::new(height, opts, true)?;
     let [w, h, d] = plan.size;
     let done = AtomicUsize::new(0);
-    let mut data = vec![0.0f32; w * h * d];
+    let mut data = crate::memory::zeroed::<f32>("the distance volume", w * h * d)?;
     plan.slices(0, &mut data, &mut vec![0.0; d], opts, &done)?;
     DistanceMap::from_raw(
         plan.size,
@@ -91,7 +91,8 @@ pub fn bake_streamed(
         rest[k] = rest[k + 1].min(plan.slice_lower_bound(k));
     }
     let done = AtomicUsize::new(0);
-    let mut buf = vec![0.0f32; w * h * slab_slices];
+    let mut buf =
+        crate::memory::zeroed::<f32>("a slab of the distance volume", w * h * slab_slices)?;
     let mut mins = vec![0.0f32; slab_slices];
     // The bound promised for the slices still to come, checked on each.
     let mut promised = f32::NEG_INFINITY;

@@ -146,12 +146,12 @@ impl<'h> BakePlan<'h> {
         let (hx, hy, hz) = (ax / w as f32, ay / h as f32, 1.0 / d as f32);
         let grid = RangeGrid::new(height, w, h);
         let ranges = if stored {
-            let (lo, hi) = column_ranges(height, &grid, w, h);
+            let (lo, hi) = column_ranges(height, &grid, w, h)?;
             Ranges::Stored { lo, hi }
         } else {
             Ranges::PerRow
         };
-        let centres = column_centres(height, w, h, stored);
+        let centres = column_centres(height, w, h, stored)?;
         if is_cancelled(opts) {
             return Err(Error::Cancelled);
         }

@@ -4,7 +4,7 @@
 
 use crate::convention::{texel_centre, texel_lerp};
 use crate::edt::BLOCK;
-use crate::HeightMap;
+use crate::{memory, HeightMap, Result};
 use rayon::prelude::*;
 
 /// Cut points along one axis: the `n` column boundaries `i / n` merged with
@@ -311,9 +311,9 @@ pub(super) fn column_ranges(
     grid: &RangeGrid,
     w: usize,
     h: usize,
-) -> (Vec<f32>, Vec<f32>) {
-    let mut lo = vec![0.0f32; w * h];
-    let mut hi = vec![0.0f32; w * h];
+) -> Result<(Vec<f32>, Vec<f32>)> {
+    let mut lo = memory::zeroed::<f32>("the columns' lowest heights", w * h)?;
+    let mut hi = memory::zeroed::<f32>("the columns' highest heights", w * h)?;
     lo.par_chunks_mut(w)
         .zip(hi.par_chunks_mut(w))
         .enumerate()
@@ -321,14 +321,19 @@ pub(super) fn column_ranges(
             || RangeRows::new(grid, height),
             |rows, (j, (lo, hi))| rows.row(j, lo, hi),
         );
-    (lo, hi)
+    Ok((lo, hi))
 }
 
 /// The height at every column centre, with exactly the arithmetic of
 /// [`HeightMap::sample`]: borrowed from the height map where every sample
 /// is bit for bit its texel (checked row by row, not assumed), else a
 /// `w x h` array of its own.
-pub(super) fn column_centres(height: &HeightMap, w: usize, h: usize, blocked: bool) -> Centres<'_> {
+pub(super) fn column_centres(
+    height: &HeightMap,
+    w: usize,
+    h: usize,
+    blocked: bool,
+) -> Result<Centres<'_>> {
     let centres = |n: usize| (0..n).map(|i| texel_centre(i, n)).collect::<Vec<_>>();
     let (us, vs) = (centres(w), centres(h));
     let along_u = along(height, &us);
@@ -348,10 +353,11 @@ pub(super) fn column_centres(height: &HeightMap, w: usize, h: usize, blocked: bo
             .all(|same| same)
     };
     if texels && !blocked {
-        return Centres::Texels(data);
+        return Ok(Centres::Texels(data));
     }
     // Block by block, each a run of rows of `BLOCK` centres.
-    let mut out = vec![f32::NEG_INFINITY; w.div_ceil(BLOCK) * BLOCK * h];
+    let n = w.div_ceil(BLOCK) * BLOCK * h;
+    let mut out = memory::filled("the columns' centre heights", n, f32::NEG_INFINITY)?;
     out.par_chunks_mut(BLOCK * h.max(1))
         .enumerate()
         .for_each(|(c, block)| {
@@ -365,7 +371,7 @@ pub(super) fn column_centres(height: &HeightMap, w: usize, h: usize, blocked: bo
                 }
             }
         });
-    Centres::Blocked(out)
+    Ok(Centres::Blocked(out))
 }
 
 /// Texel addressing and weight along u for each of `us`.
@@ -421,8 +427,9 @@ mod tests {
             let hm = HeightMap::new(7, 5, data.clone(), address).unwrap();
             for (w, h) in [(3, 4), (7, 5), (16, 9)] {
                 let grid = RangeGrid::new(&hm, w, h);
-                let (lo_all, hi_all) = column_ranges(&hm, &grid, w, h);
-                let centres = [false, true].map(|blocked| column_centres(&hm, w, h, blocked));
+                let (lo_all, hi_all) = column_ranges(&hm, &grid, w, h).unwrap();
+                let centres =
+                    [false, true].map(|blocked| column_centres(&hm, w, h, blocked).unwrap());
                 for j in 0..h {
                     for i in 0..w {
                         let want = hm.range(

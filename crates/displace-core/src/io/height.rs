@@ -491,7 +491,7 @@ fn load_exr(path: &Path, opts: &HeightOptions) -> Result<HeightMap> {
             ));
         }
     }
-    let mut data = vec![0.0f32; w * h];
+    let mut data = crate::memory::zeroed::<f32>("the decoded heights", w * h)?;
     data.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for ((_, values), weight) in &used {
             for (i, d) in row.iter_mut().enumerate() {
@@ -1090,7 +1090,7 @@ mod tests {
         }
 
         let extent = crate::Extent::new(1.0, 1.0, 0.2).unwrap();
-        let normals = NormalMap::from_height(&m, extent);
+        let normals = NormalMap::from_height(&m, extent).unwrap();
         let p = dir.path().join("n.png");
         write_normal_map_png(&p, &normals).unwrap();
         let img = image::open(&p).unwrap().to_rgb8();

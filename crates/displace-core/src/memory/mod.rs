@@ -9,8 +9,10 @@
 //! [`LIMIT_ENV`] when set, and under either the hard limits of a cgroup or
 //! of `ulimit -v` and `-d` ([`hard_limits`]).
 
+mod alloc;
 mod limits;
 
+pub use alloc::{filled, zeroed, Zeroable};
 pub use limits::{available, check, hard_limits, human, limit, parse_bytes, Limit};
 
 /// Environment variable that sets the memory limit of a command, in bytes

@@ -196,20 +196,24 @@ impl BakeCache {
         size: [usize; 3],
         extent: Extent,
     ) -> Result<DisplacementMap> {
-        // The map, or why not: `None` for no entry, else what is wrong
-        // with the one there.
+        // The distance map, or why not: `None` for no entry, else what is
+        // wrong with the one there.
         let read = || match entry::read(path, size, extent.aspect(), height.address()) {
             Entry::Found(distance) => {
                 self.loaded.fetch_add(1, Ordering::Relaxed);
-                Ok(DisplacementMap {
-                    height: height.clone(),
-                    normals: NormalMap::from_height(height, extent),
-                    distance,
-                    extent,
-                })
+                Ok(distance)
             }
             Entry::Absent => Err(None),
             Entry::Unusable(why) => Err(Some(why)),
+        };
+        // A read entry with the normals worked out from the heights.
+        let found = |distance| -> Result<DisplacementMap> {
+            Ok(DisplacementMap {
+                height: height.clone(),
+                normals: NormalMap::from_height(height, extent)?,
+                distance,
+                extent,
+            })
         };
         let dir = path.parent().unwrap_or(Path::new("."));
         let lock = lock_path(path);
@@ -221,8 +225,8 @@ impl BakeCache {
         let started = Instant::now();
         let mut told = false;
         loop {
-            if let Ok(m) = read() {
-                return Ok(m);
+            if let Ok(d) = read() {
+                return found(d);
             }
             let attempt = match std::fs::create_dir_all(dir) {
                 Ok(()) => try_lock(&lock),
@@ -232,7 +236,7 @@ impl BakeCache {
                 Attempt::Acquired(_guard) => {
                     // Written by a holder that released just before we locked.
                     match read() {
-                        Ok(m) => return Ok(m),
+                        Ok(d) => return found(d),
                         Err(Some(why)) => self.warn(format!(
                             "bake cache entry {}: {why}: baked again",
                             path.display()
