@@ -325,6 +325,45 @@ fn meshes_without_a_face_of_any_area_are_refused() {
     assert!(load(&text("one.obj")).is_ok());
 }
 
+/// An OBJ's errors name the scene's shape and its line as well as the
+/// OBJ's own file, line and column: in a scene of several meshes, the
+/// OBJ's message alone did not say which shape reads it.
+#[test]
+fn mesh_errors_are_placed_at_the_scene_key_that_reads_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = dir.path();
+    let mesh = |name: &str, text: &str| std::fs::write(base.join(name), text).unwrap();
+    mesh("good.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    mesh("far.obj", "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n");
+    mesh("index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+    mesh("novt.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let displaced = "displacement = { height = \"gen:gaussian\", height_size = [8, 8], \
+                     map_size = [8, 8, 2], depth = 0.1 }";
+    for (file, extra, obj_place, says) in [
+        ("far.obj", "", "far.obj:2:3", "out of range"),
+        ("index.obj", "", "index.obj:4:7", "does not exist"),
+        ("novt.obj", displaced, "novt.obj", "texture coordinates"),
+    ] {
+        // The bad mesh is the scene's second shape, after a good one.
+        let text = with_shape(&format!(
+            "type = \"mesh\"\npath = \"good.obj\"\nmaterial = \"m\"\n\n\
+             [[shapes]]\ntype = \"mesh\"\npath = \"{file}\"\n{extra}"
+        ));
+        let line = text
+            .lines()
+            .position(|l| l == format!("path = \"{file}\""))
+            .unwrap()
+            + 1;
+        let Err(e) = Scene::from_toml(&text, Path::new("s.toml"), base, &opts()) else {
+            panic!("{file} was accepted")
+        };
+        let e = e.to_string();
+        assert!(e.starts_with(&format!("s.toml:{line}:")), "{file}: {e}");
+        assert!(e.contains(&format!("shapes[1].path = \"{file}\"")), "{e}");
+        assert!(e.contains(obj_place) && e.contains(says), "{e}");
+    }
+}
+
 /// A displaced OBJ mesh whose triangles are too large (coordinates of
 /// 1e17, inside the coordinate limit) or too small to measure in single
 /// precision is refused saying so: the overflow was reported as a NaN

@@ -17,7 +17,7 @@ use super::ctx::Ctx;
 use super::displacement::{displacement_of, triangle_frame, DispBuild};
 use super::shapes::Geometry;
 use crate::builtin_mesh;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mesh::MeshTriangle;
 use crate::mesh_shells::MeshShells;
 use crate::placed::{Placed, SceneMesh, TriAttr};
@@ -131,7 +131,10 @@ pub(super) fn mesh(
         ),
         None => {
             let file = cx.base.join(path);
-            let mesh = crate::mesh::load(&file)?;
+            // The OBJ's own error (its file, line and column) placed at the
+            // scene's key too: a scene of many meshes says which shape.
+            let mesh = crate::mesh::load(&file)
+                .map_err(|e| cx.err(format!("{what}.path = {path:?}: {e}")))?;
             cx.source(file.clone());
             (file, mesh)
         }
@@ -145,10 +148,10 @@ pub(super) fn mesh(
             return Err(cx.err(format!("{what}.displacement.flip_v applies to quads only")));
         }
         if !mesh.has_uvs {
-            return Err(Error::Mesh {
-                path: file,
-                message: "a displaced mesh needs texture coordinates (vt)".into(),
-            });
+            return Err(cx.err(format!(
+                "{what}.path = {path:?}: {}: a displaced mesh needs texture coordinates (vt)",
+                file.display()
+            )));
         }
         // `tiles` repeats the map over the mesh's coordinates.
         let tiles = Vec2::from_array(d.tiles);
@@ -188,13 +191,11 @@ pub(super) fn mesh(
         // Every face was a point or a line (two indices, repeated or
         // collinear vertices, coordinates that overflow when placed): a
         // mesh that would render as nothing, silently.
-        return Err(Error::Mesh {
-            path: file,
-            message: format!(
-                "{what}: none of its {} faces has an area once placed (repeated or collinear vertices?): nothing to render",
-                mesh.triangles.len()
-            ),
-        });
+        return Err(cx.err(format!(
+            "{what}.path = {path:?}: {}: none of its {} faces has an area once placed (repeated or collinear vertices?): nothing to render",
+            file.display(),
+            mesh.triangles.len()
+        )));
     }
     Ok(PlacedMesh {
         triangles,
