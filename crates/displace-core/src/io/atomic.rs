@@ -261,6 +261,9 @@ fn create_temp(path: &Path) -> std::io::Result<(PathBuf, File)> {
         )
     })?;
     let dir = parent_dir(path).unwrap_or(Path::new("."));
+    // A run killed before it renamed (SIGKILL, a power cut) left its
+    // temporary of this output behind; no later run would remove it.
+    remove_stale(dir, |stem| is_temp_of(stem, name.as_bytes()));
     loop {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(temp_name(name.as_bytes(), std::process::id(), n));
@@ -321,14 +324,24 @@ fn temp_name(name: &[u8], pid: u32, n: u64) -> std::ffi::OsString {
     std::ffi::OsString::from_vec(out)
 }
 
-/// The process id in a name [`temp_name`] made, if it is one.
-fn temp_pid(name: &[u8]) -> Option<u32> {
-    let name = std::str::from_utf8(name.strip_prefix(b".")?).ok()?;
-    let mut parts = name.strip_suffix(".tmp")?.rsplitn(3, '.');
-    parts.next()?.parse::<u64>().ok()?;
-    let pid = parts.next()?.parse().ok()?;
-    parts.next().filter(|rest| !rest.is_empty())?;
-    Some(pid)
+/// The output name (as [`temp_name`] kept it) and the process id in a
+/// name [`temp_name`] made, if it is one.
+fn temp_parts(name: &[u8]) -> Option<(&[u8], u32)> {
+    let inner = name.strip_prefix(b".")?.strip_suffix(b".tmp")?;
+    let mut parts = inner.rsplitn(3, |&b| b == b'.');
+    std::str::from_utf8(parts.next()?)
+        .ok()?
+        .parse::<u64>()
+        .ok()?;
+    let pid = std::str::from_utf8(parts.next()?).ok()?.parse().ok()?;
+    let stem = parts.next().filter(|rest| !rest.is_empty())?;
+    Some((stem, pid))
+}
+
+/// Whether `stem` (the output name a temporary keeps) is `name`'s, whole
+/// or cut short by [`temp_name`] for length.
+fn is_temp_of(stem: &[u8], name: &[u8]) -> bool {
+    stem == name || (stem.len() >= NAME_MAX / 2 && name.starts_with(stem))
 }
 
 /// Removes from `dir` the temporary files of processes that no longer run
@@ -337,6 +350,12 @@ fn temp_pid(name: &[u8]) -> Option<u32> {
 /// running while `/proc/PID` exists; without `/proc` nothing is removed.
 /// Returns how many were removed.
 pub fn remove_stale_temps(dir: &Path) -> usize {
+    remove_stale(dir, |_| true)
+}
+
+/// [`remove_stale_temps`] of the temporaries whose output name (as
+/// [`temp_name`] kept it) passes `of`.
+fn remove_stale(dir: &Path, of: impl Fn(&[u8]) -> bool) -> usize {
     let proc = Path::new("/proc");
     if !proc.join("self").exists() {
         return 0;
@@ -347,9 +366,12 @@ pub fn remove_stale_temps(dir: &Path) -> usize {
     let mut removed = 0;
     for e in entries.flatten() {
         let name = e.file_name();
-        let Some(pid) = temp_pid(name.as_bytes()) else {
+        let Some((stem, pid)) = temp_parts(name.as_bytes()) else {
             continue;
         };
+        if !of(stem) {
+            continue;
+        }
         let is_file = e.file_type().is_ok_and(|t| t.is_file());
         if is_file && !proc.join(pid.to_string()).exists() && std::fs::remove_file(e.path()).is_ok()
         {
@@ -456,7 +478,9 @@ mod tests {
         assert_eq!(entries(dir.path()), vec![name]);
         let t = temp_name(&[b'a'; 255], u32::MAX, u64::MAX);
         assert_eq!(t.len(), NAME_MAX);
-        assert_eq!(temp_pid(t.as_bytes()), Some(u32::MAX));
+        let (stem, pid) = temp_parts(t.as_bytes()).unwrap();
+        assert_eq!(pid, u32::MAX);
+        assert!(is_temp_of(stem, &[b'a'; 255]) && !is_temp_of(stem, b"a"));
     }
 
     #[test]
@@ -507,6 +531,32 @@ mod tests {
         }
         assert_eq!(remove_stale_temps(dir.path()), 1);
         assert!(!dead.exists() && live.exists() && other.exists());
+    }
+
+    /// An output's own stale temporaries (a killed run's, of the same
+    /// name, whole or cut short for length) are removed when the output is
+    /// next written; others' are left, and so are live processes'.
+    #[test]
+    fn writing_an_output_removes_its_stale_temporaries() {
+        let dir = tempfile::tempdir().unwrap();
+        let long = "m".repeat(250) + ".ktx2";
+        for name in ["m.ktx2", long.as_str()] {
+            let out = dir.path().join(name);
+            let stale = dir.path().join(temp_name(name.as_bytes(), 4194305, 0));
+            let live = dir
+                .path()
+                .join(temp_name(name.as_bytes(), std::process::id(), 99));
+            let other = dir.path().join(temp_name(b"n.ktx2", 4194305, 0));
+            for p in [&stale, &live, &other] {
+                std::fs::write(p, b"x").unwrap();
+            }
+            write_atomic(&out, |w| w.write_all(b"map")).unwrap();
+            assert_eq!(std::fs::read(&out).unwrap(), b"map");
+            assert!(!stale.exists(), "{name}");
+            assert!(live.exists() && other.exists(), "{name}");
+            std::fs::remove_file(&live).unwrap();
+            std::fs::remove_file(&other).unwrap();
+        }
     }
 
     #[test]
