@@ -395,6 +395,59 @@ fn displaced_meshes_too_large_or_small_to_measure_are_refused() {
     }
 }
 
+/// Sizes past what single precision holds are refused at their keys (a
+/// sphere of radius 1e21, a lens of 1e31 or focused at 1e30, a mesh scaled
+/// past 1e18), where the shape or the lens vanished from the image; a
+/// built-in mesh scaled large but within the bound keeps every face (at a
+/// scale of 5e10 the area test overflowed and dropped three faces in four).
+#[test]
+fn sizes_past_single_precision_are_refused_and_large_meshes_keep_their_faces() {
+    let sphere_r = |r: &str| {
+        with(
+            SPHERE,
+            &SPHERE.replace("radius = 1", &format!("radius = {r}")),
+        )
+    };
+    let camera = |extra: &str| with("[camera]", &format!("[camera]\n{extra}"));
+    let mesh = |scale: &str| {
+        with_shape(&format!(
+            "type = \"mesh\"\npath = \"builtin:sphere\"\nscale = {scale}"
+        ))
+    };
+    for (text, key) in [
+        (sphere_r("1e21"), "shapes[0].radius"),
+        (camera("aperture = 1e31"), "aperture"),
+        (
+            camera("aperture = 0.1\nfocus_distance = 1e30"),
+            "focus_distance",
+        ),
+        (mesh("2e18"), "shapes[0]"),
+    ] {
+        let Err(e) = Scene::from_toml(&text, Path::new("s.toml"), Path::new("."), &opts()) else {
+            panic!("accepted: {text}")
+        };
+        let e = e.to_string();
+        assert!(e.contains(key) && e.contains("1e18"), "{e}");
+    }
+    assert!(Scene::from_toml(
+        &sphere_r("1e18"),
+        Path::new("s.toml"),
+        Path::new("."),
+        &opts()
+    )
+    .is_ok());
+    let faces = |scale: &str| {
+        Scene::from_toml(&mesh(scale), Path::new("s.toml"), Path::new("."), &opts())
+            .unwrap()
+            .primitive_count()
+    };
+    let whole = faces("1");
+    assert!(whole > 1000, "{whole}");
+    for scale in ["5e10", "1e15"] {
+        assert_eq!(faces(scale), whole, "scale {scale}");
+    }
+}
+
 /// A displaced face whose height file is an elevation model (32-bit float
 /// metres, as GDAL writes one): refused as stored (heights lie in [0, 1]),
 /// naming the key and the file; with `height_range = "auto"`, or the

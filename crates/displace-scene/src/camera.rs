@@ -76,15 +76,16 @@ impl Camera {
         if !(vfov > 0.0 && vfov < 180.0) {
             return Err(CameraError::BadFov(vfov));
         }
-        if !(aperture >= 0.0 && aperture.is_finite()) {
+        let most = crate::build::MAX_COORDINATE;
+        if !(aperture >= 0.0 && aperture <= most) {
             return Err(CameraError::BadLens(format!(
-                "camera.aperture must be a finite number >= 0, got {aperture}"
+                "camera.aperture must be a number from 0 to {most:e}, got {aperture}"
             )));
         }
         let focus_distance = focus_distance.unwrap_or(view.length());
-        if !(focus_distance > 0.0 && focus_distance.is_finite()) {
+        if !(focus_distance > 0.0 && focus_distance <= most) {
             return Err(CameraError::BadLens(format!(
-                "camera.focus_distance must be positive, got {focus_distance}"
+                "camera.focus_distance must be positive and at most {most:e}, got {focus_distance}"
             )));
         }
         Ok(Self {

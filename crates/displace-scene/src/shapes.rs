@@ -153,9 +153,19 @@ impl Triangle {
         Aabb::from_points([self.p0, self.p0 + self.e1, self.p0 + self.e2])
     }
 
-    /// Unit normal `e1 x e2` (zero for a degenerate triangle).
+    /// Unit normal `e1 x e2` (zero for a degenerate triangle). A large
+    /// triangle's cross product (edges past about 1e9) has a squared length
+    /// past single precision, and a tiny one's underflows: those are
+    /// normalised from the product scaled to its largest component, so a
+    /// triangle is degenerate only when its edges are parallel, not when it
+    /// is large (a built-in sphere scaled by 5e10 lost three faces in four).
     pub fn normal(&self) -> Vec3 {
-        self.e1.cross(self.e2).normalize_or_zero()
+        let c = self.e1.cross(self.e2);
+        let n = c.normalize_or_zero();
+        if n != Vec3::ZERO || c == Vec3::ZERO || !c.is_finite() {
+            return n;
+        }
+        (c / c.abs().max_element()).normalize_or_zero()
     }
 
     /// Möller-Trumbore: distance and barycentrics `(b1, b2)` of the hit.

@@ -4,7 +4,7 @@
 //! the CPU's shapes; the dispatch pushes them as primitives.
 
 use super::super::spec::{DisplacementSpec, ShapeSpec, V3};
-use super::ctx::Ctx;
+use super::ctx::{Ctx, MAX_COORDINATE};
 use super::displacement::{displacement_of, DispBuild};
 use super::triangles;
 use crate::error::Result;
@@ -169,6 +169,11 @@ fn sphere(cx: &Ctx, center: V3, radius: f32, what: &str) -> Result<Placed> {
     let center = cx.vec(center, &format!("{what}.center"))?;
     if !(radius > 0.0 && radius.is_finite()) {
         return Err(cx.err(format!("{what}.radius must be positive, got {radius}")));
+    }
+    if radius > MAX_COORDINATE {
+        return Err(cx.err(format!(
+            "{what}.radius = {radius:e}: at most {MAX_COORDINATE:e} (its square must fit in single precision)"
+        )));
     }
     Ok(Placed::Sphere(Sphere { center, radius }))
 }

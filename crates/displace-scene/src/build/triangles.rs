@@ -13,7 +13,7 @@
 //! `e * a / a`, can differ from them in the last bit, and with it the bake).
 
 use super::super::spec::{DisplacementSpec, V3};
-use super::ctx::Ctx;
+use super::ctx::{Ctx, MAX_COORDINATE};
 use super::displacement::{displacement_of, triangle_frame, DispBuild};
 use super::shapes::Geometry;
 use crate::builtin_mesh;
@@ -142,6 +142,23 @@ pub(super) fn mesh(
     crate::vertex_normals::smooth_normals(&mut mesh.triangles, crease_degrees);
     let rot = Mat3::from_rotation_y(rotate_y.to_radians());
     let xf = |p: Vec3| rot * (p * scale) + t;
+    // Placed coordinates past the bound every scene coordinate keeps
+    // (squared lengths must fit in single precision): the mesh's scale or
+    // translation, not its file, is what to change.
+    let reach = mesh
+        .triangles
+        .iter()
+        .flat_map(|tri| tri.positions)
+        .map(|p| xf(p).abs().max_element())
+        .fold(
+            0.0f32,
+            |a, b| if b.is_nan() { f32::INFINITY } else { a.max(b) },
+        );
+    if reach > MAX_COORDINATE {
+        return Err(cx.err(format!(
+            "{what}: placed by scale {scale:e} and translate {t}, the mesh's coordinates reach {reach:e}: at most {MAX_COORDINATE:e} (squared lengths must fit in single precision)"
+        )));
+    }
     let mut builder = None;
     if let Some(d) = displacement_of(cx, displacement, what)? {
         if d.flip_v {
