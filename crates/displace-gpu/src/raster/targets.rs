@@ -73,7 +73,7 @@ impl Targets {
                 what: "frame".into(),
                 size: format!("{w}x{h}"),
                 limit: format!(
-                    "this GPU's largest buffer, {} bytes, under the {aov} bytes of its AOV readback",
+                    "{} bytes a buffer: its AOV readback needs {aov} bytes",
                     ctx.limits.max_buffer_size
                 ),
             });
