@@ -11,6 +11,16 @@ use displace_render::scene::batch::Batch;
 use displace_render::Scene;
 use glam::{Vec2, Vec3};
 
+/// The rays' seed: the suite's fixed one (`PROPTEST_RNG_SEED`, set in
+/// `.cargo/config.toml`), or a fresh one from `scripts/explore.sh`, which
+/// also scales the ray counts (`DISPLACE_PROPERTY_SCALE`).
+fn seed() -> u64 {
+    std::env::var("PROPTEST_RNG_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(11)
+}
+
 /// Camera rays through random film points, and from their hits rays in
 /// random directions (the shadow and reflection rays of a render), with
 /// random length limits.
@@ -61,7 +71,8 @@ fn batches_answer_as_the_one_ray_queries_do() {
         let mut o = opts();
         o.size = Some([48, 48]);
         let scene = Scene::load(&scenes_dir().join(name), &o).unwrap();
-        answers_as_one_ray(name, &scene, &rays(&scene, 600, 11));
+        let n = displace_core::random::property_cases(600) as usize;
+        answers_as_one_ray(name, &scene, &rays(&scene, n, seed()));
     }
 }
 
@@ -131,7 +142,7 @@ tiles = {tiles}
             hits * 100 >= onto.len() * 95,
             "{address}: {hits} middle rays hit"
         );
-        onto.extend(rays(&scene, 400, 11));
+        onto.extend(rays(&scene, 400, seed()));
         answers_as_one_ray(address, &scene, &onto);
     }
 }
@@ -188,6 +199,8 @@ fn answers_as_one_ray(name: &str, scene: &Scene, rays: &[(Ray, f32)]) {
             }
             start = end;
         }
-        assert!(found > rays.len() / 4, "{name}: only {found} hits");
+        // Not vacuous: a fair share of the rays hit something (about a
+        // quarter on the sparsest scene, the meshes on a dark ground).
+        assert!(found > rays.len() / 6, "{name}: only {found} hits");
     }
 }
