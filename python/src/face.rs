@@ -65,15 +65,31 @@ impl Target for Face {
                 // streams, each line a miss of fresh memory, held the next
                 // ray's first loads behind them (up to a sixth of the
                 // trace of a ray through a coarse map).
+                // The block's valid rays are traced in packets
+                // (`physical::intersect_many`, the hits of one ray at a
+                // time), a bad ray left a miss.
                 let mut block = [None; BLOCK];
+                let (mut valid, mut at) = ([[0.0f32; 7]; BLOCK], [0usize; BLOCK]);
+                let mut found = [None; BLOCK];
                 let cancelled = job.cancelled();
                 for (b, t) in t.chunks_mut(BLOCK).enumerate() {
                     let first = k * CHUNK + b * BLOCK;
+                    let mut count = 0;
                     for (j, slot) in block[..t.len()].iter_mut().enumerate() {
-                        *slot = rays
-                            .get(first + j)
-                            .filter(|_| !cancelled)
-                            .and_then(|r| physical::intersect(self.view(), &self.opts, &r));
+                        *slot = None;
+                        if let Some(r) = rays.get(first + j).filter(|_| !cancelled) {
+                            (valid[count], at[count]) = (r, j);
+                            count += 1;
+                        }
+                    }
+                    physical::intersect_many(
+                        self.view(),
+                        &self.opts,
+                        &valid[..count],
+                        &mut found[..count],
+                    );
+                    for (q, hit) in found[..count].iter().enumerate() {
+                        block[at[q]] = *hit;
                     }
                     for (jb, (t, hit)) in t.iter_mut().zip(&block).enumerate() {
                         let j = b * BLOCK + jb;
@@ -107,16 +123,29 @@ impl Target for Face {
     }
 
     fn occluded(&self, rays: RayRows<'_>, job: &Arc<Job>) -> Vec<bool> {
-        (0..rays.len)
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|i| {
-                !job.cancelled()
-                    && rays
-                        .get(i)
-                        .is_some_and(|r| physical::occluded(self.view(), &self.opts, &r))
-            })
-            .collect()
+        let mut out = vec![false; rays.len];
+        out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, out)| {
+            if job.cancelled() {
+                return;
+            }
+            // The block's valid rays in packets, as `first_hits`
+            // traces them; a bad ray is left unblocked.
+            let first = b * BLOCK;
+            let (mut valid, mut at) = ([[0.0f32; 7]; BLOCK], [0usize; BLOCK]);
+            let mut n = 0;
+            for j in 0..out.len() {
+                if let Some(r) = rays.get(first + j) {
+                    (valid[n], at[n]) = (r, j);
+                    n += 1;
+                }
+            }
+            let mut blocked = [false; BLOCK];
+            physical::occluded_many(self.view(), &self.opts, &valid[..n], &mut blocked[..n]);
+            for q in 0..n {
+                out[at[q]] = blocked[q];
+            }
+        });
+        out
     }
 
     fn id_key(&self) -> &'static str {

@@ -79,17 +79,42 @@ fn parse_method(s: &str) -> Result<Method, String> {
     s.parse().map_err(|e: displace_core::Error| e.to_string())
 }
 
-/// Traces one physical-frame ray ([`displace_core::physical`]): `[t, x, y,
-/// z, iterations]`, `t` inf and the point NaN on a miss.
-pub fn trace_physical(map: &DisplacementMap, opts: &TraceOptions, r: &[f32; 6]) -> [f32; 5] {
-    let ray = [r[0], r[1], r[2], r[3], r[4], r[5], f32::INFINITY];
-    match physical::intersect(map.into(), opts, &ray) {
-        Some(hit) => {
-            let p = hit.position;
-            [hit.t, p.x, p.y, p.z, hit.iterations as f32]
-        }
-        None => [f32::INFINITY, f32::NAN, f32::NAN, f32::NAN, 0.0],
-    }
+/// A miss as `trace` writes it: `t` inf, the point NaN, no steps.
+const MISS: [f32; 5] = [f32::INFINITY, f32::NAN, f32::NAN, f32::NAN, 0.0];
+
+/// A hit as `trace` writes it: `[t, x, y, z, iterations]`.
+fn record(hit: &physical::PhysicalHit) -> [f32; 5] {
+    let p = hit.position;
+    [hit.t, p.x, p.y, p.z, hit.iterations as f32]
+}
+
+/// Every physical-frame ray ([`displace_core::physical`]) traced: `[t, x,
+/// y, z, iterations]` each, `t` inf and the point NaN on a miss. Parallel
+/// tasks of a few hundred rays, each traced in packets
+/// ([`physical::intersect_many`], the same hits as one ray at a time).
+pub fn trace_physical_all(
+    map: &DisplacementMap,
+    opts: &TraceOptions,
+    rays: &[[f32; 6]],
+) -> Vec<[f32; 5]> {
+    const TASK: usize = 256;
+    let mut hits = vec![MISS; rays.len()];
+    hits.par_chunks_mut(TASK)
+        .zip(rays.par_chunks(TASK))
+        .for_each(|(out, rays)| {
+            let rays: Vec<[f32; 7]> = rays
+                .iter()
+                .map(|r| [r[0], r[1], r[2], r[3], r[4], r[5], f32::INFINITY])
+                .collect();
+            let mut found = vec![None; rays.len()];
+            physical::intersect_many(map.into(), opts, &rays, &mut found);
+            for (o, hit) in out.iter_mut().zip(&found) {
+                if let Some(hit) = hit {
+                    *o = record(hit);
+                }
+            }
+        });
+    hits
 }
 
 pub fn run(args: TraceArgs) -> Result<()> {
@@ -196,10 +221,7 @@ pub fn run(args: TraceArgs) -> Result<()> {
     let (hits, seconds, on) = match args.backend {
         Backend::Cpu => {
             let start = Instant::now();
-            let hits: Vec<[f32; 5]> = rays
-                .par_iter()
-                .map(|r| trace_physical(&map, &opts, r))
-                .collect();
+            let hits = trace_physical_all(&map, &opts, &rays);
             let on = format!("{} threads", rayon::current_num_threads());
             (hits, start.elapsed().as_secs_f64(), on)
         }
