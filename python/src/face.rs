@@ -68,17 +68,17 @@ impl Target for Face {
                 // The block's valid rays are traced in packets
                 // (`physical::intersect_many`, the hits of one ray at a
                 // time), a bad ray left a miss.
-                let mut block = [None; BLOCK];
+                // Each block's rows are written as misses, then its hits
+                // over them: a row is written whatever the ray did.
                 let (mut valid, mut at) = ([[0.0f32; 7]; BLOCK], [0usize; BLOCK]);
                 let mut found = [None; BLOCK];
                 let cancelled = job.cancelled();
                 for (b, t) in t.chunks_mut(BLOCK).enumerate() {
-                    let first = k * CHUNK + b * BLOCK;
+                    let (first, j0) = (k * CHUNK + b * BLOCK, b * BLOCK);
                     let mut count = 0;
-                    for (j, slot) in block[..t.len()].iter_mut().enumerate() {
-                        *slot = None;
+                    for j in 0..t.len() {
                         if let Some(r) = rays.get(first + j).filter(|_| !cancelled) {
-                            (valid[count], at[count]) = (r, j);
+                            (valid[count], at[count]) = (r, j0 + j);
                             count += 1;
                         }
                     }
@@ -88,35 +88,21 @@ impl Target for Face {
                         &valid[..count],
                         &mut found[..count],
                     );
-                    for (q, hit) in found[..count].iter().enumerate() {
-                        block[at[q]] = *hit;
-                    }
-                    for (jb, (t, hit)) in t.iter_mut().zip(&block).enumerate() {
-                        let j = b * BLOCK + jb;
-                        let (tt, pos, nrm, tex, cell, steps) = match hit {
-                            Some(h) => (
-                                h.t,
-                                h.position.to_array(),
-                                h.normal.to_array(),
-                                h.uv.to_array(),
-                                i64::from(h.cell),
-                                h.iterations,
-                            ),
-                            None => (
-                                f32::INFINITY,
-                                [f32::NAN; 3],
-                                [f32::NAN; 3],
-                                [f32::NAN; 2],
-                                -1,
-                                0,
-                            ),
-                        };
-                        *t = tt;
-                        p[3 * j..3 * j + 3].copy_from_slice(&pos);
-                        n[3 * j..3 * j + 3].copy_from_slice(&nrm);
-                        uv[2 * j..2 * j + 2].copy_from_slice(&tex);
-                        id[j] = cell;
-                        it[j] = steps;
+                    let rows = j0..j0 + t.len();
+                    t.fill(f32::INFINITY);
+                    p[3 * rows.start..3 * rows.end].fill(f32::NAN);
+                    n[3 * rows.start..3 * rows.end].fill(f32::NAN);
+                    uv[2 * rows.start..2 * rows.end].fill(f32::NAN);
+                    id[rows.clone()].fill(-1);
+                    it[rows].fill(0);
+                    for (&j, hit) in at[..count].iter().zip(&found[..count]) {
+                        let Some(h) = hit else { continue };
+                        t[j - j0] = h.t;
+                        p[3 * j..3 * j + 3].copy_from_slice(&h.position.to_array());
+                        n[3 * j..3 * j + 3].copy_from_slice(&h.normal.to_array());
+                        uv[2 * j..2 * j + 2].copy_from_slice(&h.uv.to_array());
+                        id[j] = i64::from(h.cell);
+                        it[j] = h.iterations;
                     }
                 }
             });

@@ -78,8 +78,10 @@ pub fn ray_is_valid(ray: &[f32; 7]) -> bool {
     // NaN compares false: a NaN limit or component fails each test.
     let t_max_ok = ray[6] > 0.0;
     let bounded = ray[..6].iter().all(|v| v.abs() <= MAX_RAY_COMPONENT);
-    let len = Vec3::new(ray[3], ray[4], ray[5]).length();
-    t_max_ok && bounded && len > 0.0 && len.is_finite()
+    // The squared length decides as the length does (its square root is
+    // positive and finite exactly where it is), without the root.
+    let len2 = Vec3::new(ray[3], ray[4], ray[5]).length_squared();
+    t_max_ok && bounded && len2 > 0.0 && len2.is_finite()
 }
 
 /// Checks one ray as given by a user: `ray` is origin xyz, direction xyz,
