@@ -59,29 +59,20 @@ impl Target for Face {
             .zip(it.par_chunks_mut(CHUNK))
             .enumerate()
             .for_each(|(k, (((((t, p), n), uv), id), it))| {
-                // Traced a block at a time into a buffer that stays in the
-                // first-level cache, then written out, every row (misses
-                // too: the columns start unwritten): stores to six output
-                // streams, each line a miss of fresh memory, held the next
-                // ray's first loads behind them (up to a sixth of the
-                // trace of a ray through a coarse map).
-                // The block's valid rays are traced in packets
+                // A block at a time: its valid rays traced in packets
                 // (`physical::intersect_many`, the hits of one ray at a
-                // time), a bad ray left a miss.
-                // Each block's rows are written as misses, then its hits
-                // over them: a row is written whatever the ray did.
-                let (mut valid, mut at) = ([[0.0f32; 7]; BLOCK], [0usize; BLOCK]);
+                // time; a bad ray is left a miss), its rows written as
+                // misses and its hits over them (the columns start
+                // unwritten, so every row is written whatever its ray did).
+                let mut block = Block::default();
                 let mut found = [None; BLOCK];
                 let cancelled = job.cancelled();
                 for (b, t) in t.chunks_mut(BLOCK).enumerate() {
-                    let (first, j0) = (k * CHUNK + b * BLOCK, b * BLOCK);
-                    let mut count = 0;
-                    for j in 0..t.len() {
-                        if let Some(r) = rays.get(first + j).filter(|_| !cancelled) {
-                            (valid[count], at[count]) = (r, j0 + j);
-                            count += 1;
-                        }
-                    }
+                    let j0 = b * BLOCK;
+                    // Read (a bad ray flags the query) even when cancelled.
+                    let count = block.gather(&rays, k * CHUNK + j0, t.len(), j0);
+                    let count = if cancelled { 0 } else { count };
+                    let Block { valid, at } = &block;
                     physical::intersect_many(
                         self.view(),
                         &self.opts,
@@ -116,19 +107,13 @@ impl Target for Face {
             }
             // The block's valid rays in packets, as `first_hits`
             // traces them; a bad ray is left unblocked.
-            let first = b * BLOCK;
-            let (mut valid, mut at) = ([[0.0f32; 7]; BLOCK], [0usize; BLOCK]);
-            let mut n = 0;
-            for j in 0..out.len() {
-                if let Some(r) = rays.get(first + j) {
-                    (valid[n], at[n]) = (r, j);
-                    n += 1;
-                }
-            }
+            let mut block = Block::default();
+            let n = block.gather(&rays, b * BLOCK, out.len(), 0);
             let mut blocked = [false; BLOCK];
-            physical::occluded_many(self.view(), &self.opts, &valid[..n], &mut blocked[..n]);
-            for q in 0..n {
-                out[at[q]] = blocked[q];
+            let valid = &block.valid[..n];
+            physical::occluded_many(self.view(), &self.opts, valid, &mut blocked[..n]);
+            for (&j, &b) in block.at[..n].iter().zip(&blocked[..n]) {
+                out[j] = b;
             }
         });
         out
@@ -136,6 +121,37 @@ impl Target for Face {
 
     fn id_key(&self) -> &'static str {
         "cell"
+    }
+}
+
+/// The valid rays of one block of a query (those [`RayRows::get`]
+/// accepts), packed for the packet tracer, each with the row it answers.
+struct Block {
+    valid: [[f32; 7]; BLOCK],
+    at: [usize; BLOCK],
+}
+
+impl Default for Block {
+    fn default() -> Self {
+        Self {
+            valid: [[0.0; 7]; BLOCK],
+            at: [0; BLOCK],
+        }
+    }
+}
+
+impl Block {
+    /// Packs the valid ones of rays `first..first + n` (at most [`BLOCK`]),
+    /// ray `first + j` answering row `row0 + j`; returns how many.
+    fn gather(&mut self, rays: &RayRows<'_>, first: usize, n: usize, row0: usize) -> usize {
+        let mut count = 0;
+        for j in 0..n {
+            if let Some(r) = rays.get(first + j) {
+                (self.valid[count], self.at[count]) = (r, row0 + j);
+                count += 1;
+            }
+        }
+        count
     }
 }
 

@@ -185,22 +185,11 @@ pub fn intersect_many(
 ) {
     assert_eq!(rays.len(), out.len());
     out.fill(None);
-    let mut mrays = Vec::with_capacity(BATCH.min(rays.len()));
-    let mut mopts = Vec::with_capacity(BATCH.min(rays.len()));
-    let mut lens = Vec::with_capacity(BATCH.min(rays.len()));
-    for (b, chunk) in rays.chunks(BATCH).enumerate() {
-        mrays.clear();
-        mopts.clear();
-        lens.clear();
-        for ray in chunk {
-            let (m, o, len) = map_ray(face, opts, ray);
-            mrays.push(m);
-            mopts.push(o);
-            lens.push(len);
-        }
-        let out = &mut out[b * BATCH..];
-        crate::cell_trace::trace_each(face.height, face.distance, &mrays, &mopts, |k, h| {
-            out[k] = Some(physical_hit(face, &h, lens[k]))
+    let mut mapped = MappedRays::default();
+    for (chunk, out) in rays.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
+        let m = mapped.of(face, opts, chunk);
+        crate::cell_trace::trace_each(face.height, face.distance, &m.rays, &m.opts, |k, h| {
+            out[k] = Some(physical_hit(face, &h, m.lens[k]))
         });
     }
 }
@@ -213,17 +202,36 @@ pub fn intersect_many(
 /// When `out` and `rays` differ in length.
 pub fn occluded_many(face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]], out: &mut [bool]) {
     assert_eq!(rays.len(), out.len());
-    let mut mrays = Vec::with_capacity(BATCH.min(rays.len()));
-    let mut mopts = Vec::with_capacity(BATCH.min(rays.len()));
+    let mut mapped = MappedRays::default();
     for (chunk, out) in rays.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
-        mrays.clear();
-        mopts.clear();
-        for ray in chunk {
-            let (m, o, _) = map_ray(face, opts, ray);
-            mrays.push(m);
-            mopts.push(o);
+        let m = mapped.of(face, opts, chunk);
+        crate::cell_trace::occluded_many(face.height, face.distance, &m.rays, &m.opts, out);
+    }
+}
+
+/// One batch of physical rays as [`map_ray`] maps them, in the columns the
+/// packet tracer reads, its buffers reused from batch to batch.
+#[derive(Default)]
+struct MappedRays {
+    rays: Vec<MapRay>,
+    opts: Vec<TraceOptions>,
+    /// Each direction's length as given.
+    lens: Vec<f32>,
+}
+
+impl MappedRays {
+    /// `rays` mapped, in place of the batch before.
+    fn of(&mut self, face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]]) -> &Self {
+        self.rays.clear();
+        self.opts.clear();
+        self.lens.clear();
+        for ray in rays {
+            let (m, o, len) = map_ray(face, opts, ray);
+            self.rays.push(m);
+            self.opts.push(o);
+            self.lens.push(len);
         }
-        crate::cell_trace::occluded_many(face.height, face.distance, &mrays, &mopts, out);
+        self
     }
 }
 

@@ -424,19 +424,25 @@ mod tests {
         assert_eq!(leaf_sizes_of(&costly, 4), vec![1]);
     }
 
-    #[test]
-    fn finds_the_same_nearest_box_as_brute_force() {
-        let mut rng = Rng::new(3, 4);
-        let boxes: Vec<Aabb> = (0..2000)
+    /// `n` random boxes with centres in `[0, 100]^3` and half-sizes up to
+    /// `half` on each axis.
+    fn random_boxes(rng: &mut Rng, n: usize, half: f32) -> Vec<Aabb> {
+        (0..n)
             .map(|_| {
                 let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
-                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0;
+                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * half;
                 Aabb {
                     min: c - e,
                     max: c + e,
                 }
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn finds_the_same_nearest_box_as_brute_force() {
+        let mut rng = Rng::new(3, 4);
+        let boxes = random_boxes(&mut rng, 2000, 3.0);
         let bvh = Bvh::build(&boxes);
         for _ in 0..500 {
             let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 120.0
@@ -493,16 +499,7 @@ mod tests {
     #[test]
     fn packet_walks_are_each_lanes_own_walk() {
         let mut rng = Rng::new(11, 5);
-        let boxes: Vec<Aabb> = (0..300)
-            .map(|_| {
-                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
-                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0;
-                Aabb {
-                    min: c - e,
-                    max: c + e,
-                }
-            })
-            .collect();
+        let boxes = random_boxes(&mut rng, 300, 8.0);
         let bvh = Bvh::build(&boxes);
         let octant = |r: &Ray| [r.dir.x < 0.0, r.dir.y < 0.0, r.dir.z < 0.0];
         let (mut visits, mut hits) = (0, 0);

@@ -327,12 +327,13 @@ mod avx2 {
 
     /// Steps the lanes of `live` until each has parked for a walk or
     /// ended; returns the parked lanes and their walks.
-    // Asked to be inlined into the kernel: left to the inliner alone,
-    // whether these phases were inlined followed unrelated changes to the
-    // crate, and the CLI and the Python extension ran the same trace 10-20%
-    // apart. (`inline(always)` is not allowed with `target_feature`.)
-    #[inline]
-    #[target_feature(enable = "avx2")]
+    // Always inlined into the kernel (whose `target_feature` its AVX2
+    // intrinsics then inline under): left to the inliner, whether the
+    // phases were inlined followed unrelated changes to the crate, and the
+    // CLI and the Python extension ran the same trace 10-20% apart.
+    // (`inline(always)` is not allowed with `target_feature`, so the phases
+    // take none of their own and are only called from `steps`.)
+    #[inline(always)]
     unsafe fn step_phase(
         distance: &DistanceMap,
         c: &Constants,
@@ -451,8 +452,7 @@ mod avx2 {
 
     /// Walks the lanes of `live` over their bands together; returns the
     /// lanes that step on.
-    #[inline]
-    #[target_feature(enable = "avx2")]
+    #[inline(always)]
     pub(super) unsafe fn walk_phase<const ANY: bool>(
         height: &HeightMap,
         c: &Constants,
