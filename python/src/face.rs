@@ -61,9 +61,8 @@ impl Target for Face {
             .for_each(|(k, (((((t, p), n), uv), id), it))| {
                 // A block at a time: its valid rays traced in packets
                 // (`physical::intersect_many`, the hits of one ray at a
-                // time; a bad ray is left a miss), its rows written as
-                // misses and its hits over them (the columns start
-                // unwritten, so every row is written whatever its ray did).
+                // time; a bad ray is left a miss), then each of its rows
+                // written once, hit or miss (the columns start unwritten).
                 let mut block = Block::default();
                 let mut found = [None; BLOCK];
                 let cancelled = job.cancelled();
@@ -79,21 +78,28 @@ impl Target for Face {
                         &valid[..count],
                         &mut found[..count],
                     );
-                    let rows = j0..j0 + t.len();
-                    t.fill(f32::INFINITY);
-                    p[3 * rows.start..3 * rows.end].fill(f32::NAN);
-                    n[3 * rows.start..3 * rows.end].fill(f32::NAN);
-                    uv[2 * rows.start..2 * rows.end].fill(f32::NAN);
-                    id[rows.clone()].fill(-1);
-                    it[rows].fill(0);
-                    for (&j, hit) in at[..count].iter().zip(&found[..count]) {
-                        let Some(h) = hit else { continue };
-                        t[j - j0] = h.t;
-                        p[3 * j..3 * j + 3].copy_from_slice(&h.position.to_array());
-                        n[3 * j..3 * j + 3].copy_from_slice(&h.normal.to_array());
-                        uv[2 * j..2 * j + 2].copy_from_slice(&h.uv.to_array());
-                        id[j] = i64::from(h.cell);
-                        it[j] = h.iterations;
+                    // Every row written once: its hit where its ray was
+                    // traced and hit, a miss otherwise (`at` is ascending).
+                    let mut next = at[..count].iter().zip(&found[..count]).peekable();
+                    for (r, t) in t.iter_mut().enumerate() {
+                        let j = j0 + r;
+                        let hit = match next.peek() {
+                            Some(&(&a, hit)) if a == j => {
+                                next.next();
+                                hit.as_ref()
+                            }
+                            _ => None,
+                        };
+                        let row = match hit {
+                            Some(h) => Row::hit(h),
+                            None => Row::MISS,
+                        };
+                        *t = row.t;
+                        p[3 * j..3 * j + 3].copy_from_slice(&row.position);
+                        n[3 * j..3 * j + 3].copy_from_slice(&row.normal);
+                        uv[2 * j..2 * j + 2].copy_from_slice(&row.uv);
+                        id[j] = row.id;
+                        it[j] = row.iterations;
                     }
                 }
             });
@@ -121,6 +127,39 @@ impl Target for Face {
 
     fn id_key(&self) -> &'static str {
         "cell"
+    }
+}
+
+/// One row of a face's first-hit columns, as it is written out.
+struct Row {
+    t: f32,
+    position: [f32; 3],
+    normal: [f32; 3],
+    uv: [f32; 2],
+    id: i64,
+    iterations: u32,
+}
+
+impl Row {
+    /// What a miss (or a ray left untraced) reads as: see [`Hits`].
+    const MISS: Row = Row {
+        t: f32::INFINITY,
+        position: [f32::NAN; 3],
+        normal: [f32::NAN; 3],
+        uv: [f32::NAN; 2],
+        id: -1,
+        iterations: 0,
+    };
+
+    fn hit(h: &physical::PhysicalHit) -> Row {
+        Row {
+            t: h.t,
+            position: h.position.to_array(),
+            normal: h.normal.to_array(),
+            uv: h.uv.to_array(),
+            id: i64::from(h.cell),
+            iterations: h.iterations,
+        }
     }
 }
 

@@ -188,7 +188,7 @@ pub fn intersect_many(
     let mut mapped = MappedRays::default();
     for (chunk, out) in rays.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
         let m = mapped.of(face, opts, chunk);
-        crate::cell_trace::trace_each(face.height, face.distance, &m.rays, &m.opts, |k, h| {
+        crate::cell_trace::trace_each(face.height, face.distance, m.rays(), m.opts(), |k, h| {
             out[k] = Some(physical_hit(face, &h, m.lens[k]))
         });
     }
@@ -205,33 +205,58 @@ pub fn occluded_many(face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]], out
     let mut mapped = MappedRays::default();
     for (chunk, out) in rays.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
         let m = mapped.of(face, opts, chunk);
-        crate::cell_trace::occluded_many(face.height, face.distance, &m.rays, &m.opts, out);
+        crate::cell_trace::occluded_many(face.height, face.distance, m.rays(), m.opts(), out);
     }
 }
 
 /// One batch of physical rays as [`map_ray`] maps them, in the columns the
-/// packet tracer reads, its buffers reused from batch to batch.
-#[derive(Default)]
+/// packet tracer reads. Fixed arrays on the stack, not vectors: the Python
+/// binding calls [`intersect_many`] for every 64 rays, and three vectors
+/// grown per call were a tenth of a query of misses on two threads, most
+/// of it the allocator's lock contended between them.
 struct MappedRays {
-    rays: Vec<MapRay>,
-    opts: Vec<TraceOptions>,
+    rays: [MapRay; BATCH],
+    opts: [TraceOptions; BATCH],
     /// Each direction's length as given.
-    lens: Vec<f32>,
+    lens: [f32; BATCH],
+    /// How many of the slots hold this batch.
+    len: usize,
+}
+
+impl Default for MappedRays {
+    fn default() -> Self {
+        let ray = MapRay {
+            origin: Vec3::ZERO,
+            dir: Vec3::Z,
+        };
+        Self {
+            rays: [ray; BATCH],
+            opts: [TraceOptions::default(); BATCH],
+            lens: [0.0; BATCH],
+            len: 0,
+        }
+    }
 }
 
 impl MappedRays {
-    /// `rays` mapped, in place of the batch before.
+    /// `rays` (at most [`BATCH`]) mapped, in place of the batch before.
     fn of(&mut self, face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]]) -> &Self {
-        self.rays.clear();
-        self.opts.clear();
-        self.lens.clear();
-        for ray in rays {
-            let (m, o, len) = map_ray(face, opts, ray);
-            self.rays.push(m);
-            self.opts.push(o);
-            self.lens.push(len);
+        assert!(rays.len() <= BATCH, "a batch is at most {BATCH} rays");
+        for (k, ray) in rays.iter().enumerate() {
+            (self.rays[k], self.opts[k], self.lens[k]) = map_ray(face, opts, ray);
         }
+        self.len = rays.len();
         self
+    }
+
+    /// The mapped rays.
+    fn rays(&self) -> &[MapRay] {
+        &self.rays[..self.len]
+    }
+
+    /// Each ray's options.
+    fn opts(&self) -> &[TraceOptions] {
+        &self.opts[..self.len]
     }
 }
 
