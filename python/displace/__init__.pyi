@@ -183,7 +183,7 @@ class DistanceMap(Queries):
     def address(self) -> str: ...
     @property
     def nbytes(self) -> int:
-        """Bytes held in memory (heights, distances)."""
+        """Bytes held in memory (heights, distances, the heights' maximum pyramid that occluded walks)."""
     @property
     def heights(self) -> npt.NDArray[np.float32]:
         """(H, W) heights in [0, 1], a copy."""

@@ -10,6 +10,7 @@ use crate::work::{self, Job};
 use displace_core::distance_map::Format;
 use displace_core::io::height::{self, HeightOptions, HeightRange};
 use displace_core::io::{self as dio, MapFile};
+use displace_core::techniques::MaxPyramid;
 use displace_core::{physical, Address, BakeOptions, Extent, HeightMap, Method, TraceOptions};
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -31,6 +32,11 @@ pub struct DistanceMap {
 struct Face {
     height: HeightMap,
     distance: displace_core::DistanceMap,
+    /// The heights' maximum pyramid, for `occluded`: lines of sight over
+    /// terrain graze it, and the distance map's steps, bounded by their
+    /// clearance, stay short the whole way (Tevs, Ihrke and Seidel 2008;
+    /// [`displace_core::cell_trace::occluded_over`]).
+    pyramid: MaxPyramid,
     extent: Extent,
     opts: TraceOptions,
 }
@@ -111,13 +117,19 @@ impl Target for Face {
             if job.cancelled() {
                 return;
             }
-            // The block's valid rays in packets, as `first_hits`
-            // traces them; a bad ray is left unblocked.
+            // The block's valid rays over the pyramid; a bad ray is left
+            // unblocked.
             let mut block = Block::default();
             let n = block.gather(&rays, b * BLOCK, out.len(), 0);
             let mut blocked = [false; BLOCK];
             let valid = &block.valid[..n];
-            physical::occluded_many(self.view(), &self.opts, valid, &mut blocked[..n]);
+            physical::occluded_many_over(
+                self.view(),
+                &self.pyramid,
+                &self.opts,
+                valid,
+                &mut blocked[..n],
+            );
             for (&j, &b) in block.at[..n].iter().zip(&blocked[..n]) {
                 out[j] = b;
             }
@@ -195,18 +207,34 @@ impl Block {
 }
 
 impl Face {
+    /// The face, with its pyramid built (on the current thread pool; call
+    /// it off the GIL). Refused before anything is allocated when the
+    /// pyramid does not fit in the memory left.
     fn new(
         height: HeightMap,
         distance: displace_core::DistanceMap,
         extent: Extent,
         opts: TraceOptions,
-    ) -> Self {
-        Self {
+    ) -> Result<Self, displace_core::Error> {
+        let (w, h) = (height.width() as u128 + 1, height.height() as u128 + 1);
+        // Level 0 a node a cell, each level above a quarter of the one
+        // below: at most 4/3 of level 0, float32.
+        displace_core::memory::check(
+            &format!(
+                "the maximum pyramid of the {}x{} height map",
+                height.width(),
+                height.height()
+            ),
+            w * h * 4 * 4 / 3 + 64,
+        )?;
+        let pyramid = MaxPyramid::build(&height);
+        Ok(Self {
             height,
             distance,
+            pyramid,
             extent,
             opts,
-        }
+        })
     }
 
     /// The face as the core's queries read it.
@@ -229,10 +257,10 @@ impl Face {
     }
 
     /// Bytes held: heights (f32), distances (f32 values and the 8-bit
-    /// codes the tracer reads).
+    /// codes the tracer reads), the maximum pyramid (f32).
     fn bytes(&self) -> usize {
         let voxels: usize = self.distance.size().iter().product();
-        self.height.data().len() * 4 + voxels * 5
+        self.height.data().len() * 4 + voxels * 5 + self.pyramid.bytes()
     }
 }
 
@@ -404,11 +432,12 @@ pub fn bake(
             cancel: Some(job.cancel.clone()),
             ..BakeOptions::new(size, extent)
         };
-        displace_core::bake_distance(&heights, &bake)
+        let map = displace_core::bake_distance(&heights, &bake)?;
+        Face::new(heights, map, extent, opts)
     })?
     .map_err(errors::core)?;
     // Queries need no shading normals (see `Face`): none are made.
-    Face::new(heights, map, extent, opts).into_py(py)
+    map.into_py(py)
 }
 
 /// Loads a distance map the CLI (or [`DistanceMap::save`]) wrote, with the
@@ -449,7 +478,9 @@ pub fn load(
     };
     let [w, h, _] = distance.size();
     let height = height_of(py, height, [w, h], range, distance.address())?;
-    Face::new(height, distance, extent, opts).into_py(py)
+    py.detach(|| Face::new(height, distance, extent, opts))
+        .map_err(errors::core)?
+        .into_py(py)
 }
 
 #[pymethods]
@@ -477,7 +508,8 @@ impl DistanceMap {
         }
     }
 
-    /// Bytes the map holds in memory (heights, distances).
+    /// Bytes the map holds in memory (heights, distances, the maximum
+    /// pyramid `occluded` walks).
     #[getter]
     fn nbytes(&self) -> usize {
         self.face.bytes()

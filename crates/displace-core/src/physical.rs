@@ -209,6 +209,29 @@ pub fn occluded_many(face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]], out
     }
 }
 
+/// [`occluded_many`] answered over a maximum-height pyramid of the face's
+/// heights ([`crate::cell_trace::occluded_over`]), one ray at a time: for
+/// rays that run low over the surface for long (lines of sight over an
+/// elevation model), whose distance-map steps stay short the whole way.
+/// `out[k]` is `occluded(face, opts, &rays[k])` but for rays that touch the
+/// surface within rounding.
+///
+/// # Panics
+/// When `out` and `rays` differ in length.
+pub fn occluded_many_over(
+    face: Face<'_>,
+    pyramid: &crate::techniques::MaxPyramid,
+    opts: &TraceOptions,
+    rays: &[[f32; 7]],
+    out: &mut [bool],
+) {
+    assert_eq!(rays.len(), out.len());
+    for (ray, out) in rays.iter().zip(out) {
+        let (mray, opts, _) = map_ray(face, opts, ray);
+        *out = crate::cell_trace::occluded_over(face.height, face.distance, pyramid, &mray, &opts);
+    }
+}
+
 /// One batch of physical rays as [`map_ray`] maps them, in the columns the
 /// packet tracer reads. Fixed arrays on the stack, not vectors: the Python
 /// binding calls [`intersect_many`] for every 64 rays, and three vectors

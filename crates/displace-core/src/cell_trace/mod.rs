@@ -69,6 +69,9 @@ pub fn occluded(
 }
 
 mod packet;
+mod pyramid;
+
+pub use pyramid::occluded_over;
 
 pub use packet::{with_kernel, Kernel, LANES, WIDE_LANES};
 
