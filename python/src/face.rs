@@ -7,10 +7,10 @@ use crate::errors;
 use crate::hits::{Hits, Target};
 use crate::queries::Queries;
 use crate::work::{self, Job};
+use displace_core::cell_trace::AnyHitPyramid;
 use displace_core::distance_map::Format;
 use displace_core::io::height::{self, HeightOptions, HeightRange};
 use displace_core::io::{self as dio, MapFile};
-use displace_core::techniques::MaxPyramid;
 use displace_core::{physical, Address, BakeOptions, Extent, HeightMap, Method, TraceOptions};
 use numpy::{PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -36,7 +36,7 @@ struct Face {
     /// terrain graze it, and the distance map's steps, bounded by their
     /// clearance, stay short the whole way (Tevs, Ihrke and Seidel 2008;
     /// [`displace_core::cell_trace::occluded_over`]).
-    pyramid: MaxPyramid,
+    pyramid: AnyHitPyramid,
     extent: Extent,
     opts: TraceOptions,
 }
@@ -216,18 +216,15 @@ impl Face {
         extent: Extent,
         opts: TraceOptions,
     ) -> Result<Self, displace_core::Error> {
-        let (w, h) = (height.width() as u128 + 1, height.height() as u128 + 1);
-        // Level 0 a node a cell, each level above a quarter of the one
-        // below: at most 4/3 of level 0, float32.
         displace_core::memory::check(
             &format!(
                 "the maximum pyramid of the {}x{} height map",
                 height.width(),
                 height.height()
             ),
-            w * h * 4 * 4 / 3 + 64,
+            AnyHitPyramid::bytes_for(height.width(), height.height()),
         )?;
-        let pyramid = MaxPyramid::build(&height);
+        let pyramid = AnyHitPyramid::build(&height);
         Ok(Self {
             height,
             distance,

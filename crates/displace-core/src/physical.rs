@@ -220,7 +220,7 @@ pub fn occluded_many(face: Face<'_>, opts: &TraceOptions, rays: &[[f32; 7]], out
 /// When `out` and `rays` differ in length.
 pub fn occluded_many_over(
     face: Face<'_>,
-    pyramid: &crate::techniques::MaxPyramid,
+    pyramid: &crate::cell_trace::AnyHitPyramid,
     opts: &TraceOptions,
     rays: &[[f32; 7]],
     out: &mut [bool],

@@ -11,9 +11,8 @@
 mod common_ref;
 
 use common_ref::{downward, face_case, random_face, Rng};
-use displace_core::cell_trace::{occluded, occluded_over};
+use displace_core::cell_trace::{occluded, occluded_over, AnyHitPyramid};
 use displace_core::sphere_trace::HitKind;
-use displace_core::techniques::MaxPyramid;
 use displace_core::{MapRay, Method, TraceOptions};
 use glam::Vec3;
 use proptest::prelude::*;
@@ -66,7 +65,7 @@ proptest! {
         seed in any::<u64>(),
     ) {
         let (map, tiles, _) = random_face(&face, seed);
-        let pyramid = MaxPyramid::build(&map.height);
+        let pyramid = AnyHitPyramid::build(&map.height);
         let aspect = map.aspect();
         let surface = |x: f32, y: f32| map.height.sample(x / aspect[0], y / aspect[1]);
         let mut rng = Rng(seed ^ 0x2545_f491_4f6c_dd1d);
@@ -124,7 +123,7 @@ fn touches(map: &displace_core::DisplacementMap, ray: &MapRay, opts: &TraceOptio
 fn a_pyramid_of_another_map_is_not_used() {
     let (map, _, _) = random_face(&face_of(16), 7);
     let (other, _, _) = random_face(&face_of(9), 7);
-    let pyramid = MaxPyramid::build(&other.height);
+    let pyramid = AnyHitPyramid::build(&other.height);
     let ray = MapRay::new(Vec3::new(0.3, 0.2, 2.0), Vec3::new(0.1, 0.05, -1.0));
     let opts = TraceOptions::default();
     assert_eq!(

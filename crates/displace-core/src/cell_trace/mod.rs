@@ -71,7 +71,7 @@ pub fn occluded(
 mod packet;
 mod pyramid;
 
-pub use pyramid::occluded_over;
+pub use pyramid::{occluded_over, AnyHitPyramid};
 
 pub use packet::{with_kernel, Kernel, LANES, WIDE_LANES};
 

@@ -28,8 +28,8 @@
 use super::{walk, Constants, Grid, Lane, Outcome};
 use crate::exact::Walk;
 use crate::sphere_trace::{leaves_through_floor, MapRay, Method, TraceOptions};
-use crate::techniques::MaxPyramid;
 use crate::{DistanceMap, HeightMap};
+use rayon::prelude::*;
 
 /// The level whose nodes are walked cell by cell instead of split: 8 x 8
 /// cells. The walk passes a cell the ray clears for about what a node
@@ -45,15 +45,110 @@ const LEAF_LEVEL: usize = 3;
 /// side are refused long before).
 const STACK: usize = 96;
 
+/// The maximum of the height surface over blocks of cells, and of blocks
+/// of blocks up to the whole map: a maximum mipmap (Tevs, Ihrke and
+/// Seidel 2008) whose finest level is the walk's leaf, blocks of 8 x 8
+/// bilinear cells, since the levels below it would never be read. So it
+/// costs a sixty-fourth of a full pyramid: about a twelfth of a byte a
+/// texel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnyHitPyramid {
+    /// `levels[k]` is `dims[k].0 x dims[k].1`, row-major; level `k` holds
+    /// blocks of `2^(k + LEAF_LEVEL)` cells a side.
+    levels: Vec<Vec<f32>>,
+    dims: Vec<(usize, usize)>,
+    /// Bilinear cells across and down of the map it was built from,
+    /// borders included (`W + 1`, `H + 1`).
+    cells: (usize, usize),
+}
+
+impl AnyHitPyramid {
+    /// Builds every level from `height`'s cells (with its address mode at
+    /// the borders), rows of blocks in parallel.
+    pub fn build(height: &HeightMap) -> Self {
+        let cells = (height.width() + 1, height.height() + 1);
+        let side = 1usize << LEAF_LEVEL;
+        let (w, h) = (cells.0.div_ceil(side), cells.1.div_ceil(side));
+        // Cell `c` of the walk's grid is stored at index `c + 1` (the half
+        // cells at the borders are `-1` and `W - 1`).
+        let leaf: Vec<f32> = (0..h)
+            .into_par_iter()
+            .flat_map_iter(|j| {
+                (0..w).map(move |i| {
+                    let mut m = f32::NEG_INFINITY;
+                    for k in j * side..((j + 1) * side).min(cells.1) {
+                        for l in i * side..((i + 1) * side).min(cells.0) {
+                            let c = height.cell(l as i64 - 1, k as i64 - 1);
+                            m = m.max(c[0].max(c[1]).max(c[2].max(c[3])));
+                        }
+                    }
+                    m
+                })
+            })
+            .collect();
+        let mut levels = vec![leaf];
+        let mut dims = vec![(w, h)];
+        while dims.last().is_some_and(|&(w, h)| w > 1 || h > 1) {
+            let (pw, ph) = *dims.last().expect("the leaf level exists");
+            let prev = levels.last().expect("the leaf level exists");
+            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
+            let mut next = vec![f32::NEG_INFINITY; nw * nh];
+            for y in 0..ph {
+                for x in 0..pw {
+                    let n = &mut next[(y / 2) * nw + x / 2];
+                    *n = n.max(prev[y * pw + x]);
+                }
+            }
+            levels.push(next);
+            dims.push((nw, nh));
+        }
+        Self {
+            levels,
+            dims,
+            cells,
+        }
+    }
+
+    /// Bytes a pyramid of a `width x height` map holds, at most: for a
+    /// memory check before [`AnyHitPyramid::build`].
+    pub fn bytes_for(width: usize, height: usize) -> u128 {
+        let side = 1u128 << LEAF_LEVEL;
+        let leaf = (width as u128 + 1).div_ceil(side) * (height as u128 + 1).div_ceil(side);
+        // Each level a quarter of the one below, rounded up: under 4/3
+        // of the leaf level, plus a node a level for the rounding.
+        (leaf * 4 / 3 + 64) * 4
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.len() * 4).sum()
+    }
+
+    /// Whether this pyramid was built from a map of `height`'s size.
+    pub fn fits(&self, height: &HeightMap) -> bool {
+        self.cells == (height.width() + 1, height.height() + 1)
+    }
+
+    /// Levels, counted from the leaves.
+    fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Maximum of block `(i, j)` of level `k` (from the leaves).
+    fn node(&self, k: usize, i: usize, j: usize) -> f32 {
+        self.levels[k][j * self.dims[k].0 + i]
+    }
+}
+
 /// [`super::occluded`] answered over `pyramid` (built from `height` by
-/// [`MaxPyramid::build`]): the same answer but for rays that touch the
+/// [`AnyHitPyramid::build`]): the same answer but for rays that touch the
 /// surface within rounding (see the module's notes). Maps traced with
 /// repeating tiles, methods other than [`Method::Sphere`] and a pyramid of
 /// another map's size take the distance-map tracer.
 pub fn occluded_over(
     height: &HeightMap,
     distance: &DistanceMap,
-    pyramid: &MaxPyramid,
+    pyramid: &AnyHitPyramid,
     ray: &MapRay,
     opts: &TraceOptions,
 ) -> bool {
@@ -82,7 +177,7 @@ pub fn occluded_over(
 /// down to, nearest first.
 fn blocked(
     height: &HeightMap,
-    pyramid: &MaxPyramid,
+    pyramid: &AnyHitPyramid,
     grid: &Grid,
     c: &Constants,
     ray: &MapRay,
@@ -104,19 +199,22 @@ fn blocked(
     let margin = 1e-4 * (1.0 + t_out.abs());
     // Front to back: the child nearest the ray's start first.
     let near = [usize::from(d.x < 0.0), usize::from(d.y < 0.0)];
+    // Levels counted from the leaves (`k`); a block of level `k` spans
+    // `2^(k + LEAF_LEVEL)` cells a side.
     let top = pyramid.levels() - 1;
     let mut stack = [(0u8, 0u32, 0u32); STACK];
     stack[0] = (top as u8, 0, 0);
     let mut len = 1;
     while len > 0 {
         len -= 1;
-        let (level, i, j) = stack[len];
-        let level = level as usize;
+        let (k, i, j) = stack[len];
+        let k = k as usize;
+        let level = k + LEAF_LEVEL;
         let mut lo = t_in;
         let mut hi = t_out;
-        for ((oc, dc), k) in axes.iter().zip([i, j]) {
-            let s0 = ((k as u64) << level) as f64 - 1.0 - WIDEN;
-            let s1 = (((k as u64) + 1) << level) as f64 - 1.0 + WIDEN;
+        for ((oc, dc), n) in axes.iter().zip([i, j]) {
+            let s0 = ((n as u64) << level) as f64 - 1.0 - WIDEN;
+            let s1 = (((n as u64) + 1) << level) as f64 - 1.0 + WIDEN;
             if *dc == 0.0 {
                 if *oc < s0 || *oc > s1 {
                     hi = f64::NEG_INFINITY;
@@ -131,25 +229,79 @@ fn blocked(
             continue;
         }
         let z_low = o.z + d.z * if d.z < 0.0 { hi } else { lo };
-        if z_low > pyramid.node(level, i as usize, j as usize) as f64 + margin {
+        if z_low > pyramid.node(k, i as usize, j as usize) as f64 + margin {
             continue;
         }
-        if level <= LEAF_LEVEL {
+        if k == 0 {
             if let Walk::Hit(_) = walk::<true>(height, grid, c.cells, lo as f32, hi as f32) {
                 return true;
             }
             continue;
         }
-        let (w, h) = pyramid.dims(level - 1);
+        let (w, h) = pyramid.dims[k - 1];
         // Pushed farthest first, so the nearest is split next.
         for (bx, by) in [(1, 1), (1, 0), (0, 1), (0, 0)] {
             let ci = 2 * i as usize + (near[0] ^ bx);
             let cj = 2 * j as usize + (near[1] ^ by);
             if ci < w && cj < h {
-                stack[len] = ((level - 1) as u8, ci as u32, cj as u32);
+                stack[len] = ((k - 1) as u8, ci as u32, cj as u32);
                 len += 1;
             }
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::random::SplitMix64;
+    use crate::Address;
+
+    /// Every block holds exactly the largest corner of its cells (its
+    /// address mode at the borders), each level the largest of its four
+    /// children, and the memory check's estimate bounds what is held.
+    #[test]
+    fn blocks_hold_the_largest_corner_of_their_cells() {
+        let mut rng = SplitMix64::new(0x5eed);
+        for (w, h, address) in [
+            (37, 23, Address::Clamp),
+            (64, 9, Address::Repeat),
+            (2, 2, Address::Clamp),
+        ] {
+            let data = (0..w * h).map(|_| rng.next_f32()).collect();
+            let height = HeightMap::new(w, h, data, address).unwrap();
+            let p = AnyHitPyramid::build(&height);
+            assert!(p.fits(&height));
+            assert!(p.bytes() as u128 <= AnyHitPyramid::bytes_for(w, h));
+            let side = 1usize << LEAF_LEVEL;
+            let (lw, lh) = p.dims[0];
+            for j in 0..lh {
+                for i in 0..lw {
+                    let mut m = f32::NEG_INFINITY;
+                    for cj in (j * side) as i64 - 1..(((j + 1) * side).min(h + 1)) as i64 - 1 {
+                        for ci in (i * side) as i64 - 1..(((i + 1) * side).min(w + 1)) as i64 - 1 {
+                            m = height.cell(ci, cj).into_iter().fold(m, f32::max);
+                        }
+                    }
+                    assert_eq!(p.node(0, i, j), m, "block ({i}, {j}) of {w}x{h}");
+                }
+            }
+            for k in 1..p.levels() {
+                let (pw, ph) = p.dims[k - 1];
+                for j in 0..p.dims[k].1 {
+                    for i in 0..p.dims[k].0 {
+                        let mut m = f32::NEG_INFINITY;
+                        for y in 2 * j..(2 * j + 2).min(ph) {
+                            for x in 2 * i..(2 * i + 2).min(pw) {
+                                m = m.max(p.node(k - 1, x, y));
+                            }
+                        }
+                        assert_eq!(p.node(k, i, j), m);
+                    }
+                }
+            }
+            assert_eq!(p.dims[p.levels() - 1], (1, 1));
+        }
+    }
 }

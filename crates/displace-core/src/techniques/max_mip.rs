@@ -84,17 +84,6 @@ impl MaxPyramid {
     pub fn node(&self, level: usize, i: usize, j: usize) -> f32 {
         self.levels[level][j * self.dims[level].0 + i]
     }
-
-    /// Nodes across and down at `level`.
-    pub fn dims(&self, level: usize) -> (usize, usize) {
-        self.dims[level]
-    }
-
-    /// Whether this pyramid was built from a height map of `height`'s size
-    /// (level 0 has a node per bilinear cell, borders included).
-    pub fn fits(&self, height: &HeightMap) -> bool {
-        self.dims[0] == (height.width() + 1, height.height() + 1)
-    }
 }
 
 /// Walks `pyramid` from where the ray enters until it finds the hit or has
