@@ -4,7 +4,7 @@
 
 use crate::arrays::RayRows;
 use crate::errors;
-use crate::hits::{Hits, Target};
+use crate::hits::{Hits, Row, Target};
 use crate::queries::Queries;
 use crate::work::{self, Job};
 use displace_core::cell_trace::AnyHitPyramid;
@@ -142,27 +142,8 @@ impl Target for Face {
     }
 }
 
-/// One row of a face's first-hit columns, as it is written out.
-struct Row {
-    t: f32,
-    position: [f32; 3],
-    normal: [f32; 3],
-    uv: [f32; 2],
-    id: i64,
-    iterations: u32,
-}
-
 impl Row {
-    /// What a miss (or a ray left untraced) reads as: see [`Hits`].
-    const MISS: Row = Row {
-        t: f32::INFINITY,
-        position: [f32::NAN; 3],
-        normal: [f32::NAN; 3],
-        uv: [f32::NAN; 2],
-        id: -1,
-        iterations: 0,
-    };
-
+    /// The row of a face's hit.
     fn hit(h: &physical::PhysicalHit) -> Row {
         Row {
             t: h.t,

@@ -30,19 +30,49 @@ pub struct Hits {
     pub iterations: Option<Vec<u32>>,
 }
 
+/// One row of the first-hit columns, as a target that writes every row
+/// writes it.
+pub struct Row {
+    /// [`Hits::t`]'s value.
+    pub t: f32,
+    /// [`Hits::position`]'s three.
+    pub position: [f32; 3],
+    /// [`Hits::normal`]'s three.
+    pub normal: [f32; 3],
+    /// [`Hits::uv`]'s two.
+    pub uv: [f32; 2],
+    /// [`Hits::id`]'s value.
+    pub id: i64,
+    /// [`Hits::iterations`]' value.
+    pub iterations: u32,
+}
+
+impl Row {
+    /// What a miss (or a ray left untraced) reads as, in every column.
+    pub const MISS: Row = Row {
+        t: f32::INFINITY,
+        position: [f32::NAN; 3],
+        normal: [f32::NAN; 3],
+        uv: [f32::NAN; 2],
+        id: -1,
+        iterations: 0,
+    };
+}
+
 impl Hits {
-    /// `n` misses, to be filled.
+    /// `n` misses ([`Row::MISS`]), to be filled.
     pub fn misses(n: usize, uv: bool, iterations: bool) -> Self {
+        let miss = Row::MISS;
         let mut h = Self::unwritten(n, uv, iterations);
-        h.t.fill(f32::INFINITY);
-        h.position.fill(f32::NAN);
-        h.normal.fill(f32::NAN);
+        h.t.fill(miss.t);
+        h.position.fill(miss.position[0]);
+        h.normal.fill(miss.normal[0]);
         if let Some(uv) = &mut h.uv {
-            uv.fill(f32::NAN);
+            uv.fill(miss.uv[0]);
         }
-        h.id.fill(-1);
+        h.id.fill(miss.id);
         if let Some(it) = &mut h.iterations {
-            it.fill(0);
+            it.fill(miss.iterations);
         }
         h
     }

@@ -79,29 +79,14 @@ impl AnyHitPyramid {
                     for k in j * side..((j + 1) * side).min(cells.1) {
                         for l in i * side..((i + 1) * side).min(cells.0) {
                             let c = height.cell(l as i64 - 1, k as i64 - 1);
-                            m = m.max(c[0].max(c[1]).max(c[2].max(c[3])));
+                            m = c.into_iter().fold(m, f32::max);
                         }
                     }
                     m
                 })
             })
             .collect();
-        let mut levels = vec![leaf];
-        let mut dims = vec![(w, h)];
-        while dims.last().is_some_and(|&(w, h)| w > 1 || h > 1) {
-            let (pw, ph) = *dims.last().expect("the leaf level exists");
-            let prev = levels.last().expect("the leaf level exists");
-            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
-            let mut next = vec![f32::NEG_INFINITY; nw * nh];
-            for y in 0..ph {
-                for x in 0..pw {
-                    let n = &mut next[(y / 2) * nw + x / 2];
-                    *n = n.max(prev[y * pw + x]);
-                }
-            }
-            levels.push(next);
-            dims.push((nw, nh));
-        }
+        let (levels, dims) = crate::techniques::max_levels(leaf, (w, h));
         Self {
             levels,
             dims,

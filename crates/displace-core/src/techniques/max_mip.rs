@@ -43,29 +43,7 @@ impl MaxPyramid {
                 })
             })
             .collect();
-        let mut levels = vec![base];
-        let mut dims = vec![(w, h)];
-        while dims.last().is_some_and(|&(w, h)| w > 1 || h > 1) {
-            let (pw, ph) = *dims.last().expect("level 0 exists");
-            let prev = levels.last().expect("level 0 exists");
-            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
-            let next: Vec<f32> = (0..nh)
-                .into_par_iter()
-                .flat_map_iter(|j| {
-                    (0..nw).map(move |i| {
-                        let mut m = f32::NEG_INFINITY;
-                        for y in (2 * j)..(2 * j + 2).min(ph) {
-                            for x in (2 * i)..(2 * i + 2).min(pw) {
-                                m = m.max(prev[y * pw + x]);
-                            }
-                        }
-                        m
-                    })
-                })
-                .collect();
-            levels.push(next);
-            dims.push((nw, nh));
-        }
+        let (levels, dims) = max_levels(base, (w, h));
         Self { levels, dims }
     }
 
@@ -84,6 +62,41 @@ impl MaxPyramid {
     pub fn node(&self, level: usize, i: usize, j: usize) -> f32 {
         self.levels[level][j * self.dims[level].0 + i]
     }
+}
+
+/// The levels of a maximum pyramid above `base` (`dims.0 x dims.1`,
+/// row-major), each node the largest of its 2 x 2 children (fewer at an odd
+/// edge), up to a single node; `base` first. Rows in parallel. Shared by
+/// [`MaxPyramid`] and the any-hit pyramid of
+/// [`crate::cell_trace::AnyHitPyramid`], which differ only in their base.
+pub(crate) fn max_levels(
+    base: Vec<f32>,
+    dims: (usize, usize),
+) -> (Vec<Vec<f32>>, Vec<(usize, usize)>) {
+    let mut levels = vec![base];
+    let mut all = vec![dims];
+    while all.last().is_some_and(|&(w, h)| w > 1 || h > 1) {
+        let (pw, ph) = *all.last().expect("the base exists");
+        let prev = levels.last().expect("the base exists");
+        let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
+        let next: Vec<f32> = (0..nh)
+            .into_par_iter()
+            .flat_map_iter(|j| {
+                (0..nw).map(move |i| {
+                    let mut m = f32::NEG_INFINITY;
+                    for y in (2 * j)..(2 * j + 2).min(ph) {
+                        for x in (2 * i)..(2 * i + 2).min(pw) {
+                            m = m.max(prev[y * pw + x]);
+                        }
+                    }
+                    m
+                })
+            })
+            .collect();
+        levels.push(next);
+        all.push((nw, nh));
+    }
+    (levels, all)
 }
 
 /// Walks `pyramid` from where the ray enters until it finds the hit or has

@@ -25,6 +25,7 @@ mod max_mip;
 mod parallax;
 
 pub use cone::{ConeKind, ConeMap};
+pub(crate) use max_mip::max_levels;
 pub use max_mip::MaxPyramid;
 
 use crate::sphere_trace::{self, MapRay};
