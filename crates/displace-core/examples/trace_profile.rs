@@ -4,14 +4,16 @@
 //! camera (45 degrees down onto the face centre, 20 degree field of view):
 //! first hits and shadow rays to its light per second on one thread for the GPU-mirroring trilinear loop
 //! ([`DisplacementMap::trace_counted`]) and the CPU's throughput tracer
-//! ([`DisplacementMap::trace`]), and the mean cost per ray. A profiling aid:
+//! ([`DisplacementMap::trace`]), and the mean cost per ray; in packets under
+//! each kernel the CPU runs, and the shadow rays also over a maximum-height
+//! pyramid ([`occluded_over`]). A profiling aid:
 //!
 //!     cargo run --release -p displace-core --example trace_profile [RAYS_PER_SIDE] [cell|one|many]
 //!
 //! (`cell`: the CPU tracer one ray and eight at a time, no trilinear loop;
 //! `one`: one ray at a time only; `many`: eight at a time only.)
 
-use displace_core::cell_trace::{with_kernel, Kernel};
+use displace_core::cell_trace::{occluded_over, with_kernel, AnyHitPyramid, Kernel};
 use displace_core::{
     bake, generators, Address, BakeOptions, DisplacementMap, Extent, MapRay, TraceOptions,
 };
@@ -135,6 +137,23 @@ fn main() {
                     blocked.iter().filter(|&&b| b).count(),
                     shadow.len()
                 );
+                if kernel == Kernel::Scalar {
+                    // The same shadow rays over a maximum-height pyramid,
+                    // one at a time (what a face's `occluded` queries use).
+                    let pyramid = AnyHitPyramid::build(&map.height);
+                    let mut over = vec![false; shadow.len()];
+                    let best = best_of(runs, || {
+                        for ((r, o), b) in shadow.iter().zip(&shadow_opts).zip(over.iter_mut()) {
+                            *b = occluded_over(&map.height, &map.distance, &pyramid, r, o);
+                        }
+                    });
+                    println!(
+                        "{name}: pyramid shadow rays {:.2} Mrays/s ({} of {} blocked)",
+                        shadow.len() as f64 / best / 1e6,
+                        over.iter().filter(|&&b| b).count(),
+                        shadow.len()
+                    );
+                }
             });
         }
         println!(
