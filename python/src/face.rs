@@ -6,6 +6,7 @@ use crate::arrays::RayRows;
 use crate::errors;
 use crate::hits::{Hits, Row, Target};
 use crate::queries::Queries;
+use crate::streamed;
 use crate::work::{self, Job};
 use displace_core::cell_trace::AnyHitPyramid;
 use displace_core::distance_map::Format;
@@ -100,14 +101,16 @@ impl Target for Face {
                             Some(h) => Row::hit(h),
                             None => Row::MISS,
                         };
-                        *t = row.t;
-                        p[3 * j..3 * j + 3].copy_from_slice(&row.position);
-                        n[3 * j..3 * j + 3].copy_from_slice(&row.normal);
-                        uv[2 * j..2 * j + 2].copy_from_slice(&row.uv);
-                        id[j] = row.id;
-                        it[j] = row.iterations;
+                        // Streamed past the caches: see `streamed`.
+                        streamed::f32(t, row.t);
+                        streamed::f32s(&mut p[3 * j..3 * j + 3], &row.position);
+                        streamed::f32s(&mut n[3 * j..3 * j + 3], &row.normal);
+                        streamed::f32s(&mut uv[2 * j..2 * j + 2], &row.uv);
+                        streamed::i64(&mut id[j], row.id);
+                        streamed::u32(&mut it[j], row.iterations);
                     }
                 }
+                streamed::fence();
             });
     }
 

@@ -16,6 +16,7 @@ mod hits;
 mod pool;
 mod queries;
 mod scene;
+mod streamed;
 mod work;
 
 use pyo3::prelude::*;
