@@ -179,6 +179,7 @@ impl Block {
     /// Packs the valid ones of rays `first..first + n` (at most [`BLOCK`]),
     /// ray `first + j` answering row `row0 + j`; returns how many.
     fn gather(&mut self, rays: &RayRows<'_>, first: usize, n: usize, row0: usize) -> usize {
+        rays.prefetch(first + BLOCK, BLOCK);
         let mut count = 0;
         for j in 0..n {
             if let Some(r) = rays.get(first + j) {

@@ -19,6 +19,14 @@ mod scene;
 mod streamed;
 mod work;
 
+/// The extension's own buffers (the maps it bakes or loads, its output
+/// columns) in transparent huge pages, as the CLI's: a trace through a
+/// large map reads it at scattered places, and in 4 KiB pages most of
+/// those reads also miss the TLB ([`displace_core::memory::HugePages`]).
+/// numpy's and Python's memory is not the extension's and keeps theirs.
+#[global_allocator]
+static ALLOC: displace_core::memory::HugePages = displace_core::memory::HugePages;
+
 use pyo3::prelude::*;
 
 /// The extension module.

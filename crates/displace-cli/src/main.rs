@@ -22,6 +22,13 @@ mod view;
 
 use clap::{Parser, Subcommand};
 
+/// Large buffers (height and distance maps, films) in transparent huge
+/// pages: a trace through a large map reads it at scattered places, and in
+/// 4 KiB pages most of those reads also miss the TLB
+/// ([`displace_core::memory::HugePages`]).
+#[global_allocator]
+static ALLOC: displace_core::memory::HugePages = displace_core::memory::HugePages;
+
 #[derive(Parser)]
 #[command(
     name = "displace",

@@ -10,9 +10,11 @@
 //! of `ulimit -v` and `-d` ([`hard_limits`]).
 
 mod alloc;
+mod huge_pages;
 mod limits;
 
 pub use alloc::{filled, zeroed, Zeroable};
+pub use huge_pages::{HugePages, LARGE};
 pub use limits::{available, check, hard_limits, human, limit, parse_bytes, Limit};
 
 /// Environment variable that sets the memory limit of a command, in bytes
