@@ -91,10 +91,16 @@ struct RayIn {
     pad_dir: f32,
 }
 
+// Texel index i of a map n texels wide, wrapped or clamped (convention.rs
+// `wrap_index`). The remainder is spelled as division and product, not `%`:
+// WGSL's `%` truncates, but the GLSL that naga writes for OpenGL drivers keeps
+// `%`, whose result GLSL leaves undefined for a negative operand, and the
+// texels left of a repeating map's first tile are negative.
 fn wrap_index(i: i32, n: u32, address: u32) -> i32 {
     let m = i32(n);
     if (address == ADDRESS_REPEAT) {
-        return ((i % m) + m) % m;
+        let r = i - (i / m) * m;
+        return select(r, r + m, r < 0);
     }
     return clamp(i, 0, m - 1);
 }
