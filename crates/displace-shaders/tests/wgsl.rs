@@ -243,7 +243,6 @@ fn modules_name_their_import_path() {
 /// an unsigned literal on its right.
 #[test]
 fn no_signed_remainders() {
-    use displace_shaders::wgsl::*;
     use naga::{BinaryOperator, Expression, ScalarKind};
     let module = convention_module();
     let info = naga::valid::Validator::new(
@@ -271,26 +270,24 @@ fn no_signed_remainders() {
             }
         }
     }
-    for (name, src) in [
-        ("convention", CONVENTION),
-        ("distance_load", DISTANCE_LOAD),
-        ("distance_filtered", DISTANCE_FILTERED),
-        ("surface", SURFACE),
-        ("bindings_load", BINDINGS_LOAD),
-        ("bindings_filtered", BINDINGS_FILTERED),
-        ("batch", BATCH),
-        ("lighting", LIGHTING),
-        ("shade", SHADE),
-        ("techniques", TECHNIQUES),
-        ("trace_compute", TRACE_COMPUTE),
-        ("raster", RASTER),
-        ("mesh", MESH),
-        ("curved", CURVED),
-        ("plain", PLAIN),
-        ("fetch_loop", FETCH_LOOP),
-        ("present", PRESENT),
-        ("technique_compute", TECHNIQUE_COMPUTE),
-    ] {
+    // Every file of the library, read from its directory, so that a module
+    // added later is checked without being listed here.
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .expect("the shaders directory")
+        .map(|e| e.expect("a directory entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
+        .collect();
+    files.sort();
+    assert!(
+        files.len() >= 18,
+        "{} modules in {}",
+        files.len(),
+        dir.display()
+    );
+    for path in files {
+        let src = std::fs::read_to_string(&path).expect("a WGSL module");
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
         for (k, line) in src.lines().enumerate() {
             let code = line.split("//").next().unwrap_or_default();
             for (at, _) in code.match_indices('%') {
@@ -304,7 +301,7 @@ fn no_signed_remainders() {
                     && right[..right.len() - 1].chars().all(|c| c.is_ascii_digit());
                 assert!(
                     unsigned_literal,
-                    "{name}.wgsl:{}: `%` by `{right}`: take remainders of unsigned values only \
+                    "{name}:{}: `%` by `{right}`: take remainders of unsigned values only \
                      (see this test's notes)\n{line}",
                     k + 1
                 );
