@@ -23,11 +23,10 @@
 
 #ifdef PREPASS_PIPELINE
 #import bevy_pbr::prepass_io::VertexOutput
-#ifdef MOTION_VECTOR_PREPASS
-#import bevy_pbr::prepass_bindings::previous_view_uniforms
-#endif
+#import displace::displaced_outputs::{PrepassOutput, prepass_output}
 #else
 #import bevy_pbr::forward_io::VertexOutput
+#import displace::displaced_outputs::MainOutput
 #import bevy_pbr::pbr_fragment::pbr_input_from_standard_material
 #import bevy_pbr::pbr_functions::{alpha_discard, apply_pbr_lighting, main_pass_post_lighting_processing}
 #import bevy_pbr::pbr_types
@@ -38,7 +37,8 @@ struct DistanceMappingSettings {
     // World-space depth of the shell: listing 8-1's 1 / inverse bump depth,
     // live (the map is baked in shell depths).
     depth: f32,
-    // OUTPUT_SHADED, or OUTPUT_HIT: the hit as data for tests.
+    // OUTPUT_SHADED, OUTPUT_HIT (the hit as data for tests) or
+    // OUTPUT_NORMAL.
     output: u32,
     pad_a: u32,
     pad_b: u32,
@@ -47,6 +47,8 @@ struct DistanceMappingSettings {
 const OUTPUT_SHADED: u32 = 0u;
 // Colour = (displaced u, displaced v, map-space t, 1), unlit.
 const OUTPUT_HIT: u32 = 1u;
+// Colour = (world normal of the displaced surface * 0.5 + 0.5, 1), unlit.
+const OUTPUT_NORMAL: u32 = 2u;
 
 @group(#{MATERIAL_BIND_GROUP}) @binding(104) var<uniform> settings: DistanceMappingSettings;
 
@@ -185,16 +187,6 @@ fn displace_fragment(world: vec3f, mesh_uv: vec2f) -> Displaced {
 
 #ifdef PREPASS_PIPELINE
 
-struct PrepassOutput {
-#ifdef NORMAL_PREPASS
-    @location(0) normal: vec4f,
-#endif
-#ifdef MOTION_VECTOR_PREPASS
-    @location(1) motion_vector: vec2f,
-#endif
-    @builtin(frag_depth) frag_depth: f32,
-}
-
 // Depth prepass, normal prepass and every shadow map: the same march from
 // this view, so depth and shadows hold the displaced shape.
 @fragment
@@ -203,26 +195,10 @@ fn fragment(in: VertexOutput) -> PrepassOutput {
     if (!d.found) {
         discard;
     }
-    var out: PrepassOutput;
-#ifdef NORMAL_PREPASS
-    out.normal = vec4f(d.normal * 0.5 + vec3f(0.5), 1.0);
-#endif
-#ifdef MOTION_VECTOR_PREPASS
-    let clip_now = view.unjittered_clip_from_world * vec4f(d.world, 1.0);
-    let previous_world = in.previous_world_position.xyz + (d.world - in.world_position.xyz);
-    let clip_then = previous_view_uniforms.clip_from_world * vec4f(previous_world, 1.0);
-    out.motion_vector = (clip_now.xy / clip_now.w - clip_then.xy / clip_then.w) * vec2f(0.5, -0.5);
-#endif
-    out.frag_depth = d.depth;
-    return out;
+    return prepass_output(in, d.world, d.normal, d.depth);
 }
 
 #else
-
-struct MainOutput {
-    @location(0) color: vec4f,
-    @builtin(frag_depth) frag_depth: f32,
-}
 
 @fragment
 fn fragment(in: VertexOutput, @builtin(front_facing) is_front: bool) -> MainOutput {
@@ -234,6 +210,10 @@ fn fragment(in: VertexOutput, @builtin(front_facing) is_front: bool) -> MainOutp
     out.frag_depth = d.depth;
     if (settings.output == OUTPUT_HIT) {
         out.color = vec4f(d.uv, d.t, 1.0);
+        return out;
+    }
+    if (settings.output == OUTPUT_NORMAL) {
+        out.color = vec4f(d.normal * 0.5 + vec3f(0.5), 1.0);
         return out;
     }
 

@@ -15,6 +15,11 @@
 //! shell through its sides, and hands the displaced point and texture
 //! coordinate to Bevy's PBR lighting (section 8.5.3 for the derivatives).
 //!
+//! A flat shell shows every triangle of a curved mesh as a facet, with
+//! seams where neighbours disagree; [`CurvedMappedMaterial`] ([`curved`])
+//! draws curved meshes through shells along their vertex normals instead,
+//! walked per fragment by the same WGSL as `displace gpu-render`'s.
+//!
 //! ```no_run
 //! use bevy::prelude::*;
 //! use displace_bevy::{DistanceMappedMaterial, DistanceMapping, DistanceMappingPlugin, Encoding};
@@ -32,7 +37,10 @@
 
 #![warn(missing_docs)]
 
+pub mod curved;
 pub mod headless;
+
+pub use curved::{CurvedMappedMaterial, CurvedMapping, CurvedShellMesh};
 
 use bevy::asset::{uuid_handle, RenderAssetUsages};
 use bevy::image::{
@@ -58,11 +66,18 @@ pub type DistanceMappedMaterial = ExtendedMaterial<StandardMaterial, DistanceMap
 const BINDINGS: &str = include_str!("bindings.wgsl");
 /// The extension's fragment stage (main pass and prepass).
 const MATERIAL: &str = include_str!("distance_mapping.wgsl");
+/// `displace::displaced_outputs`: what both materials write for a
+/// displaced point (depth, prepass normal and motion, colour).
+const OUTPUTS: &str = include_str!("displaced_outputs.wgsl");
 
 const CONVENTION_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e01");
 const DISTANCE_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e02");
 const SURFACE_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e03");
 const BINDINGS_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e04");
+const CURVED_PRISM_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e07");
+const CURVED_BINDINGS_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e08");
+const CURVED_WALK_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e09");
+const OUTPUTS_HANDLE: Handle<Shader> = uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e0a");
 /// The material's fragment shader, for [`MaterialExtension`].
 pub const MATERIAL_SHADER_HANDLE: Handle<Shader> =
     uuid_handle!("6a1c0e52-5b1f-4a5e-9d0c-3f0b6c1d2e05");
@@ -90,17 +105,41 @@ impl Plugin for DistanceMappingPlugin {
             ),
             (&SURFACE_HANDLE, wgsl::SURFACE, "displace/surface.wgsl"),
             (&BINDINGS_HANDLE, BINDINGS, "displace/bindings.wgsl"),
+            (&OUTPUTS_HANDLE, OUTPUTS, "displace/displaced_outputs.wgsl"),
             (
                 &MATERIAL_SHADER_HANDLE,
                 MATERIAL,
                 "displace/distance_mapping.wgsl",
+            ),
+            (
+                &CURVED_PRISM_HANDLE,
+                wgsl::CURVED_PRISM,
+                "displace/curved_prism.wgsl",
+            ),
+            (
+                &CURVED_BINDINGS_HANDLE,
+                curved::CURVED_BINDINGS,
+                "displace/curved_bindings.wgsl",
+            ),
+            (
+                &CURVED_WALK_HANDLE,
+                wgsl::CURVED_WALK,
+                "displace/curved_walk.wgsl",
+            ),
+            (
+                &curved::CURVED_SHADER_HANDLE,
+                curved::CURVED_MATERIAL,
+                "displace/curved_mapping.wgsl",
             ),
         ] {
             shaders
                 .insert(handle, Shader::from_wgsl(source, path))
                 .expect("UUID handles always insert");
         }
-        app.add_plugins(MaterialPlugin::<DistanceMappedMaterial>::default());
+        app.add_plugins((
+            MaterialPlugin::<DistanceMappedMaterial>::default(),
+            MaterialPlugin::<CurvedMappedMaterial>::default(),
+        ));
     }
 }
 
@@ -111,8 +150,23 @@ pub enum Output {
     #[default]
     Shaded,
     /// The hit as data, unlit: `(displaced u, displaced v, map-space t, 1)`,
-    /// for tests against `displace gpu-render`'s UV output.
+    /// for tests against `displace gpu-render`'s UV output (the curved
+    /// material writes the world distance to the hit as its third).
     Hit,
+    /// The displaced surface's world normal as `n * 0.5 + 0.5`, unlit (the
+    /// curved material: seams show as breaks in it).
+    Normal,
+}
+
+impl Output {
+    /// The uniform's code of the output (`OUTPUT_*` in the WGSL).
+    pub(crate) fn code(self) -> u32 {
+        match self {
+            Output::Shaded => 0,
+            Output::Hit => 1,
+            Output::Normal => 2,
+        }
+    }
 }
 
 /// The extension's second uniform: mirror of WGSL
@@ -123,7 +177,7 @@ pub struct DistanceMappingSettings {
     /// inverse bump depth factor, inverted; live, as the map is in shell
     /// depths.
     pub depth: f32,
-    /// 0 [`Output::Shaded`], 1 [`Output::Hit`].
+    /// 0 [`Output::Shaded`], 1 [`Output::Hit`], 2 [`Output::Normal`].
     pub output: u32,
     /// Padding to 16 bytes.
     pub pad_a: u32,
@@ -449,10 +503,7 @@ impl DistanceMapping {
 
     /// What the fragment writes: shading, or the hit as data.
     pub fn with_output(mut self, output: Output) -> Self {
-        self.settings.output = match output {
-            Output::Shaded => 0,
-            Output::Hit => 1,
-        };
+        self.settings.output = output.code();
         self
     }
 
@@ -464,6 +515,18 @@ impl DistanceMapping {
             MarchMethod::EarlyOut
         }
     }
+}
+
+/// The distance and height textures of `map` uploaded as the flat
+/// material uploads them, and their trace constants (to be given a trace's
+/// options with [`MapParams::with_trace`]): what the curved material binds.
+pub(crate) fn filtered_handles(
+    map: &DisplacementMap,
+    encoding: Encoding,
+    images: &mut Assets<Image>,
+) -> Result<(Handle<Image>, Handle<Image>, MapParams), Error> {
+    let m = DistanceMapping::from_map(map, encoding, images)?;
+    Ok((m.distance, m.height, m.map))
 }
 
 fn texture_format(encoding: Encoding) -> TextureFormat {

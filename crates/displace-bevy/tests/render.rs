@@ -15,6 +15,8 @@
 //! the policy of displace-gpu's tests.
 
 mod common;
+#[path = "common/pictures.rs"]
+mod pictures;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{Hdr, RenderTarget};
@@ -22,6 +24,7 @@ use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::core_pipeline::schedule::Core3d;
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::core_pipeline::Core3dSystems;
+use bevy::image::ImageAddressMode;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::camera::ExtractedCamera;
@@ -39,6 +42,7 @@ use bevy::render::RenderApp;
 use displace_bevy::headless::Headless;
 use displace_bevy::{DistanceMappedMaterial, DistanceMapping, Encoding, Output};
 use displace_core::{Address, DisplacementMap, MapRay, Method, TraceOptions};
+use pictures::{checker_image, frame, half, masked_flip};
 use std::sync::{Arc, Mutex};
 
 const W: u32 = 192;
@@ -138,23 +142,6 @@ fn enters_through_top(map: &DisplacementMap, ray: &MapRay) -> bool {
     (0.0..=ax).contains(&p.x) && (0.0..=ay).contains(&p.y)
 }
 
-/// Bevy's frame, or the adapter policy's verdict.
-fn frame(app: &mut Headless) -> Option<Image> {
-    match app.capture() {
-        Ok(image) => Some(image),
-        Err(e) => {
-            if std::env::var_os("CI").is_some() {
-                panic!("GPU test: no frame in CI ({e}); CI must install mesa-vulkan-drivers");
-            }
-            if std::env::var("DISPLACE_ALLOW_NO_GPU").is_ok_and(|v| v == "1") {
-                eprintln!("!!!!!!!! DISPLACE_ALLOW_NO_GPU=1: skipping this GPU test ({e})");
-                return None;
-            }
-            panic!("no frame ({e}); install mesa-vulkan-drivers, or set DISPLACE_ALLOW_NO_GPU=1");
-        }
-    }
-}
-
 /// The top of the scene's shell as a Bevy mesh (our material marches down
 /// from the mesh; displace-gpu's face is the shell's bottom): texture
 /// coordinate (0, 0) at the origin, u along the tangent, v along the
@@ -238,11 +225,6 @@ fn spawn_quad(app: &mut Headless, map: &DisplacementMap, scene: &PlaneScene, out
     spawn_displaced(world, map, scene, base, |m| m.with_output(output));
     // Alpha 0 where nothing is drawn: a hit writes alpha 1.
     world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
-}
-
-/// One little-endian binary16 channel.
-fn half(bytes: &[u8]) -> f32 {
-    half::f16::from_le_bytes([bytes[0], bytes[1]]).to_f32()
 }
 
 #[test]
@@ -510,37 +492,6 @@ fn displaced_checker_image_agrees_with_gpu_render() {
     }
 }
 
-/// displace-gpu's checkerboard (`Renderer::new`'s colour map: the same
-/// texels and box-filtered mips) as a Bevy image with displace-gpu's
-/// sampler: sRGB, trilinear, clamped as the map is.
-fn checker_image() -> Image {
-    use bevy::image::{ImageAddressMode, ImageFilterMode, ImageSampler, ImageSamplerDescriptor};
-    const SIZE: u32 = 256;
-    let mips = displace_gpu::raster::checker_mips(SIZE, 16);
-    let mut image = Image::new_uninit(
-        Extent3d {
-            width: SIZE,
-            height: SIZE,
-            depth_or_array_layers: 1,
-        },
-        TextureDimension::D2,
-        TextureFormat::Rgba8UnormSrgb,
-        RenderAssetUsages::RENDER_WORLD,
-    );
-    image.texture_descriptor.mip_level_count = mips.len() as u32;
-    // One layer: the levels in order, as Bevy's default data order reads them.
-    image.data = Some(mips.concat());
-    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
-        address_mode_u: ImageAddressMode::ClampToEdge,
-        address_mode_v: ImageAddressMode::ClampToEdge,
-        mag_filter: ImageFilterMode::Linear,
-        min_filter: ImageFilterMode::Linear,
-        mipmap_filter: ImageFilterMode::Linear,
-        ..default()
-    });
-    image
-}
-
 /// The plugin's quad unlit with [`checker_image`] as its base colour
 /// texture, in an 8-bit sRGB target (four bytes a pixel, alpha 0 where
 /// nothing is drawn); `None` where the adapter policy allows no GPU.
@@ -548,7 +499,9 @@ fn checker_frame(map: &DisplacementMap, scene: &PlaneScene) -> Option<Vec<u8>> {
     let mut app = Headless::new(W, H, TextureFormat::Rgba8UnormSrgb);
     {
         let world = app.world_mut();
-        let texture = world.resource_mut::<Assets<Image>>().add(checker_image());
+        let texture = world
+            .resource_mut::<Assets<Image>>()
+            .add(checker_image(ImageAddressMode::ClampToEdge, usize::MAX));
         let base = StandardMaterial {
             base_color: Color::WHITE,
             base_color_texture: Some(texture),
@@ -568,84 +521,6 @@ fn checker_frame(map: &DisplacementMap, scene: &PlaneScene) -> Option<Vec<u8>> {
     let data = image.data.unwrap();
     assert_eq!(data.len(), (W * H * 4) as usize);
     Some(data)
-}
-
-/// FLIP between the plugin's frame and gpu-render's image over the pixels
-/// both cover.
-struct MaskedFlip {
-    pixels: usize,
-    mean: f32,
-    p99: f32,
-    /// The two sRGB images FLIP compared and its error map (magma), for a
-    /// failure's report.
-    ours: Vec<u8>,
-    theirs: Vec<u8>,
-    error: Vec<u8>,
-}
-
-/// Pixels either side leaves empty are set to one grey in both images
-/// before FLIP runs, so its spatial filters see no difference there (the
-/// shell's side walls, which gpu-render draws and the plugin does not, and
-/// the rasterisers' edge pixels are not the comparison's business), and
-/// only the pixels both cover are pooled: their mean, and their 99th
-/// percentile (nearest rank).
-fn masked_flip(ours: &[u8], theirs: &displace_gpu::Image) -> MaskedFlip {
-    assert_eq!((theirs.width, theirs.height), (W, H));
-    let n = (W * H) as usize;
-    let both: Vec<bool> = (0..n)
-        .map(|i| ours[i * 4 + 3] > 127 && theirs.uv[i][2] != 0.0)
-        .collect();
-    let rgb = |rgba: &[u8]| -> Vec<u8> {
-        (0..n)
-            .flat_map(|i| {
-                if both[i] {
-                    [rgba[i * 4], rgba[i * 4 + 1], rgba[i * 4 + 2]]
-                } else {
-                    [128; 3]
-                }
-            })
-            .collect()
-    };
-    let (a, b) = (rgb(ours), rgb(&theirs.rgba8));
-    let err = nv_flip::flip(
-        nv_flip::FlipImageRgb8::with_data(W, H, &a),
-        nv_flip::FlipImageRgb8::with_data(W, H, &b),
-        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
-    );
-    let values = err.to_vec();
-    let mut pooled: Vec<f32> = (0..n).filter(|&i| both[i]).map(|i| values[i]).collect();
-    pooled.sort_by(f32::total_cmp);
-    let pixels = pooled.len();
-    let mean = pooled.iter().sum::<f32>() / pixels.max(1) as f32;
-    let rank = ((0.99 * pixels as f64).ceil() as usize).max(1);
-    let p99 = pooled.get(rank - 1).copied().unwrap_or(0.0);
-    MaskedFlip {
-        pixels,
-        mean,
-        p99,
-        ours: a,
-        theirs: b,
-        error: err.apply_color_lut(&nv_flip::magma_lut()).to_vec(),
-    }
-}
-
-impl MaskedFlip {
-    /// Writes `NAME.bevy.png`, `NAME.gpu.png` and `NAME.flip.png` under
-    /// Cargo's temporary directory for integration tests, and returns it.
-    fn write(&self, name: &str) -> std::path::PathBuf {
-        let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
-        for (what, rgb) in [
-            ("bevy", &self.ours),
-            ("gpu", &self.theirs),
-            ("flip", &self.error),
-        ] {
-            image::RgbImage::from_raw(W, H, rgb.clone())
-                .unwrap()
-                .save(dir.join(format!("{name}.{what}.png")))
-                .unwrap();
-        }
-        dir
-    }
 }
 
 /// The prepass depth copied out before the main pass, as in Bevy's

@@ -62,7 +62,7 @@ impl std::str::FromStr for DistanceTexture {
 /// The shader modules an entry point may import, in the order naga_oil needs
 /// them (each after the modules it imports), with the `displace::bindings`
 /// and `displace::distance` of one distance-lookup flavour.
-fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 8] {
+fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 11] {
     let (bindings, distance) = if texture.filtered() {
         (
             ("bindings_filtered.wgsl", BINDINGS_FILTERED),
@@ -79,6 +79,9 @@ fn library(texture: DistanceTexture) -> [(&'static str, &'static str); 8] {
         bindings,
         distance,
         ("surface.wgsl", SURFACE),
+        ("curved_prism.wgsl", CURVED_PRISM),
+        ("curved_bindings.wgsl", CURVED_BINDINGS),
+        ("curved_walk.wgsl", CURVED_WALK),
         ("lighting.wgsl", LIGHTING),
         ("shade.wgsl", SHADE),
         ("batch.wgsl", BATCH),

@@ -4,7 +4,8 @@
 //! library free of any graphics API: the WGSL modules with their naga_oil
 //! import paths ([`wgsl`]), the codes and tolerances the shaders share with
 //! Rust ([`codes`]), and the uniform every trace reads with the computation
-//! of its values from a baked map ([`MapParams`]).
+//! of its values from a baked map ([`MapParams`]), and the storage layout
+//! of a curved mesh's shells ([`curved_prisms`]).
 //!
 //! displace-gpu composes these modules into its wgpu pipelines;
 //! displace-bevy registers the shared ones with Bevy's shader cache, as
@@ -15,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod codes;
+pub mod curved_prisms;
 pub mod map_params;
 pub mod wgsl;
 

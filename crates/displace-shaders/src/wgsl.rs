@@ -36,6 +36,14 @@ pub const SHADE: &str = include_str!("../shaders/shade.wgsl");
 pub const RASTER: &str = include_str!("../shaders/raster.wgsl");
 /// The shell of a mesh: vertex and fragment stages with per-vertex frames.
 pub const MESH: &str = include_str!("../shaders/mesh.wgsl");
+/// `displace::curved_prism`: one shell of a curved mesh as its storage
+/// buffer holds it, mirrored by [`crate::curved_prisms::GpuPrism`].
+pub const CURVED_PRISM: &str = include_str!("../shaders/curved_prism.wgsl");
+/// `displace::curved_bindings` of displace-gpu's group 2: the prisms.
+pub const CURVED_BINDINGS: &str = include_str!("../shaders/curved_bindings.wgsl");
+/// `displace::curved_walk`: a curved mesh's shells walked from the fragment
+/// where the ray enters them to the first hit, for every raster host.
+pub const CURVED_WALK: &str = include_str!("../shaders/curved_walk.wgsl");
 /// The raster path of curved meshes: their shells walked per fragment.
 pub const CURVED: &str = include_str!("../shaders/curved.wgsl");
 /// Non-displaced triangles, shaded like the CPU's direct light.

@@ -151,6 +151,44 @@ fn map_params_layout_matches_wgsl() {
     }
 }
 
+/// `GpuPrism` is laid out as WGSL's `Prism` (`displace::curved_prism`):
+/// nine 16-byte members in order, 144 bytes, the storage array's stride,
+/// so the prisms displace-gpu and displace-bevy upload read as written.
+#[test]
+fn prism_layout_matches_wgsl() {
+    use displace_shaders::curved_prisms::GpuPrism;
+    let src: String = displace_shaders::wgsl::CURVED_PRISM
+        .lines()
+        .filter(|l| !l.starts_with("#define_import_path"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let module = naga::front::wgsl::parse_str(&src)
+        .unwrap_or_else(|e| panic!("curved_prism.wgsl: {}", e.emit_to_string(&src)));
+    let (_, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Prism"))
+        .expect("Prism in WGSL");
+    let naga::TypeInner::Struct { members, span } = &ty.inner else {
+        panic!("Prism is a struct")
+    };
+    assert_eq!(*span as usize, std::mem::size_of::<GpuPrism>());
+    // Rust's fields: p (3 corners), n (3 normals), m01, m2, adj.
+    let rust = [0, 16, 32, 48, 64, 80, 96, 112, 128];
+    let names = ["pa", "pb", "pc", "na", "nb", "nc", "mab", "mc", "adj"];
+    assert_eq!(members.len(), rust.len());
+    for ((m, offset), name) in members.iter().zip(rust).zip(names) {
+        assert_eq!(m.name.as_deref(), Some(name));
+        assert_eq!(m.offset as usize, offset, "Prism.{name}");
+    }
+    let p = GpuPrism::default();
+    let base = &p as *const GpuPrism as usize;
+    assert_eq!(&p.n as *const _ as usize - base, 48);
+    assert_eq!(&p.m01 as *const _ as usize - base, 96);
+    assert_eq!(&p.m2 as *const _ as usize - base, 112);
+    assert_eq!(&p.adj as *const _ as usize - base, 128);
+}
+
 /// Bevy uploads `MapParams` with `encase`, displace-gpu with `bytemuck`:
 /// the same 80 bytes, for maps of both addressings and every trace option.
 #[test]
@@ -215,6 +253,9 @@ fn modules_name_their_import_path() {
         (LIGHTING, "displace::lighting"),
         (SHADE, "displace::shade"),
         (TECHNIQUES, "displace::techniques"),
+        (CURVED_PRISM, "displace::curved_prism"),
+        (CURVED_BINDINGS, "displace::curved_bindings"),
+        (CURVED_WALK, "displace::curved_walk"),
     ] {
         let first = src.lines().next().unwrap_or_default();
         assert_eq!(first, format!("#define_import_path {path}"));

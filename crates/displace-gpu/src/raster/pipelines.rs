@@ -107,6 +107,18 @@ impl Renderer {
         Self::with_colour(ctx, map, texture, Colour::Checker, Shape::Mesh(mesh))
     }
 
+    /// A renderer of a curved mesh's `shells` with Donnelly's checkerboard
+    /// (as [`Renderer::new`]): what displace-bevy's curved material is
+    /// compared with.
+    pub fn checker_curved(
+        ctx: &GpuContext,
+        map: &DisplacementMap,
+        texture: DistanceTexture,
+        shells: &CurvedShells,
+    ) -> Result<Self> {
+        Self::with_colour(ctx, map, texture, Colour::Checker, Shape::Curved(shells))
+    }
+
     /// A renderer whose surface colour is the constant linear `albedo`
     /// (a scene material's colour; each channel clamped to `[0, 1]`, stored
     /// as 8-bit sRGB like the checkerboard), for faces of the handedness

@@ -211,6 +211,7 @@ impl Draws<'_> {
             disp.map.aspect(),
             disp.map.address(),
         )
+        .map_err(|e| Error::InvalidOption(e.to_string()))
         .map_err(step(format!("preparing the shells of mesh {k}")))?;
         let albedo = shading.albedo.to_array();
         let (bounds, renderer) = match &curved {
