@@ -208,8 +208,8 @@ impl CurvedShellMesh {
 
 /// The boundary triangles as a Bevy mesh: positions, the faces' normals
 /// (Bevy's pipelines want normals; the lit normal is the hit's) and the
-/// prism in `uv.x` (exact in `f32` below 2^24 triangles, which the prism
-/// buffer's size bounds long before).
+/// prism in `uv.x` (exact in `f32` below 2^24 triangles, which
+/// [`MAX_TRIANGLES`] keeps far below).
 fn boundary_mesh(shells: &CurvedShells) -> Mesh {
     let positions: Vec<[f32; 3]> = shells.vertices.iter().map(|v| v.position).collect();
     let normals: Vec<[f32; 3]> = positions
@@ -233,9 +233,16 @@ fn boundary_mesh(shells: &CurvedShells) -> Mesh {
     .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
 }
 
-/// Most triangles a curved mesh may have: the prisms' texture coordinate
-/// holds their index exactly below 2^24.
-pub const MAX_TRIANGLES: usize = 1 << 24;
+/// Most bytes of prisms one material binds: WebGPU's default
+/// `max_storage_buffer_binding_size` (128 MiB), the limit wgpu grants on
+/// every adapter. Bigger meshes are refused before anything is built.
+pub const MAX_PRISM_BYTES: usize = 128 << 20;
+
+/// Most triangles a curved mesh may have: its prisms within
+/// [`MAX_PRISM_BYTES`] (932 067 triangles; their index, in the boundary's
+/// texture coordinate, is exact far beyond).
+pub const MAX_TRIANGLES: usize =
+    MAX_PRISM_BYTES / std::mem::size_of::<displace_shaders::curved_prisms::GpuPrism>();
 
 /// The triangles of a Bevy triangle list, their texture coordinates scaled
 /// by `uv_scale`, in displace-scene's types (its glam is not Bevy's:
@@ -282,7 +289,8 @@ fn triangles_of(mesh: &Mesh, uv_scale: Vec2) -> Result<Vec<MeshTriangle>, Error>
     }
     if indices.len() / 3 > MAX_TRIANGLES {
         return Err(Error::Invalid(format!(
-            "{} triangles: a curved mesh holds at most {MAX_TRIANGLES}",
+            "{} triangles: a curved mesh holds at most {MAX_TRIANGLES} (its prisms, 144 bytes each, \
+             must fit one storage buffer binding of {MAX_PRISM_BYTES} bytes)",
             indices.len() / 3
         )));
     }
@@ -300,18 +308,19 @@ fn triangles_of(mesh: &Mesh, uv_scale: Vec2) -> Result<Vec<MeshTriangle>, Error>
             "vertex {k} has a NaN or infinite position, normal or texture coordinate"
         )));
     }
+    let (positions, normals) = welded(&positions[..count], &normals[..count]);
     Ok(indices
         .chunks(3)
         .map(|t| {
             let corner = |k: usize| {
                 (
-                    glam::Vec3::from_array(positions[t[k]]),
-                    glam::Vec3::from_array(normals[t[k]]).normalize_or_zero(),
+                    positions[t[k]],
+                    normals[t[k]],
                     glam::Vec2::new(uvs[t[k]][0] * uv_scale.x, uvs[t[k]][1] * uv_scale.y),
                 )
             };
             let c = [corner(0), corner(1), corner(2)];
-            let normals = c.map(|c| c.1);
+            let normals: [glam::Vec3; 3] = c.map(|c| c.1);
             MeshTriangle {
                 positions: c.map(|c| c.0),
                 // A zero normal leaves the triangle its face's (flat) shell,
@@ -324,4 +333,160 @@ fn triangles_of(mesh: &Mesh, uv_scale: Vec2) -> Result<Vec<MeshTriangle>, Error>
             }
         })
         .collect())
+}
+
+/// The vertices with every near-copy of one (a position within a
+/// millionth of the mesh's size, a normal within a tenth of a degree)
+/// made the very same bits, normals normalised. Neighbouring shells share
+/// a side only where their corners agree bit for bit
+/// ([`MeshShells`]); a generated mesh's seam vertices (a torus's first
+/// and last ring, `cos 2 pi` against `cos 0`) differ in the last bits, and
+/// would leave walls along the seams. Vertices at one place with normals
+/// apart (a crease) stay apart.
+fn welded(positions: &[[f32; 3]], normals: &[[f32; 3]]) -> (Vec<glam::Vec3>, Vec<glam::Vec3>) {
+    use std::collections::HashMap;
+    let p: Vec<glam::Vec3> = positions
+        .iter()
+        .map(|&v| glam::Vec3::from_array(v))
+        .collect();
+    let mut n: Vec<glam::Vec3> = normals
+        .iter()
+        .map(|&v| glam::Vec3::from_array(v).normalize_or_zero())
+        .collect();
+    let (lo, hi) = p.iter().fold(
+        (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
+        |(lo, hi), &v| (lo.min(v), hi.max(v)),
+    );
+    let eps = (hi - lo).length() * 1e-6;
+    if !(eps > 0.0 && eps.is_finite()) {
+        return (p, n);
+    }
+    let cos_tol = 0.1f32.to_radians().cos();
+    let cell = |v: glam::Vec3| (v / eps).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
+    let mut out = p.clone();
+    for k in 0..p.len() {
+        let c = cell(p[k]);
+        let mut found = None;
+        'search: for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(reps) = grid.get(&(c + glam::IVec3::new(dx, dy, dz))) else {
+                        continue;
+                    };
+                    for &r in reps {
+                        if p[r].distance(p[k]) <= eps && n[r].dot(n[k]) >= cos_tol {
+                            found = Some(r);
+                            break 'search;
+                        }
+                    }
+                }
+            }
+        }
+        match found {
+            Some(r) => {
+                out[k] = out[r];
+                n[k] = n[r];
+            }
+            None => grid.entry(c).or_default().push(k),
+        }
+    }
+    (out, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use displace_core::Address;
+
+    fn map() -> DisplacementMap {
+        let height = displace_core::io::height::load(
+            "gen:noise",
+            &displace_core::io::height::HeightOptions {
+                size: [16, 16],
+                address: Address::Repeat,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        displace_core::bake(
+            &height,
+            &displace_core::BakeOptions {
+                size: [16, 16, 4],
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    }
+
+    fn build(mesh: &Mesh, depth: f32) -> Result<CurvedShellMesh, Error> {
+        let mut images = Assets::<Image>::default();
+        let mut buffers = Assets::<ShaderBuffer>::default();
+        CurvedShellMesh::new(
+            mesh,
+            Vec2::new(4.0, 2.0),
+            &map(),
+            depth,
+            Encoding::R8,
+            &mut images,
+            &mut buffers,
+        )
+    }
+
+    /// Bevy's own meshes build: one prism a triangle, the boundary of a
+    /// closed torus its tops and bases, each vertex naming a prism.
+    #[test]
+    fn bevy_meshes_build_their_shells() {
+        let torus = Torus::new(0.25, 0.55).mesh().build();
+        let triangles = torus.indices().unwrap().len() / 3;
+        let shells = build(&torus, 0.05).unwrap();
+        let Some(VertexAttributeValues::Float32x2(uvs)) =
+            shells.mesh.attribute(Mesh::ATTRIBUTE_UV_0)
+        else {
+            panic!("the boundary has texture coordinates")
+        };
+        assert_eq!(uvs.len(), triangles * 6);
+        assert!(uvs
+            .iter()
+            .all(|uv| uv[0] >= 0.0 && (uv[0] as usize) < triangles && uv[0].fract() == 0.0));
+        let sphere = Sphere::new(0.6).mesh().uv(32, 16);
+        assert!(build(&sphere, 0.04).is_ok());
+    }
+
+    /// What the shells cannot be built from is an error naming it, never
+    /// a panic.
+    #[test]
+    fn bad_meshes_are_refused_by_name() {
+        let torus = || Torus::new(0.25, 0.55).mesh().build();
+        let refused = |mesh: &Mesh, depth: f32, what: &str| {
+            let e = build(mesh, depth).err().expect(what).to_string();
+            assert!(e.contains(what), "{e:?} should name {what:?}");
+        };
+        let mut no_normals = torus();
+        no_normals.remove_attribute(Mesh::ATTRIBUTE_NORMAL);
+        refused(&no_normals, 0.05, "normals");
+        let mut no_uvs = torus();
+        no_uvs.remove_attribute(Mesh::ATTRIBUTE_UV_0);
+        refused(&no_uvs, 0.05, "texture coordinates");
+        let mut nan = torus();
+        if let Some(VertexAttributeValues::Float32x3(p)) =
+            nan.attribute_mut(Mesh::ATTRIBUTE_POSITION)
+        {
+            p[3][1] = f32::NAN;
+        }
+        refused(&nan, 0.05, "vertex 3");
+        let mut past = torus();
+        past.insert_indices(Indices::U32(vec![0, 1, 100_000]));
+        refused(&past, 0.05, "index 100000");
+        let mut ragged = torus();
+        ragged.insert_indices(Indices::U32(vec![0, 1, 2, 3]));
+        refused(&ragged, 0.05, "whole triangles");
+        let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::RENDER_WORLD);
+        refused(&lines, 0.05, "triangle list");
+        refused(&torus(), 0.0, "depth");
+        refused(&torus(), f32::INFINITY, "depth");
+        // A plane's vertex normals are its face's: nothing is curved.
+        let plane = Plane3d::default().mesh().size(1.0, 1.0).build();
+        refused(&plane, 0.05, "curved");
+    }
 }
