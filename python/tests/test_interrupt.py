@@ -20,6 +20,22 @@ def interrupt_after(seconds):
     return t
 
 
+@pytest.fixture(autouse=True)
+def keyboard_interrupt_handler():
+    """Python's own SIGINT handler (KeyboardInterrupt) for these tests.
+
+    Python installs it at start-up only when SIGINT is not ignored, and a
+    shell that starts the suite in the background (`bash .ci/run &`, nohup
+    under a non-interactive shell) hands it SIGINT ignored: the signal
+    would then never reach the binding, and the test would wait out the
+    whole render. What is under test is what the binding does with the
+    handler an interactive Python has.
+    """
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 @pytest.fixture(scope="module")
 def scene():
     return displace.Scene(REPO / "scenes" / "cornell_studded.toml", cache=False)

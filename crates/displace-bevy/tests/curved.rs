@@ -9,7 +9,9 @@
 //!   by FLIP's mean and 99th percentile, with the flat material's
 //!   thresholds; a shallower gpu-render sphere fails them;
 //! - on a smooth height field the normals show no seam (lines of broken
-//!   normals, or lone pixels of the far side through a hole).
+//!   normals, or lone pixels of the far side through a hole);
+//! - an orthographic view (the shadow maps' path, where the walk starts
+//!   behind the fragment) covers the displaced sphere's disc.
 //!
 //! The torus is drawn with a Bevy `Transform` (turned and moved) against
 //! gpu-render's triangles moved alike, so the material's walk in the mesh's
@@ -152,16 +154,21 @@ impl Curved {
         .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
     }
 
-    fn camera(&self, target: RenderTarget) -> impl Bundle {
+    /// The pinhole camera gpu-render's view has.
+    fn perspective(&self) -> Projection {
+        Projection::Perspective(PerspectiveProjection {
+            fov: self.fov_y_degrees.to_radians(),
+            aspect_ratio: W as f32 / H as f32,
+            near: 0.01,
+            ..default()
+        })
+    }
+
+    fn camera(&self, target: RenderTarget, projection: Projection) -> impl Bundle {
         (
             Camera3d::default(),
             target,
-            Projection::Perspective(PerspectiveProjection {
-                fov: self.fov_y_degrees.to_radians(),
-                aspect_ratio: W as f32 / H as f32,
-                near: 0.01,
-                ..default()
-            }),
+            projection,
             Transform::from_translation(self.eye).looking_at(self.target, Vec3::Y),
             Msaa::Off,
             Tonemapping::None,
@@ -176,6 +183,17 @@ impl Curved {
         base: impl FnOnce(&mut World) -> StandardMaterial,
         output: Output,
         format: TextureFormat,
+    ) -> Option<Vec<u8>> {
+        self.bevy_frame_with(base, output, format, self.perspective())
+    }
+
+    /// [`Curved::bevy_frame`] through `projection`.
+    fn bevy_frame_with(
+        &self,
+        base: impl FnOnce(&mut World) -> StandardMaterial,
+        output: Output,
+        format: TextureFormat,
+        projection: Projection,
     ) -> Option<Vec<u8>> {
         let mut app = Headless::new(W, H, format);
         {
@@ -207,7 +225,7 @@ impl Curved {
             world.insert_resource(ClearColor(Color::linear_rgba(0.02, 0.02, 0.03, 0.0)));
         }
         let target = app.target();
-        let camera = self.camera(target);
+        let camera = self.camera(target, projection);
         if format == TextureFormat::Rgba16Float {
             app.world_mut().spawn((camera, Hdr));
         } else {
@@ -465,4 +483,38 @@ fn the_seam_measure_sees_a_line() {
     };
     assert_eq!(seams(&field(false)), 0);
     assert!(seams(&field(true)) >= 100);
+}
+
+/// An orthographic view (the view of a directional light's shadow map,
+/// where the walk starts behind the fragment: `CurvedMappingSettings::reach`)
+/// of the sphere displaced on a flat field: the surface lies 0.6 of the
+/// depth out along the vertex normals, a sphere of radius `1 + 0.6 depth`
+/// to within the base mesh's chords (0.2%), so the pixels hit cover its
+/// disc. The undisplaced sphere's disc is 9% smaller.
+#[test]
+fn an_orthographic_view_sees_the_displaced_silhouette() {
+    use bevy::camera::ScalingMode;
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = Curved::new("sphere", "gen:flat?level=0.6", 16);
+    let height = 2.6;
+    let projection = Projection::Orthographic(OrthographicProjection {
+        scaling_mode: ScalingMode::Fixed {
+            width: height * W as f32 / H as f32,
+            height,
+        },
+        ..OrthographicProjection::default_3d()
+    });
+    let Some(hits) =
+        scene.bevy_frame_with(unlit, Output::Hit, TextureFormat::Rgba16Float, projection)
+    else {
+        return;
+    };
+    let covered = (0..(W * H) as usize)
+        .filter(|i| half(&hits[i * 8 + 6..i * 8 + 8]) > 0.5)
+        .count();
+    let pixel = (height / H as f32).powi(2);
+    let radius = 1.0 + 0.6 * scene.depth;
+    let ratio = covered as f32 * pixel / (std::f32::consts::PI * radius * radius);
+    eprintln!("orthographic: {covered} pixels, {ratio:.4} of the displaced sphere's disc");
+    assert!((ratio - 1.0).abs() <= 0.02, "covered {ratio} of the disc");
 }
