@@ -254,9 +254,9 @@ fn triangles_of(mesh: &Mesh, uv_scale: Vec2) -> Result<Vec<MeshTriangle>, Error>
             mesh.primitive_topology()
         )));
     }
-    let attribute = |id, name: &str| -> Result<Vec<[f32; 3]>, Error> {
+    let attribute = |id, name: &str| -> Result<&[[f32; 3]], Error> {
         match mesh.attribute(id) {
-            Some(VertexAttributeValues::Float32x3(v)) => Ok(v.clone()),
+            Some(VertexAttributeValues::Float32x3(v)) => Ok(v.as_slice()),
             Some(other) => Err(Error::Invalid(format!(
                 "the mesh's {name} are {other:?}-typed, not Float32x3",
                 other = other.enum_variant_name()
@@ -270,7 +270,7 @@ fn triangles_of(mesh: &Mesh, uv_scale: Vec2) -> Result<Vec<MeshTriangle>, Error>
     let normals = attribute(Mesh::ATTRIBUTE_NORMAL, "normals")?;
     let uvs =
         match mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
-            Some(VertexAttributeValues::Float32x2(v)) => v.clone(),
+            Some(VertexAttributeValues::Float32x2(v)) => v.as_slice(),
             _ => return Err(Error::Invalid(
                 "the mesh has no Float32x2 texture coordinates (UV_0): the map is laid over them"
                     .into(),
