@@ -15,9 +15,15 @@
 //! space whatever the world mapping stretches, then the exact walk over the
 //! bilinear patches. A hit on a chord is carried back to the world ray and
 //! refined there on the true curve (regula falsi on `w - h(uv)`), so the
-//! world hit lies on the surface `S = P + depth h(uv) N` to double
-//! precision; the chords' tolerance bounds what they can miss (a bump the
-//! curve grazes by less than it).
+//! world hit lies on the surface `S = P + depth h(uv) N` to a billionth of
+//! its distance (far under single precision, which hits are reported in);
+//! the chords' tolerance bounds what they can miss (a bump the curve grazes
+//! by less than it).
+//!
+//! Each face's shell is cut down to the highest the heights over its
+//! triangle rise ([`CurvedShell::topped_at`]): rays passing over the local
+//! heights then miss its hull, and a stretch ends where the surface can
+//! no longer be.
 //!
 //! A ray entering the shell under the surface hits what it entered
 //! through: the base, or a side that no neighbour shares (the mesh's open
@@ -44,6 +50,10 @@ const MAX_GRAZES: u32 = 8;
 
 /// Deepest halving of one stretch of a ray into chords.
 const MAX_CHORD_DEPTH: u32 = 24;
+
+/// A point of the ray located in the shell: its shell coordinates, map
+/// point and height above the surface, `w - h` ([`CurvedFace::probe`]).
+type Probe = (Located, DVec3, f64);
 
 /// A hit on a curved face before it is shaded: where in the world and in
 /// the triangle's shell coordinates.
@@ -113,11 +123,13 @@ pub struct CurvedFace {
 /// field's steepest slope found.
 impl From<&CurvedDisplacement> for CurvedFace {
     fn from(c: &CurvedDisplacement) -> Self {
-        let shell = *c.shell();
         let map = c.map().clone();
         let [ax, ay] = map.aspect();
         let aspect = DVec2::new(ax as f64, ay as f64);
         let (corners, to_bary) = c.texture_frame();
+        let shell = c
+            .shell()
+            .topped_at(highest(&map, corners.map(|xy| xy / aspect)));
         let bounds = Aabb::from_points(shell.corners().map(|p| p.as_vec3()));
         let [su, sv] = map.height.max_steps();
         let texel = aspect / DVec2::new(map.height.width() as f64, map.height.height() as f64);
@@ -182,7 +194,7 @@ impl CurvedFace {
     }
 
     /// Shell coordinates, map point and `w - h` of the ray at `t`.
-    fn probe(&self, o: DVec3, d: DVec3, t: f64, hint: f64) -> Option<(Located, DVec3, f64)> {
+    fn probe(&self, o: DVec3, d: DVec3, t: f64, hint: f64) -> Option<Probe> {
         let loc = self.shell.locate(o + t * d, hint)?;
         let c = self.map_point(&loc);
         Some((loc, c, self.above(c)))
@@ -216,7 +228,10 @@ impl CurvedFace {
     fn trace(&self, ray: &Ray, t_min: f32, t_max: f32, query: Query) -> Option<Found> {
         let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
         let (t_min, t_max) = (t_min as f64, t_max as f64);
-        if !self.shell.admits(o, d, t_min, t_max) {
+        // The hull over all of the ray past `t_min`: a stretch's inside is
+        // judged whatever `t_max`.
+        let (hull_in, hull_out) = self.shell.hull_span(o, d, t_min, f64::INFINITY)?;
+        if hull_in > t_max {
             return None;
         }
         let (mut xs, n) = self.shell.crossings(o, d, t_min, f64::INFINITY);
@@ -239,14 +254,20 @@ impl CurvedFace {
             }
             if b > a {
                 let mid = 0.5 * (a + b);
-                let inside = self
-                    .shell
-                    .locate(o + mid * d, 0.5 * self.shell.top())
-                    .is_some_and(|loc| self.shell.contains(&loc, 1e-9));
-                if inside {
+                // Outside the hull is outside the shell: the stretch
+                // before the ray enters needs no point located.
+                let inside = if (hull_in..=hull_out).contains(&mid) {
+                    self.shell
+                        .locate(o + mid * d, 0.5 * self.shell.top())
+                        .filter(|loc| self.shell.contains(loc, 1e-9))
+                } else {
+                    None
+                };
+                if let Some(mid) = inside {
                     let exit = next.map(|c| c.boundary);
                     let ends = ((a, entry), (b, exit));
-                    if let Some(found) = self.stretch(o, d, ends, t_max, query, &mut iterations) {
+                    let found = self.stretch(o, d, ends, mid, t_max, query, &mut iterations);
+                    if let Some(found) = found {
                         return Some(found);
                     }
                 }
@@ -265,12 +286,16 @@ impl CurvedFace {
     /// through `exit` (`None`: it ends inside). Both queries find the same
     /// hit: the any-hit query skips only the refinement when the chord's
     /// hit already lies under the surface before `t_max` (the root then
-    /// lies between the stretch's start and it).
+    /// lies between the stretch's start and it). `mid` is the stretch's
+    /// midpoint, located already (it told the stretch inside the shell):
+    /// the first chord's halving reuses it.
+    #[allow(clippy::too_many_arguments)]
     fn stretch(
         &self,
         o: DVec3,
         d: DVec3,
         ((ta, entry), (tb, exit)): ((f64, Option<Crossing>), (f64, Option<Boundary>)),
+        mid: Located,
         t_max: f64,
         query: Query,
         iterations: &mut u32,
@@ -299,7 +324,7 @@ impl CurvedFace {
                     boundary: Boundary::Top,
                     ..
                 }) => None,
-                Some(c) => Some(c.normal),
+                Some(c) => Some(self.shell.crossing_normal(&c, d)),
                 None => Some(-d),
             };
             return Some(match wall {
@@ -314,8 +339,10 @@ impl CurvedFace {
         // the stretch's start, then past each graze (a chord's hit that
         // the curve passes over: no root next to it).
         let mut from = (ta, ca, la.lambda);
+        let mut mid = Some(mid);
         for graze in 0..=MAX_GRAZES {
-            let Some((t, span)) = self.chords(o, d, from, (tb, cb), 0, iterations) else {
+            let chords = self.chords(o, d, from, (tb, cb), mid.take(), 0, iterations);
+            let Some((t, span)) = chords else {
                 // Heights never go below the base: a ray leaving through
                 // it has met the surface there
                 // (`displace_core::sphere_trace::leaves_through_floor`),
@@ -330,24 +357,20 @@ impl CurvedFace {
                 let (loc, c, _) = self.probe(o, d, tb, la.lambda)?;
                 return Some(self.surface_hit(o, d, tb, &loc, c, *iterations));
             };
-            if query == Query::Any
-                && t <= t_max
-                && self
-                    .probe(o, d, t, la.lambda)
-                    .is_some_and(|(_, _, g)| g <= 0.0)
-            {
+            let at_t = self.probe(o, d, t, la.lambda);
+            if query == Query::Any && t <= t_max && at_t.is_some_and(|(_, _, g)| g <= 0.0) {
                 return Some(Found::Blocked);
             }
-            let t = match self.refine(o, d, (from.0, tb), t, span, la.lambda) {
+            let (t, known) = match self.refine(o, d, (from.0, tb), (t, at_t), span, la.lambda) {
                 Some(root) => root,
                 None if graze < MAX_GRAZES => {
-                    let (l, c, _) = self.probe(o, d, t, la.lambda)?;
+                    let (l, c, _) = at_t?;
                     from = (t, c, l.lambda);
                     continue;
                 }
                 // Grazing still: the chord's hit, within the chords'
                 // tolerance above the surface, stands.
-                None => t,
+                None => (t, at_t),
             };
             if t > t_max {
                 return None;
@@ -355,7 +378,7 @@ impl CurvedFace {
             if query == Query::Any {
                 return Some(Found::Blocked);
             }
-            let (loc, c, _) = self.probe(o, d, t, la.lambda)?;
+            let (loc, c, _) = known.or_else(|| self.probe(o, d, t, la.lambda))?;
             return Some(self.surface_hit(o, d, t, &loc, c, *iterations));
         }
         None
@@ -364,13 +387,16 @@ impl CurvedFace {
     /// The first chord hit on the curve from `a` to `b` (ray parameters
     /// and map points), as a ray parameter with the chord's span of ray
     /// parameters: the chord halved while its midpoint strays from the
-    /// curve's, then traced by the core.
+    /// curve's, then traced by the core. `mid`, when given, is the curve's
+    /// point halfway, located already.
+    #[allow(clippy::too_many_arguments)]
     fn chords(
         &self,
         o: DVec3,
         d: DVec3,
         a: (f64, DVec3, f64),
         b: (f64, DVec3),
+        mid: Option<Located>,
         depth: u32,
         iterations: &mut u32,
     ) -> Option<(f64, f64)> {
@@ -378,13 +404,16 @@ impl CurvedFace {
         let (tb, cb) = b;
         if depth < MAX_CHORD_DEPTH {
             let tm = 0.5 * (ta + tb);
-            if let Some((lm, cm, _)) = self.probe(o, d, tm, hint) {
+            let located = match mid {
+                Some(lm) => Some((lm, self.map_point(&lm))),
+                None => self.probe(o, d, tm, hint).map(|(lm, cm, _)| (lm, cm)),
+            };
+            if let Some((lm, cm)) = located {
                 if self.chord_error(cm - 0.5 * (ca + cb)) > CHORD_TOLERANCE {
+                    let m = (tm, cm, lm.lambda);
                     return self
-                        .chords(o, d, a, (tm, cm), depth + 1, iterations)
-                        .or_else(|| {
-                            self.chords(o, d, (tm, cm, lm.lambda), b, depth + 1, iterations)
-                        });
+                        .chords(o, d, a, (tm, cm), None, depth + 1, iterations)
+                        .or_else(|| self.chords(o, d, m, b, None, depth + 1, iterations));
                 }
             }
         }
@@ -425,23 +454,27 @@ impl CurvedFace {
     /// [`CHORD_TOLERANCE`] of the curve. `None` when the curve stays above
     /// the surface from `t` on to `tb` (a graze: the chord dipped into a
     /// bump that the curve passes over); `t` itself where the curve cannot
-    /// be located.
+    /// be located. `at_t` is the curve's point at `t`, probed already; the
+    /// root comes with its probe where the search made one there.
     fn refine(
         &self,
         o: DVec3,
         d: DVec3,
         (ta, tb): (f64, f64),
-        t: f64,
+        (t, at_t): (f64, Option<Probe>),
         span: f64,
         hint: f64,
-    ) -> Option<f64> {
-        let g = |t: f64| self.probe(o, d, t, hint).map(|(_, _, g)| g);
-        let Some(gt) = g(t) else {
-            return Some(t);
+    ) -> Option<(f64, Option<Probe>)> {
+        let probe = |t: f64| self.probe(o, d, t, hint);
+        let g = |p: &Option<Probe>| p.map(|(_, _, g)| g);
+        let Some((_, _, gt)) = at_t else {
+            return Some((t, None));
         };
         if gt == 0.0 {
-            return Some(t);
+            return Some((t, at_t));
         }
+        // The probe of the bracket's upper end, the root it returns.
+        let mut hi_probe = at_t;
         let first = 1e-3 * span.max(1e-12);
         // A bracket: [last point above, first point under].
         let (mut lo, mut hi, mut glo, mut ghi) = if gt < 0.0 {
@@ -451,11 +484,11 @@ impl CurvedFace {
             let mut glo = gt;
             while glo < 0.0 && lo > ta {
                 lo = (t - step).max(ta);
-                glo = g(lo).unwrap_or(0.0);
+                glo = g(&probe(lo)).unwrap_or(0.0);
                 step *= 8.0;
             }
             if glo < 0.0 {
-                return Some(t);
+                return Some((t, at_t));
             }
             (lo, t, glo, gt)
         } else {
@@ -464,7 +497,8 @@ impl CurvedFace {
             let mut ghi = gt;
             while ghi > 0.0 && hi < tb {
                 hi = (t + step).min(tb);
-                ghi = g(hi).unwrap_or(0.0);
+                hi_probe = probe(hi);
+                ghi = g(&hi_probe).unwrap_or(0.0);
                 step *= 8.0;
             }
             if ghi > 0.0 {
@@ -473,10 +507,12 @@ impl CurvedFace {
             (t, hi, gt, ghi)
         };
         let mut side = 0i8;
+        // To a billionth of the ray parameter: hits are single precision.
         for _ in 0..60 {
             let m = (lo * ghi - hi * glo) / (ghi - glo);
             let m = if m > lo && m < hi { m } else { 0.5 * (lo + hi) };
-            let Some(gm) = g(m) else { break };
+            let pm = probe(m);
+            let Some(gm) = g(&pm) else { break };
             if gm >= 0.0 {
                 lo = m;
                 glo = gm;
@@ -487,17 +523,18 @@ impl CurvedFace {
             } else {
                 hi = m;
                 ghi = gm;
+                hi_probe = pm;
                 if side == -1 {
                     glo *= 0.5;
                 }
                 side = -1;
             }
-            if hi - lo <= 1e-12 * (1.0 + hi.abs()) {
+            if hi - lo <= 1e-9 * (1.0 + hi.abs()) {
                 break;
             }
         }
         // The first point under the surface: never in front of it.
-        Some(hi)
+        Some((hi, hi_probe))
     }
 
     /// The geometric normal of the surface at shell coordinates `loc` and
@@ -567,6 +604,23 @@ impl CurvedFace {
             iterations: hit.iterations,
             wall: hit.wall,
         }
+    }
+}
+
+/// The highest the surface rises over the triangle with texture
+/// coordinates `uv` (tiles): the exact maximum of the bilinear heights over
+/// the triangle's bounding rectangle, widened by more than the rounding of
+/// the single-precision coordinates the trace samples at.
+fn highest(map: &DisplacementMap, uv: [DVec2; 3]) -> f64 {
+    let pad = |v: DVec2| 1e-6 * (DVec2::ONE + v.abs());
+    let lo = uv[0].min(uv[1]).min(uv[2]);
+    let hi = uv[0].max(uv[1]).max(uv[2]);
+    let (lo, hi) = ((lo - pad(lo)).as_vec2(), (hi + pad(hi)).as_vec2());
+    let (_, top) = map.height.range(lo.x, hi.x, lo.y, hi.y);
+    if top.is_finite() {
+        top as f64 + 1e-6
+    } else {
+        1.0
     }
 }
 
