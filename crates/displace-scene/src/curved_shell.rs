@@ -200,22 +200,28 @@ fn hull_planes(p: &[DVec3; 3], n: &[DVec3; 3], top: f64) -> ([(DVec3, f64); 10],
         .fold(0.0, f64::max)
         .max(1e-300);
     let size = q.iter().map(|v| (*v - centre).length()).fold(0.0, f64::max);
-    let mut out = [(DVec3::ZERO, 0.0); 10];
+    let mut out = [(DVec3::ZERO, 0.0f64); 10];
     let mut count = 0;
+    // The base and the top, then the sides' planes in turn, so that every
+    // side has one in before the array is full.
     let mut candidates = vec![[0, 1, 2], [3, 4, 5]];
-    for k in 0..3 {
-        let (i, j) = (k, (k + 1) % 3);
-        candidates.extend([
-            [i, j, 3 + j],
-            [i, 3 + j, 3 + i],
-            [i, j, 3 + i],
-            [j, 3 + j, 3 + i],
-        ]);
+    for m in 0..4 {
+        for k in 0..3 {
+            let (i, j) = (k, (k + 1) % 3);
+            candidates.push(
+                [
+                    [i, j, 3 + j],
+                    [i, 3 + j, 3 + i],
+                    [i, j, 3 + i],
+                    [j, 3 + j, 3 + i],
+                ][m],
+            );
+        }
     }
     for [a, b, c] in candidates {
         let normal = (q[b] - q[a]).cross(q[c] - q[a]);
         let len = normal.length();
-        if len.is_nan() || len <= 1e-12 * size * size || count == out.len() {
+        if len.is_nan() || len <= 1e-12 * size * size {
             continue;
         }
         let mut normal = normal / len;
@@ -224,7 +230,19 @@ fn hull_planes(p: &[DVec3; 3], n: &[DVec3; 3], top: f64) -> ([(DVec3, f64); 10],
         }
         let pad = 1e-9 * (scale + size);
         let offset = normal.dot(q[a]) + pad;
-        if q.iter().all(|v| normal.dot(*v) <= offset) {
+        if !q.iter().all(|v| normal.dot(*v) <= offset) {
+            continue;
+        }
+        // A side whose four corners lie in one plane (every side of a
+        // sphere's shells) gives that plane four times: keep it once, at
+        // the tighter offset, or the duplicates fill the array and leave a
+        // side out of the hull.
+        if let Some(kept) = out[..count]
+            .iter_mut()
+            .find(|(n, _)| n.dot(normal) > 1.0 - 1e-12)
+        {
+            kept.1 = kept.1.min(offset);
+        } else if count < out.len() {
             out[count] = (normal, offset);
             count += 1;
         }
@@ -815,6 +833,30 @@ mod tests {
         // Never above the whole shell, nor thinner than a hundredth of it.
         assert_eq!(s.topped_at(2.0).top(), s.top());
         assert!(s.topped_at(0.0).top() >= 0.01 * s.top());
+    }
+
+    #[test]
+    fn planar_sides_each_bound_the_hull() {
+        // A sphere's shells have planar sides (through its centre), which
+        // give the same plane four times: each side must bound the hull,
+        // not the first two sides fill it and leave the third out.
+        let (p, n) = on_sphere(1.0, false, false);
+        let top = lambda_for_depth(0.1, min_normal_length(&n).unwrap());
+        let s = CurvedShell::new(p, n, 0.1, top).unwrap();
+        assert_eq!(s.hull_planes, 5);
+        // Rays along each side, just outside it, miss; just inside, meet.
+        let b = |k: usize, out: f64| match k {
+            0 => DVec2::new(0.5, -out),
+            1 => DVec2::new(0.5 + out / 2.0, 0.5 + out / 2.0),
+            _ => DVec2::new(-out, 0.5),
+        };
+        for k in 0..3 {
+            let d = s.p[(k + 1) % 3] - s.p[k];
+            for (out, admitted) in [(1e-3, false), (-1e-3, true)] {
+                let x = s.point(b(k, out), 0.5);
+                assert_eq!(s.admits(x - d, d, 0.0, 2.0), admitted, "side {k}, {out}");
+            }
+        }
     }
 
     #[test]
