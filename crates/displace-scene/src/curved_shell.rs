@@ -558,6 +558,40 @@ impl CurvedShell {
         (out, count)
     }
 
+    /// The shell coordinates of crossing `c`, at world point `x` on it:
+    /// from the level alone on the base and the top, and with no solve at
+    /// all on a side, whose crossing knows its edge parameter and level.
+    /// What a tracer locates at each end of a stretch, for less than
+    /// [`CurvedShell::locate`]. `None` where those coordinates do not give
+    /// back `x` to within a billionth of the shell's scale: a ray that
+    /// grazes a side meets it at an edge parameter that is ill-conditioned
+    /// though its `t` is not, and only [`CurvedShell::locate`] finds that
+    /// point's coordinates.
+    pub fn locate_crossing(&self, c: &Crossing, x: DVec3) -> Option<Located> {
+        let (b, lambda) = match c.boundary {
+            Boundary::Base => (self.barycentric(x, 0.0)?, 0.0),
+            Boundary::Top => (self.barycentric(x, self.top)?, self.top),
+            Boundary::Side(k) => {
+                let (s, lambda) = c.at;
+                let b = match k {
+                    0 => DVec2::new(s, 0.0),
+                    1 => DVec2::new(1.0 - s, s),
+                    _ => DVec2::new(0.0, 1.0 - s),
+                };
+                (b, lambda)
+            }
+        };
+        let n = self.normal_at(b);
+        let back = self.p[0] + b.x * self.e[0] + b.y * self.e[1] + lambda * n;
+        let scale = self.p[0].abs().max_element() + self.e[0].length() + self.top;
+        let off = (back - x).length();
+        if off.is_nan() || off > 1e-9 * scale {
+            return None;
+        }
+        let w = lambda * n.length() / self.depth;
+        Some(Located { b, lambda, w })
+    }
+
     /// The unit normal of the boundary at crossing `c` of a ray along `d`,
     /// turned to face the ray's origin side.
     pub fn crossing_normal(&self, c: &Crossing, d: DVec3) -> DVec3 {
@@ -857,6 +891,36 @@ mod tests {
                 assert_eq!(s.admits(x - d, d, 0.0, 2.0), admitted, "side {k}, {out}");
             }
         }
+    }
+
+    #[test]
+    fn crossings_locate_where_points_do() {
+        let s = bent();
+        let mut seen = [0usize; 3];
+        for i in 0..12 {
+            for j in 0..12 {
+                // Rays from above through a grid, tilted across the sides.
+                let target = s.point(DVec2::new(i as f64 / 11.0, j as f64 / 11.0) * 0.8, 0.5);
+                let o = DVec3::new(-0.4 + 0.1 * i as f64, 1.2 - 0.1 * j as f64, 2.0);
+                let d = (target - o).normalize();
+                let (out, n) = s.crossings(o, d, 0.0, f64::INFINITY);
+                for c in &out[..n] {
+                    let x = o + c.t * d;
+                    let at = s.locate_crossing(c, x).unwrap();
+                    let loc = s.locate(x, 0.5 * s.top()).unwrap();
+                    assert!((at.b - loc.b).length() < 1e-9, "{c:?}: {at:?} {loc:?}");
+                    assert!((at.w - loc.w).abs() < 1e-9, "{c:?}: {at:?} {loc:?}");
+                    // The point the crossing locates is the crossing's.
+                    assert!((s.point(at.b, at.w) - x).length() < 1e-9, "{c:?}");
+                    seen[match c.boundary {
+                        Boundary::Base => 0,
+                        Boundary::Top => 1,
+                        Boundary::Side(_) => 2,
+                    }] += 1;
+                }
+            }
+        }
+        assert!(seen.iter().all(|&k| k > 10), "{seen:?}");
     }
 
     #[test]

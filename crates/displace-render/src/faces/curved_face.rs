@@ -200,6 +200,15 @@ impl CurvedFace {
         Some((loc, c, self.above(c)))
     }
 
+    /// [`CurvedFace::probe`] at a crossing of the shell's boundary, located
+    /// from the crossing itself ([`CurvedShell::locate_crossing`]).
+    fn probe_crossing(&self, o: DVec3, d: DVec3, c: Option<Crossing>) -> Option<Probe> {
+        let c = c?;
+        let loc = self.shell.locate_crossing(&c, o + c.t * d)?;
+        let m = self.map_point(&loc);
+        Some((loc, m, self.above(m)))
+    }
+
     /// First hit with world distance in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, CurvedHit)> {
         match self.trace(ray, t_min, t_max, Query::First)? {
@@ -264,8 +273,7 @@ impl CurvedFace {
                     None
                 };
                 if let Some(mid) = inside {
-                    let exit = next.map(|c| c.boundary);
-                    let ends = ((a, entry), (b, exit));
+                    let ends = ((a, entry), (b, next));
                     let found = self.stretch(o, d, ends, mid, t_max, query, &mut iterations);
                     if let Some(found) = found {
                         return Some(found);
@@ -294,7 +302,7 @@ impl CurvedFace {
         &self,
         o: DVec3,
         d: DVec3,
-        ((ta, entry), (tb, exit)): ((f64, Option<Crossing>), (f64, Option<Boundary>)),
+        ((ta, entry), (tb, exit)): ((f64, Option<Crossing>), (f64, Option<Crossing>)),
         mid: Located,
         t_max: f64,
         query: Query,
@@ -306,7 +314,8 @@ impl CurvedFace {
             _ => 0.5 * self.shell.top(),
         };
         let (la, ca, ga) = self
-            .probe(o, d, ta, hint)
+            .probe_crossing(o, d, entry)
+            .or_else(|| self.probe(o, d, ta, hint))
             .or_else(|| self.probe(o, d, ta + 1e-9 * (tb - ta), hint))?;
         if ga < 0.0 {
             if query == Query::Any {
@@ -333,8 +342,10 @@ impl CurvedFace {
             });
         }
         let (_, cb, _) = self
-            .probe(o, d, tb, la.lambda)
+            .probe_crossing(o, d, exit)
+            .or_else(|| self.probe(o, d, tb, la.lambda))
             .or_else(|| self.probe(o, d, tb - 1e-9 * (tb - ta), la.lambda))?;
+        let exit = exit.map(|c| c.boundary);
         // The chords from `from`, a point of the curve above the surface:
         // the stretch's start, then past each graze (a chord's hit that
         // the curve passes over: no root next to it).
@@ -452,8 +463,9 @@ impl CurvedFace {
     /// Illinois variant) on a bracket found next to `t`, its first probe a
     /// thousandth of the chord (`span`) away, since the chord lies within
     /// [`CHORD_TOLERANCE`] of the curve. `None` when the curve stays above
-    /// the surface from `t` on to `tb` (a graze: the chord dipped into a
-    /// bump that the curve passes over); `t` itself where the curve cannot
+    /// the surface from `t` on for the chord's span (to `tb` at most: a
+    /// graze, the chord dipped into a bump that the curve passes over, and
+    /// the chords go on from `t`); `t` itself where the curve cannot
     /// be located. `at_t` is the curve's point at `t`, probed already; the
     /// root comes with its probe where the search made one there.
     fn refine(
@@ -492,11 +504,16 @@ impl CurvedFace {
             }
             (lo, t, glo, gt)
         } else {
+            // Forward, but no further than the chord's own span: steps
+            // growing past it could jump over a dip of the curve under the
+            // surface and bracket a later root. Past the span, the hit is
+            // a graze, and the chords go on from it.
+            let end = (t + span).min(tb);
             let mut step = first;
             let mut hi = t;
             let mut ghi = gt;
-            while ghi > 0.0 && hi < tb {
-                hi = (t + step).min(tb);
+            while ghi > 0.0 && hi < end {
+                hi = (t + step).min(end);
                 hi_probe = probe(hi);
                 ghi = g(&hi_probe).unwrap_or(0.0);
                 step *= 8.0;
