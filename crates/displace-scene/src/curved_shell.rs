@@ -110,9 +110,14 @@ pub fn min_normal_length(n: &[Vec3; 3]) -> Option<f64> {
     if n.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let n = n.map(|v| v.as_dvec3());
-    let m = n[0].dot(n[1]).min(n[1].dot(n[2])).min(n[2].dot(n[0]));
+    let m = least_dot(&n.map(|v| v.as_dvec3()));
     (m > 0.0).then(|| m.sqrt())
+}
+
+/// The smallest pairwise dot product of three normals, whose square root
+/// bounds `|N(b)|` below ([`min_normal_length`]).
+fn least_dot(n: &[DVec3; 3]) -> f64 {
+    n[0].dot(n[1]).min(n[1].dot(n[2])).min(n[2].dot(n[0]))
 }
 
 /// Whether the shell over corners `p` with unit normals `n`, topped at
@@ -204,21 +209,17 @@ fn hull_planes(p: &[DVec3; 3], n: &[DVec3; 3], top: f64) -> ([(DVec3, f64); 10],
     let mut count = 0;
     // The base and the top, then the sides' planes in turn, so that every
     // side has one in before the array is full.
-    let mut candidates = vec![[0, 1, 2], [3, 4, 5]];
-    for m in 0..4 {
-        for k in 0..3 {
-            let (i, j) = (k, (k + 1) % 3);
-            candidates.push(
-                [
-                    [i, j, 3 + j],
-                    [i, 3 + j, 3 + i],
-                    [i, j, 3 + i],
-                    [j, 3 + j, 3 + i],
-                ][m],
-            );
-        }
-    }
-    for [a, b, c] in candidates {
+    let side = |m: usize, k: usize| {
+        let (i, j) = (k, (k + 1) % 3);
+        [
+            [i, j, 3 + j],
+            [i, 3 + j, 3 + i],
+            [i, j, 3 + i],
+            [j, 3 + j, 3 + i],
+        ][m]
+    };
+    let sides = (0..4).flat_map(|m| (0..3).map(move |k| side(m, k)));
+    for [a, b, c] in [[0, 1, 2], [3, 4, 5]].into_iter().chain(sides) {
         let normal = (q[b] - q[a]).cross(q[c] - q[a]);
         let len = normal.length();
         if len.is_nan() || len <= 1e-12 * size * size {
@@ -334,8 +335,7 @@ impl CurvedShell {
     /// way; a CPU ray admitted by a shell's box wastes its crossings where
     /// it passes over the local heights.
     pub fn topped_at(&self, height: f64) -> Self {
-        let n = self.n;
-        let least = n[0].dot(n[1]).min(n[1].dot(n[2])).min(n[2].dot(n[0]));
+        let least = least_dot(&self.n);
         // Never thinner than a hundredth of the full shell: the crossings
         // and the hull stay well conditioned over a flat patch.
         let height = height.clamp(0.01, 1.0);
@@ -413,9 +413,14 @@ impl CurvedShell {
 
     /// The shell coordinates of world point `x` on level `lambda`.
     fn at_level(&self, x: DVec3, lambda: f64) -> Option<Located> {
-        let b = self.barycentric(x, lambda)?;
+        Some(self.located(self.barycentric(x, lambda)?, lambda))
+    }
+
+    /// The shell coordinates at barycentric `b` and level `lambda`, with
+    /// the height they give.
+    fn located(&self, b: DVec2, lambda: f64) -> Located {
         let w = lambda * self.normal_at(b).length() / self.depth;
-        Some(Located { b, lambda, w })
+        Located { b, lambda, w }
     }
 
     /// How far `b` and `lambda` lie outside the shell's ranges (0 inside):
@@ -568,9 +573,9 @@ impl CurvedShell {
     /// though its `t` is not, and only [`CurvedShell::locate`] finds that
     /// point's coordinates.
     pub fn locate_crossing(&self, c: &Crossing, x: DVec3) -> Option<Located> {
-        let (b, lambda) = match c.boundary {
-            Boundary::Base => (self.barycentric(x, 0.0)?, 0.0),
-            Boundary::Top => (self.barycentric(x, self.top)?, self.top),
+        let loc = match c.boundary {
+            Boundary::Base => self.at_level(x, 0.0)?,
+            Boundary::Top => self.at_level(x, self.top)?,
             Boundary::Side(k) => {
                 let (s, lambda) = c.at;
                 let b = match k {
@@ -578,18 +583,17 @@ impl CurvedShell {
                     1 => DVec2::new(1.0 - s, s),
                     _ => DVec2::new(0.0, 1.0 - s),
                 };
-                (b, lambda)
+                self.located(b, lambda)
             }
         };
-        let n = self.normal_at(b);
-        let back = self.p[0] + b.x * self.e[0] + b.y * self.e[1] + lambda * n;
+        let (b, lambda) = (loc.b, loc.lambda);
+        let back = self.p[0] + b.x * self.e[0] + b.y * self.e[1] + lambda * self.normal_at(b);
         let scale = self.p[0].abs().max_element() + self.e[0].length() + self.top;
         let off = (back - x).length();
         if off.is_nan() || off > 1e-9 * scale {
             return None;
         }
-        let w = lambda * n.length() / self.depth;
-        Some(Located { b, lambda, w })
+        Some(loc)
     }
 
     /// The unit normal of the boundary at crossing `c` of a ray along `d`,

@@ -195,18 +195,20 @@ impl CurvedFace {
 
     /// Shell coordinates, map point and `w - h` of the ray at `t`.
     fn probe(&self, o: DVec3, d: DVec3, t: f64, hint: f64) -> Option<Probe> {
-        let loc = self.shell.locate(o + t * d, hint)?;
-        let c = self.map_point(&loc);
-        Some((loc, c, self.above(c)))
+        Some(self.probed(self.shell.locate(o + t * d, hint)?))
     }
 
     /// [`CurvedFace::probe`] at a crossing of the shell's boundary, located
     /// from the crossing itself ([`CurvedShell::locate_crossing`]).
     fn probe_crossing(&self, o: DVec3, d: DVec3, c: Option<Crossing>) -> Option<Probe> {
         let c = c?;
-        let loc = self.shell.locate_crossing(&c, o + c.t * d)?;
-        let m = self.map_point(&loc);
-        Some((loc, m, self.above(m)))
+        Some(self.probed(self.shell.locate_crossing(&c, o + c.t * d)?))
+    }
+
+    /// The map point and `w - h` of shell coordinates `loc`.
+    fn probed(&self, loc: Located) -> Probe {
+        let c = self.map_point(&loc);
+        (loc, c, self.above(c))
     }
 
     /// First hit with world distance in `[t_min, t_max]`.
