@@ -218,7 +218,10 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
     let total = tiles.len();
     let results: Vec<(Vec<Vec3>, Vec<Vec<f32>>)> = tiles
         .par_iter()
-        .map(|&(tx, ty)| {
+        // One scratch per rayon job, not per tile: a tile's wave buffers
+        // are megabytes, and grown afresh they cost more in page faults and
+        // copies than the tile's shading.
+        .map_init(Scratch::default, |scratch, &(tx, ty)| {
             if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 return Err(Error::Cancelled);
             }
@@ -233,7 +236,7 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<Rendered> {
             let coords: Vec<(u32, u32)> = (0..h)
                 .flat_map(|y| (0..w).map(move |x| (crop.x + tx + x, crop.y + ty + y)))
                 .collect();
-            tile(scene, &coords, &mut Scratch::default(), &mut px);
+            tile(scene, &coords, scratch, &mut px);
             if !opts.aovs.is_empty() {
                 for &(gx, gy) in &coords {
                     aov_pixel(scene, gx, gy, &opts.aovs, &mut aov);
