@@ -3,9 +3,9 @@
 //! render does not depend on thread count or tiling, and the same rays
 //! whichever integrator traces them (the benchmarks' ray sets replay them).
 
-use crate::geometry::Ray;
+use crate::geometry::{Ray, PACKET};
 use crate::scene::Scene;
-use crate::shading::sampler::{jittered, Rng};
+use crate::shading::sampler::{jittered, strata, Rng};
 use glam::Vec2;
 
 /// The camera ray of sample `s` of pixel `(x, y)` and the generator the
@@ -25,4 +25,40 @@ pub fn camera_ray(scene: &Scene, x: u32, y: u32, jitter: Vec2, lens: Vec2) -> Ra
         (y as f32 + jitter.y) / scene.height as f32,
     );
     scene.camera.ray(film, lens)
+}
+
+/// [`camera_sample`] of eight samples `(x, y, s)` at once: each sample's
+/// generator drawn from as in the one-sample call, then the strata's and
+/// the film's divisions and the rays' normalisation
+/// ([`crate::camera::Camera::ray8`]) as columns in vector lanes. Lane `l`
+/// is `camera_sample(scene, x, y, s)` of `samples[l]` bit for bit, its
+/// generator left in the same state.
+pub fn camera_samples8(
+    scene: &Scene,
+    samples: &[(u32, u32, u32); PACKET],
+) -> ([Ray; PACKET], [Rng; PACKET]) {
+    let (nx, ny) = strata(scene.spp);
+    let (nx_f, ny_f) = (nx as f32, ny as f32);
+    let (w, h) = (scene.width as f32, scene.height as f32);
+    let mut rngs: [Rng; PACKET] = std::array::from_fn(|l| {
+        let (x, y, s) = samples[l];
+        Rng::for_sample(scene.seed, x, y, s)
+    });
+    // `jittered`'s and `camera_ray`'s arithmetic, column by column.
+    let mut fx = [0.0f32; PACKET];
+    let mut fy = [0.0f32; PACKET];
+    let mut lens = [Vec2::ZERO; PACKET];
+    for (l, rng) in rngs.iter_mut().enumerate() {
+        let s = samples[l].2;
+        let j = rng.next_2d();
+        lens[l] = rng.next_2d();
+        fx[l] = (s % nx) as f32 + j.x;
+        fy[l] = ((s / nx) % ny) as f32 + j.y;
+    }
+    for l in 0..PACKET {
+        fx[l] = (samples[l].0 as f32 + fx[l] / nx_f) / w;
+        fy[l] = (samples[l].1 as f32 + fy[l] / ny_f) / h;
+    }
+    let film = std::array::from_fn(|l| Vec2::new(fx[l], fy[l]));
+    (scene.camera.ray8(&film, &lens), rngs)
 }

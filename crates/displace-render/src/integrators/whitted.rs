@@ -13,8 +13,9 @@
 //! 13.4, Veach 1997's multiple importance sampling); this one is the paper's
 //! own renderer, and the default.
 
-use crate::camera_sample::camera_sample;
+use crate::camera_sample::camera_samples8;
 use crate::geometry::Ray;
+use crate::geometry::PACKET;
 use crate::light::Light;
 use crate::scene::batch::Batch;
 use crate::scene::{Interaction, Scene};
@@ -427,18 +428,34 @@ fn wave(scene: &Scene, pixels: &[(u32, u32)], range: std::ops::Range<u64>, sc: &
     sc.pixel.clear();
     sc.level.clear();
     sc.rays.clear();
-    for k in range {
-        let (p, s) = ((k / spp) as usize, (k % spp) as u32);
-        let (x, y) = pixels[p];
-        let (ray, rng) = camera_sample(scene, x, y, s);
-        sc.level.push(sc.rngs.len() as u32);
-        sc.rays.push(ray);
-        sc.rngs.push(rng);
-        sc.samples.push(Some(PixelSample {
-            index: s,
-            count: scene.spp,
-        }));
-        sc.pixel.push(p as u32);
+    // The camera rays eight at a time (their arithmetic in lanes); a last
+    // short packet repeats its last sample and keeps only its own.
+    let (start, end) = (range.start, range.end);
+    for k0 in (start..end).step_by(PACKET) {
+        let n = (end - k0).min(PACKET as u64) as usize;
+        let at = |l: usize| {
+            let k = k0 + l.min(n - 1) as u64;
+            ((k / spp) as u32, (k % spp) as u32)
+        };
+        let (rays, rngs) = camera_samples8(
+            scene,
+            &std::array::from_fn(|l| {
+                let (p, s) = at(l);
+                let (x, y) = pixels[p as usize];
+                (x, y, s)
+            }),
+        );
+        for (l, (ray, rng)) in rays.into_iter().zip(rngs).take(n).enumerate() {
+            let (p, s) = at(l);
+            sc.level.push(sc.rngs.len() as u32);
+            sc.rays.push(ray);
+            sc.rngs.push(rng);
+            sc.samples.push(Some(PixelSample {
+                index: s,
+                count: scene.spp,
+            }));
+            sc.pixel.push(p);
+        }
     }
     let cameras = sc.rngs.len();
     sc.local.clear();
@@ -526,6 +543,7 @@ fn level(scene: &Scene, depth: u32, sc: &mut WaveScratch) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera_sample::camera_sample;
     use crate::SceneOptions;
     use std::path::Path;
 
