@@ -250,15 +250,14 @@ struct Deferred {
     count: usize,
 }
 
-/// A held-back shadow ray: the light it samples and what it carries when
-/// nothing blocks it.
+/// A held-back shadow ray's term: the light it samples and what it
+/// carries when nothing blocks it (the ray itself and its range go
+/// straight to the wave's shadow-ray columns, [`Shading`]).
 ///
 /// [`Deferred::finish`] sums these per light, in the order they were
 /// appended, so the held-back sums equal [`radiance`]'s.
 #[derive(Clone, Copy, Debug)]
 struct Term {
-    /// The shadow ray to trace.
-    query: ShadowQuery,
     /// Index of the light sampled, in the scene's `lights`: which light's
     /// sum (divided by its sample count) the term goes to.
     light: u32,
@@ -267,11 +266,33 @@ struct Term {
     value: Vec3,
 }
 
+/// What a level's shading leaves for its shadow-ray batch and its sums,
+/// written in place as each vertex is shaded: each vertex's [`Deferred`],
+/// and per held-back shadow ray its [`Term`], its ray and its range (the
+/// ray columns [`Scene::occluded_many`] reads, so nothing is copied
+/// between buffers on the way).
+#[derive(Default)]
+struct Shading {
+    shaded: Vec<Deferred>,
+    terms: Vec<Term>,
+    rays: Vec<Ray>,
+    limits: Vec<f32>,
+}
+
+impl Shading {
+    fn clear(&mut self) {
+        self.shaded.clear();
+        self.terms.clear();
+        self.rays.clear();
+        self.limits.clear();
+    }
+}
+
 /// [`shade`] of a vertex whose hit (or miss) is already known, split where
-/// it would trace: its shadow rays appended to `terms`, its reflection
-/// returned as `(weight, ray)` for the next level of the wave. The light
-/// samples and then the reflection direction are drawn from `rng`, in
-/// [`shade`]'s order.
+/// it would trace: its [`Deferred`] and its shadow rays appended to `out`,
+/// its reflection returned as `(weight, ray)` for the next level of the
+/// wave. The light samples and then the reflection direction are drawn
+/// from `rng`, in [`shade`]'s order.
 fn shade_deferred(
     scene: &Scene,
     ray: &Ray,
@@ -279,17 +300,17 @@ fn shade_deferred(
     depth: u32,
     sample: Option<PixelSample>,
     rng: &mut Rng,
-    terms: &mut Vec<Term>,
-) -> (Deferred, Option<(Vec3, Ray)>) {
-    let first = terms.len();
+    out: &mut Shading,
+) -> Option<(Vec3, Ray)> {
+    let first = out.terms.len();
     let Some(hit) = hit else {
-        let miss = Deferred {
+        out.shaded.push(Deferred {
             emitted: scene.environment.radiance(ray.dir),
             lit: false,
             first,
             count: 0,
-        };
-        return (miss, None);
+        });
+        return None;
     };
     let emitted = emitted(scene, ray, hit);
     let at = Surface::new(scene, ray, hit);
@@ -299,11 +320,12 @@ fn shade_deferred(
             let n = light.samples(scene.shadow_samples);
             for i in 0..n {
                 if let Some((query, value)) = at.light_term(scene, light, i, n, sample, rng) {
-                    terms.push(Term {
-                        query,
+                    out.terms.push(Term {
                         light: k as u32,
                         value,
                     });
+                    out.rays.push(query.ray);
+                    out.limits.push(query.t_max);
                 }
             }
         }
@@ -311,13 +333,13 @@ fn shade_deferred(
     let reflection = at
         .reflection(scene, ray, depth, rng)
         .map(|r| (at.mat.reflect, r));
-    let d = Deferred {
+    out.shaded.push(Deferred {
         emitted,
         lit,
         first,
-        count: terms.len() - first,
-    };
-    (d, reflection)
+        count: out.terms.len() - first,
+    });
+    reflection
 }
 
 impl Deferred {
@@ -379,10 +401,7 @@ pub(crate) struct WaveScratch {
     child: Vec<u32>,
     weight: Vec<Vec3>,
     /// One level's shading and its held-back shadow rays.
-    shaded: Vec<Deferred>,
-    terms: Vec<Term>,
-    shadow_rays: Vec<Ray>,
-    shadow_limits: Vec<f32>,
+    shading: Shading,
     blocked: Vec<bool>,
     /// Per pixel of the tile: the sum of its samples so far.
     sums: Vec<Vec3>,
@@ -491,23 +510,21 @@ fn level(scene: &Scene, depth: u32, sc: &mut WaveScratch) {
     sc.limits.clear();
     sc.limits.resize(sc.rays.len(), f32::INFINITY);
     scene.intersect_many(&sc.rays, 0.0, &sc.limits, &mut sc.batch, &mut sc.hits);
-    sc.terms.clear();
-    sc.shaded.clear();
+    sc.shading.clear();
     sc.next.clear();
     sc.next_rays.clear();
     for (k, &v) in sc.level.iter().enumerate() {
         let v = v as usize;
         let hit = sc.hits[k].as_ref().map(|(_, h)| h);
-        let (d, reflection) = shade_deferred(
+        let reflection = shade_deferred(
             scene,
             &sc.rays[k],
             hit,
             depth,
             sc.samples[v],
             &mut sc.rngs[v],
-            &mut sc.terms,
+            &mut sc.shading,
         );
-        sc.shaded.push(d);
         if let Some((weight, ray)) = reflection {
             let c = sc.rngs.len() as u32;
             let rng = sc.rngs[v].clone();
@@ -523,20 +540,10 @@ fn level(scene: &Scene, depth: u32, sc: &mut WaveScratch) {
             sc.next_rays.push(ray);
         }
     }
-    sc.shadow_rays.clear();
-    sc.shadow_rays.extend(sc.terms.iter().map(|t| t.query.ray));
-    sc.shadow_limits.clear();
-    sc.shadow_limits
-        .extend(sc.terms.iter().map(|t| t.query.t_max));
-    scene.occluded_many(
-        &sc.shadow_rays,
-        0.0,
-        &sc.shadow_limits,
-        &mut sc.batch,
-        &mut sc.blocked,
-    );
-    for (d, &v) in sc.shaded.iter().zip(&sc.level) {
-        sc.local[v as usize] = d.finish(scene, &sc.terms, &sc.blocked);
+    let sh = &sc.shading;
+    scene.occluded_many(&sh.rays, 0.0, &sh.limits, &mut sc.batch, &mut sc.blocked);
+    for (d, &v) in sh.shaded.iter().zip(&sc.level) {
+        sc.local[v as usize] = d.finish(scene, &sh.terms, &sc.blocked);
     }
 }
 
