@@ -314,12 +314,12 @@ fn direct(
             (Ray::new(p, ls.wi), f32::INFINITY, cos)
         }
     };
-    let f = bsdf.f(ls.wi);
+    let (f, pdf) = bsdf.f_pdf(ls.wi);
     if f == Vec3::ZERO {
         return None;
     }
     let w = if ls.hittable && scene.sampling == Sampling::Mis {
-        power_heuristic(ls.pdf, bsdf.pdf(ls.wi))
+        power_heuristic(ls.pdf, pdf)
     } else {
         1.0
     };

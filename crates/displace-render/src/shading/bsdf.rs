@@ -199,6 +199,48 @@ impl Bsdf {
         (self.shininess + 1.0) / TAU * nh.powf(self.shininess) / (4.0 * oh)
     }
 
+    /// [`Bsdf::f`] and [`Bsdf::pdf`] at `wi` together, bit for bit each
+    /// one's own answer: the cosine, the Blinn-Phong half vector and its
+    /// power, and the glossy lobe's power are worked out once for both
+    /// (next-event estimation's multiple importance weight needs both at
+    /// the light's direction, pbrt-v4 `PathIntegrator::SampleLd`; BSDF
+    /// sampling needs both at the sampled one).
+    pub fn f_pdf(&self, wi: Vec3) -> (Vec3, f32) {
+        match self.cosine(wi) {
+            Some(cos) => self.f_pdf_at(wi, cos),
+            None => (Vec3::ZERO, 0.0),
+        }
+    }
+
+    /// [`Bsdf::f_pdf`] at a `wi` whose [`Bsdf::cosine`] is `cos`: the sums
+    /// of [`Bsdf::f`] and [`Bsdf::pdf`], term by term in their order.
+    #[inline]
+    fn f_pdf_at(&self, wi: Vec3, cos: f32) -> (Vec3, f32) {
+        let mut f = self.diffuse * FRAC_1_PI;
+        let mut pdf = self.p[0] * cos * FRAC_1_PI;
+        if self.p[1] > 0.0 {
+            let h = (self.wo + wi).normalize_or_zero();
+            let nh = self.ns.dot(h);
+            // `nh.max(0)` to the power is `nh`'s own power wherever the
+            // density uses it (`nh > 0`).
+            let power = nh.max(0.0).powf(self.shininess);
+            f += self.specular * (blinn_phong_norm(self.shininess) * power);
+            let oh = self.wo.dot(h);
+            let blinn = if nh <= 0.0 || oh <= 0.0 {
+                0.0
+            } else {
+                (self.shininess + 1.0) / TAU * power / (4.0 * oh)
+            };
+            pdf += self.p[1] * blinn;
+        }
+        if let (Some(e), true) = (self.exponent, self.p[2] > 0.0) {
+            let g = self.glossy_pdf(e, wi);
+            f += self.reflect * (g / cos);
+            pdf += self.p[2] * g;
+        }
+        (f, pdf)
+    }
+
     /// `f(wo, wi)` of the non-delta lobes (the mirror's delta lobe is 0 at
     /// every direction it can be asked about).
     pub fn f(&self, wi: Vec3) -> Vec3 {
@@ -272,11 +314,11 @@ impl Bsdf {
             return None;
         };
         let cos = self.cosine(wi)?;
-        let pdf = self.pdf(wi);
+        let (f, pdf) = self.f_pdf_at(wi, cos);
         if pdf <= 0.0 {
             return None;
         }
-        let weight = self.f(wi) * (cos / pdf);
+        let weight = f * (cos / pdf);
         Some(BsdfSample {
             wi,
             weight,
@@ -345,6 +387,33 @@ mod tests {
         let wo = Vec3::new(t.sin(), 0.0, t.cos());
         let m = material(kind);
         Bsdf::new(&m, m.diffuse, Vec3::Z, Vec3::Z, wo)
+    }
+
+    /// `f_pdf` is `f` and `pdf` bit for bit, every material at many
+    /// viewing angles and directions over the whole sphere (under the
+    /// surface and at grazing angles included), so the estimators that
+    /// ask for both at once are the ones that asked for each.
+    #[test]
+    fn f_and_pdf_together_are_each_alone() {
+        let mut rng = Rng::new(20261207, 3);
+        for kind in ["lambert", "phong", "glossy", "rough"] {
+            for theta in [0.0, 30.0, 60.0, 89.0] {
+                let b = bsdf(kind, theta);
+                for _ in 0..2000 {
+                    let (u, v) = (rng.next_f32(), rng.next_f32());
+                    let z = 2.0 * u - 1.0;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let wi = Vec3::new(r * (TAU * v).cos(), r * (TAU * v).sin(), z);
+                    let (f, pdf) = b.f_pdf(wi);
+                    let want = (b.f(wi), b.pdf(wi));
+                    assert_eq!(
+                        (f.to_array().map(f32::to_bits), pdf.to_bits()),
+                        (want.0.to_array().map(f32::to_bits), want.1.to_bits()),
+                        "{kind} at {theta} degrees, wi {wi}"
+                    );
+                }
+            }
+        }
     }
 
     /// The albedo by importance sampling (`E[weight]`) against the albedo
