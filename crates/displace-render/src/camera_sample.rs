@@ -28,9 +28,8 @@ pub fn camera_ray(scene: &Scene, x: u32, y: u32, jitter: Vec2, lens: Vec2) -> Ra
 }
 
 /// [`camera_sample`] of eight samples `(x, y, s)` at once: each sample's
-/// generator drawn from as in the one-sample call, then the strata's and
-/// the film's divisions and the rays' normalisation
-/// ([`crate::camera::Camera::ray8`]) as columns in vector lanes. Lane `l`
+/// generator drawn from as in the one-sample call, then the strata's
+/// divisions and [`camera_rays8`] as columns in vector lanes. Lane `l`
 /// is `camera_sample(scene, x, y, s)` of `samples[l]` bit for bit, its
 /// generator left in the same state.
 pub fn camera_samples8(
@@ -39,26 +38,48 @@ pub fn camera_samples8(
 ) -> ([Ray; PACKET], [Rng; PACKET]) {
     let (nx, ny) = strata(scene.spp);
     let (nx_f, ny_f) = (nx as f32, ny as f32);
-    let (w, h) = (scene.width as f32, scene.height as f32);
     let mut rngs: [Rng; PACKET] = std::array::from_fn(|l| {
         let (x, y, s) = samples[l];
         Rng::for_sample(scene.seed, x, y, s)
     });
-    // `jittered`'s and `camera_ray`'s arithmetic, column by column.
-    let mut fx = [0.0f32; PACKET];
-    let mut fy = [0.0f32; PACKET];
+    // `jittered`'s arithmetic, column by column.
+    let mut jx = [0.0f32; PACKET];
+    let mut jy = [0.0f32; PACKET];
     let mut lens = [Vec2::ZERO; PACKET];
     for (l, rng) in rngs.iter_mut().enumerate() {
         let s = samples[l].2;
         let j = rng.next_2d();
         lens[l] = rng.next_2d();
-        fx[l] = (s % nx) as f32 + j.x;
-        fy[l] = ((s / nx) % ny) as f32 + j.y;
+        jx[l] = (s % nx) as f32 + j.x;
+        jy[l] = ((s / nx) % ny) as f32 + j.y;
     }
     for l in 0..PACKET {
-        fx[l] = (samples[l].0 as f32 + fx[l] / nx_f) / w;
-        fy[l] = (samples[l].1 as f32 + fy[l] / ny_f) / h;
+        jx[l] /= nx_f;
+        jy[l] /= ny_f;
+    }
+    let jitter = std::array::from_fn(|l| Vec2::new(jx[l], jy[l]));
+    let pixels = samples.map(|(x, y, _)| (x, y));
+    (camera_rays8(scene, &pixels, &jitter, &lens), rngs)
+}
+
+/// [`camera_ray`] of eight pixels' film offsets `jitter` and lens points
+/// `lens` at once, the film's divisions and the rays' normalisation as
+/// columns in vector lanes: lane `l` is `camera_ray(scene, x, y,
+/// jitter[l], lens[l])` of `pixels[l]` bit for bit. For samplers that draw
+/// their offsets otherwise ([`camera_samples8`] draws strata).
+pub fn camera_rays8(
+    scene: &Scene,
+    pixels: &[(u32, u32); PACKET],
+    jitter: &[Vec2; PACKET],
+    lens: &[Vec2; PACKET],
+) -> [Ray; PACKET] {
+    let (w, h) = (scene.width as f32, scene.height as f32);
+    let mut fx = [0.0f32; PACKET];
+    let mut fy = [0.0f32; PACKET];
+    for l in 0..PACKET {
+        fx[l] = (pixels[l].0 as f32 + jitter[l].x) / w;
+        fy[l] = (pixels[l].1 as f32 + jitter[l].y) / h;
     }
     let film = std::array::from_fn(|l| Vec2::new(fx[l], fy[l]));
-    (scene.camera.ray8(&film, &lens), rngs)
+    scene.camera.ray8(&film, lens)
 }

@@ -33,15 +33,15 @@
 //! reference), so the image is the same bit for bit.
 
 use super::whitted::{emitted, facing, shadow_query};
-use crate::camera_sample::{camera_ray, camera_sample};
-use crate::geometry::Ray;
+use crate::camera_sample::{camera_ray, camera_rays8, camera_sample, camera_samples8};
+use crate::geometry::{Ray, PACKET};
 use crate::scene::batch::Batch;
 use crate::scene::{Interaction, Scene};
 use crate::settings::Sampling;
 use crate::shading::bsdf::Bsdf;
 use crate::shading::sampler::SampleStream;
 use crate::shading::sampler::SamplerKind;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// Bounces before Russian roulette may end a path (pbrt-v3's choice; pbrt-v4
 /// starts after the first).
@@ -345,6 +345,34 @@ fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStre
     }
 }
 
+/// [`path_camera_sample`] of eight samples `(x, y, s)` at once, the rays
+/// made together ([`camera_samples8`], [`camera_rays8`]): lane `l` is
+/// `path_camera_sample(scene, x, y, s)` of `samples[l]` bit for bit.
+fn path_camera_samples8(
+    scene: &Scene,
+    samples: &[(u32, u32, u32); PACKET],
+) -> ([Ray; PACKET], [SampleStream; PACKET]) {
+    match scene.sampler {
+        SamplerKind::Independent => {
+            let (rays, rngs) = camera_samples8(scene, samples);
+            (rays, rngs.map(SampleStream::independent))
+        }
+        SamplerKind::Sobol => {
+            let mut jitter = [Vec2::ZERO; PACKET];
+            let mut lens = [Vec2::ZERO; PACKET];
+            let streams = std::array::from_fn(|l| {
+                let (x, y, s) = samples[l];
+                let mut st = SampleStream::sobol(scene.seed, x, y, s);
+                jitter[l] = st.next_2d();
+                lens[l] = st.next_2d();
+                st
+            });
+            let pixels = samples.map(|(x, y, _)| (x, y));
+            (camera_rays8(scene, &pixels, &jitter, &lens), streams)
+        }
+    }
+}
+
 /// The mean of the pixel's samples under the path integrator, each
 /// sample's path traced on its own from its [`path_camera_sample`]: the
 /// one-sample estimator, which [`tile`] equals bit for bit.
@@ -394,10 +422,21 @@ pub fn tile(scene: &Scene, pixels: &[(u32, u32)], w: &mut WaveScratch, out: &mut
     for first in (0..total).step_by(WAVE) {
         let ids = first..(first + WAVE).min(total);
         w.paths.clear();
-        for id in ids.clone() {
-            let (x, y) = pixels[id / spp];
-            let (ray, rng) = path_camera_sample(scene, x, y, (id % spp) as u32);
-            w.paths.push((Path::new(ray), rng));
+        // The camera rays eight at a time; a last short packet repeats its
+        // last sample and keeps only its own.
+        for k0 in ids.clone().step_by(PACKET) {
+            let n = (ids.end - k0).min(PACKET);
+            let (rays, streams) = path_camera_samples8(
+                scene,
+                &std::array::from_fn(|l| {
+                    let id = k0 + l.min(n - 1);
+                    let (x, y) = pixels[id / spp];
+                    (x, y, (id % spp) as u32)
+                }),
+            );
+            for (ray, st) in rays.into_iter().zip(streams).take(n) {
+                w.paths.push((Path::new(ray), st));
+            }
         }
         w.alive.clear();
         w.alive.extend(0..w.paths.len() as u32);

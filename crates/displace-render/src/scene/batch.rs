@@ -63,6 +63,8 @@ pub struct Batch {
     answers: Vec<bool>,
     /// Ray indices grouped by octant, for the packet walks.
     order: Vec<u32>,
+    /// `(primitive, ray)` of the displaced hits being resolved, by face.
+    resolving: Vec<(u32, u32)>,
     best: Vec<Option<(u32, f32, Local)>>,
 }
 
@@ -83,35 +85,53 @@ impl Scene {
     ) {
         self.nearest_many(rays, t_min, t_max, batch);
         out.clear();
-        for (best, rays) in batch.best.chunks(8).zip(rays.chunks(8)) {
-            if self.displaced_interactions8(best, out) {
+        out.resize(rays.len(), None);
+        let Batch {
+            best, resolving, ..
+        } = batch;
+        // The displaced faces' hits gathered per face (in ray order within
+        // each) and resolved eight at a time: a path tracer's bounce rays
+        // end on the room's shapes and its displaced faces in turn, so runs
+        // of eight in ray order are rare where runs of eight per face are
+        // not (a wavefront's sort by what a hit must do next).
+        resolving.clear();
+        for (r, (b, ray)) in best.iter().zip(rays).enumerate() {
+            let Some((i, t, local)) = *b else {
                 continue;
+            };
+            match (&self.prims[i as usize].shape, local) {
+                (Shape::Displaced(_), Local::Map(_)) => resolving.push((i, r as u32)),
+                _ => out[r] = Some((i, self.resolve_with(i, ray, t, local, true))),
             }
-            out.extend(best.iter().zip(rays).map(|(b, ray)| {
-                b.map(|(i, t, local)| (i, self.resolve_with(i, ray, t, local, true)))
-            }));
         }
-    }
-
-    /// Eight nearest hits on one displaced face, resolved together
-    /// ([`crate::faces::displaced::DisplacedFace::resolve8`]) onto `out`;
-    /// `false` (and nothing added) unless `best` is eight such hits.
-    fn displaced_interactions8(
-        &self,
-        best: &[Option<(u32, f32, Local)>],
-        out: &mut Vec<Option<(u32, Interaction)>>,
-    ) -> bool {
-        let Some((prim, face, hits)) = self.one_displaced_face8(best) else {
-            return false;
-        };
-        let resolved = face.resolve8(&hits.map(|(_, m)| m));
-        let color = face.color.as_deref();
-        out.extend(
-            hits.iter().zip(&resolved).map(|(&(t, _), r)| {
-                Some((prim, self.displaced_interaction(prim, t, r, color, true)))
-            }),
-        );
-        true
+        if !resolving.is_sorted_by_key(|&(i, _)| i) {
+            resolving.sort_by_key(|&(i, _)| i);
+        }
+        for run in resolving.chunk_by(|a, b| a.0 == b.0) {
+            let prim = run[0].0;
+            let Shape::Displaced(face) = &self.prims[prim as usize].shape else {
+                unreachable!("only displaced faces' hits are gathered")
+            };
+            let hit = |r: u32| match &best[r as usize] {
+                Some((_, t, Local::Map(m))) => (*t, m),
+                _ => unreachable!("a gathered hit is a map hit"),
+            };
+            let color = face.color.as_deref();
+            let mut eights = run.chunks_exact(8);
+            for group in &mut eights {
+                let hits: FaceHits8 = std::array::from_fn(|l| hit(group[l].1));
+                let resolved = face.resolve8(&hits.map(|(_, m)| m));
+                for ((&(_, r), &(t, _)), h) in group.iter().zip(&hits).zip(&resolved) {
+                    let it = self.displaced_interaction(prim, t, h, color, true);
+                    out[r as usize] = Some((prim, it));
+                }
+            }
+            for &(_, r) in eights.remainder() {
+                let (t, m) = hit(r);
+                let it = self.resolve_with(prim, &rays[r as usize], t, Local::Map(*m), true);
+                out[r as usize] = Some((prim, it));
+            }
+        }
     }
 
     /// The nearest hit of each of `rays` as a geometric query reports it:
