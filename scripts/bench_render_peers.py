@@ -22,6 +22,13 @@ VmHWM) is that one tool's. Usage:
     cargo build --release -p displace-cli
     python3 scripts/bench_render_peers.py [--size 512] [--spp 16] [--rays 1000]
 
+`--maps` takes the seed scenes' generated faces by name (`studded`,
+`gaussian`) and square PNG height maps by path, e.g. the real terrain and
+photograph that `scripts/real_height_maps.py` writes:
+
+    python3 scripts/real_height_maps.py --out W
+    python3 scripts/bench_render_peers.py --maps studded,W/terrain.png,W/photo.png
+
 Mitsuba's LLVM backend is pointed at `libLLVM-19` when one is installed
 (`DRJIT_LIBLLVM_PATH`; LLVM 15 is known to crash).
 """
@@ -117,8 +124,38 @@ intensity = {v([light[1]] * 3)}
 """
 
 
+# A height file's face: its extent's depth and its distance map's size (the
+# studded face's, which the render benchmark's camera and light were set for).
+FILE_DEPTH = 0.1
+FILE_MAP_SIZE = (256, 256, 16)
+
+
+def png_size(path):
+    """Width and height from a PNG's IHDR chunk (no imaging library needed)."""
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        sys.exit(f"{path}: not a PNG file (--maps takes PNG height maps by path)")
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def map_spec(m):
+    """(name, source, texels, extent, map size) of a `--maps` entry: a seed
+    face by name, or a square PNG height map by path (its file name's stem
+    names it), on a unit face `FILE_DEPTH` deep."""
+    if m in MAPS:
+        return (m, *MAPS[m])
+    if not os.path.isfile(m):
+        sys.exit(f"--maps: {m!r} is neither one of {sorted(MAPS)} nor a file")
+    w, h = png_size(m)
+    if w != h:
+        sys.exit(f"{m}: {w}x{h} texels; the benchmark's face is square (crop it)")
+    name = os.path.splitext(os.path.basename(m))[0]
+    return (name, os.path.abspath(m), w, (1.0, 1.0, FILE_DEPTH), FILE_MAP_SIZE)
+
+
 def scene_toml(m, size, spp):
-    src, texels, (sx, sy, sz), msize = MAPS[m]
+    _, src, texels, (sx, sy, sz), msize = map_spec(m)
     view = (*camera(), VFOV)
     light = (LIGHT_POS, LIGHT_INTENSITY)
     v = toml_vec
@@ -360,7 +397,8 @@ def setup(displace, workdir, prefix):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--displace", default="target/release/displace")
-    ap.add_argument("--maps", default="studded,gaussian")
+    ap.add_argument("--maps", default="studded,gaussian",
+                    help="comma-separated: seed faces by name, square PNG height maps by path")
     ap.add_argument("--scales", default="1,4")
     ap.add_argument("--size", type=int, default=512, help="image size (square)")
     ap.add_argument("--spp", type=int, default=16)
@@ -382,11 +420,11 @@ def main():
     env, exe, work = setup(a.displace, a.workdir, "displace-peers-")
     me = [sys.executable, os.path.abspath(__file__)]
     rows = []
-    for m in a.maps.split(","):
-        src, texels, ext, _ = MAPS[m]
+    for entry in a.maps.split(","):
+        m, src, texels, ext, _ = map_spec(entry)
         toml = os.path.join(work, f"{m}.toml")
         with open(toml, "w") as f:
-            f.write(scene_toml(m, a.size, a.spp))
+            f.write(scene_toml(entry, a.size, a.spp))
         # Ours: whole render (bake included, no disk cache) and first-hit rays.
         ours_img = os.path.join(work, f"{m}.ours.exr")
         _, err, wall, rss = run_measured(
@@ -419,8 +457,10 @@ def main():
         ours = rows[-1]
         for k in [int(s) for s in a.scales.split(",")]:
             ply = os.path.join(work, f"{m}.x{k}.ply")
+            # A generated map is told its size; a file has its own.
+            sized = ["--height-size", f"{texels}x{texels}"] if src.startswith("gen:") else []
             _, _, mesh_s, _ = run_measured(
-                [exe, "export-mesh", src, "--height-size", f"{texels}x{texels}",
+                [exe, "export-mesh", src, *sized,
                  "--extent", ",".join(map(str, ext)), "--scale", str(k), "-o", ply], env)
             out, _, _, rss_e = run_measured(
                 me + ["--worker", "embree", "--ply", ply, "--ray-file", rays_path,

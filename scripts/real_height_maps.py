@@ -1,0 +1,81 @@
+#!/usr/bin/env python3
+"""Real height maps for the benchmarks, from data a user's Python already
+has: Matplotlib's sample data ships a measured elevation model and a
+photograph, so the benchmarks can run on real inputs without a download.
+
+* `terrain.png`: the Jacksboro fault elevation model (USGS, 3 arc-seconds,
+  about 90 m a texel, elevations 236-1076 m), its west 344 x 344 texels,
+  the elevations' range as 16-bit heights;
+* `photo.png`: the portrait of Grace Hopper (a photograph: hair, fabric,
+  edges and noise at every scale), its centre 512 x 512 pixels as 8-bit
+  luma (Rec. 709 weights, as `displace` reduces colour images).
+
+Both are square PNGs, what `scripts/bench_render_peers.py --maps` takes by
+path. Usage:
+
+    pip install matplotlib pillow numpy
+    python3 scripts/real_height_maps.py --out W
+"""
+
+import argparse
+import os
+
+import numpy as np
+
+
+def sample(name):
+    """The path of one of Matplotlib's sample data files."""
+    from matplotlib import cbook
+
+    path = cbook.get_sample_data(name, asfileobj=False)
+    if not os.path.isfile(path):
+        raise SystemExit(f"Matplotlib's sample data lack {name} (looked at {path})")
+    return path
+
+
+def terrain():
+    """16-bit heights of the elevation model's west square, its own range
+    from 0 to 65535."""
+    z = np.load(sample("jacksboro_fault_dem.npz"))["elevation"].astype(np.float64)
+    n = min(z.shape)
+    z = z[:n, :n]
+    lo, hi = z.min(), z.max()
+    return np.round((z - lo) / (hi - lo) * 65535).astype(np.uint16)
+
+
+def photo():
+    """8-bit luma of the photograph's centre square."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(sample("grace_hopper.jpg")).convert("RGB"), np.float64)
+    n = 512
+    r0, c0 = (rgb.shape[0] - n) // 2, (rgb.shape[1] - n) // 2
+    rgb = rgb[r0:r0 + n, c0:c0 + n]
+    luma = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    return np.clip(np.round(luma), 0, 255).astype(np.uint8)
+
+
+def write_png(path, a):
+    """`a` as a greyscale PNG, written under a temporary name and renamed."""
+    from PIL import Image
+
+    tmp = path + ".tmp"
+    # uint16 becomes mode "I;16", uint8 "L": one grey channel either way.
+    Image.fromarray(a).save(tmp, format="PNG")
+    os.replace(tmp, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", required=True, help="folder for terrain.png and photo.png")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    for name, heights in (("terrain", terrain()), ("photo", photo())):
+        path = os.path.join(a.out, f"{name}.png")
+        write_png(path, heights)
+        print(f"{path}: {heights.shape[1]}x{heights.shape[0]} {heights.dtype}")
+
+
+if __name__ == "__main__":
+    main()
