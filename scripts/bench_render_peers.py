@@ -29,6 +29,10 @@ photograph that `scripts/real_height_maps.py` writes:
     python3 scripts/real_height_maps.py --out W
     python3 scripts/bench_render_peers.py --maps studded,W/terrain.png,W/photo.png
 
+or, the same in one step (the two real maps written into the workdir):
+
+    python3 scripts/bench_render_peers.py --real
+
 Mitsuba's LLVM backend is pointed at `libLLVM-19` when one is installed
 (`DRJIT_LIBLLVM_PATH`; LLVM 15 is known to crash).
 """
@@ -399,6 +403,9 @@ def main():
     ap.add_argument("--displace", default="target/release/displace")
     ap.add_argument("--maps", default="studded,gaussian",
                     help="comma-separated: seed faces by name, square PNG height maps by path")
+    ap.add_argument("--real", action="store_true",
+                    help="also the real terrain and photograph of scripts/real_height_maps.py "
+                         "(needs matplotlib and pillow)")
     ap.add_argument("--scales", default="1,4")
     ap.add_argument("--size", type=int, default=512, help="image size (square)")
     ap.add_argument("--spp", type=int, default=16)
@@ -420,7 +427,13 @@ def main():
     env, exe, work = setup(a.displace, a.workdir, "displace-peers-")
     me = [sys.executable, os.path.abspath(__file__)]
     rows = []
-    for entry in a.maps.split(","):
+    entries = a.maps.split(",")
+    if a.real:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import real_height_maps
+
+        entries += real_height_maps.write_all(work)
+    for entry in entries:
         m, src, texels, ext, _ = map_spec(entry)
         toml = os.path.join(work, f"{m}.toml")
         with open(toml, "w") as f:

@@ -11,7 +11,9 @@ photograph, so the benchmarks can run on real inputs without a download.
   luma (Rec. 709 weights, as `displace` reduces colour images).
 
 Both are square PNGs, what `scripts/bench_render_peers.py --maps` takes by
-path. Usage:
+path. Beside them, `terrain.tif`: the whole elevation model (403 x 344) as
+float32 metres, what `scripts/bench_python_peers.py --dem W/terrain.tif
+--texel 90` takes. Usage:
 
     pip install matplotlib pillow numpy
     python3 scripts/real_height_maps.py --out W
@@ -33,10 +35,15 @@ def sample(name):
     return path
 
 
+def elevations():
+    """The elevation model's metres, float32, its rows north to south."""
+    return np.load(sample("jacksboro_fault_dem.npz"))["elevation"].astype(np.float32)
+
+
 def terrain():
     """16-bit heights of the elevation model's west square, its own range
     from 0 to 65535."""
-    z = np.load(sample("jacksboro_fault_dem.npz"))["elevation"].astype(np.float64)
+    z = elevations().astype(np.float64)
     n = min(z.shape)
     z = z[:n, :n]
     lo, hi = z.min(), z.max()
@@ -56,25 +63,37 @@ def photo():
 
 
 def write_png(path, a):
-    """`a` as a greyscale PNG, written under a temporary name and renamed."""
+    """`a` as a one-channel PNG or TIFF (by `path`'s suffix), written under a
+    temporary name and renamed."""
     from PIL import Image
 
     tmp = path + ".tmp"
-    # uint16 becomes mode "I;16", uint8 "L": one grey channel either way.
-    Image.fromarray(a).save(tmp, format="PNG")
+    # uint16 becomes mode "I;16", uint8 "L", float32 "F": one channel each.
+    Image.fromarray(a).save(tmp, format="TIFF" if path.endswith(".tif") else "PNG")
     os.replace(tmp, path)
+
+
+def write_all(out):
+    """Writes both maps into folder `out` (and the elevation model's TIFF);
+    returns the two PNGs' paths."""
+    os.makedirs(out, exist_ok=True)
+    paths = []
+    for name, heights in (("terrain", terrain()), ("photo", photo())):
+        path = os.path.join(out, f"{name}.png")
+        write_png(path, heights)
+        print(f"{path}: {heights.shape[1]}x{heights.shape[0]} {heights.dtype}")
+        paths.append(path)
+    z = elevations()
+    write_png(os.path.join(out, "terrain.tif"), z)
+    print(f"{os.path.join(out, 'terrain.tif')}: {z.shape[1]}x{z.shape[0]} float32 metres")
+    return paths
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", required=True, help="folder for terrain.png and photo.png")
-    a = ap.parse_args()
-    os.makedirs(a.out, exist_ok=True)
-    for name, heights in (("terrain", terrain()), ("photo", photo())):
-        path = os.path.join(a.out, f"{name}.png")
-        write_png(path, heights)
-        print(f"{path}: {heights.shape[1]}x{heights.shape[0]} {heights.dtype}")
+    write_all(ap.parse_args().out)
 
 
 if __name__ == "__main__":
