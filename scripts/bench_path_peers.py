@@ -178,6 +178,24 @@ def rmse(a, b):
     return float(np.sqrt(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2)))
 
 
+def equal_time_table(rows):
+    """Prints `rows` ((spp, our s, our RMSE, Mitsuba's s, Mitsuba's RMSE))
+    as a table with our RMSE over Mitsuba's at our render time, read off a
+    least-squares line through Mitsuba's log RMSE against log time; returns
+    that line's slope."""
+    lt = np.log([r[3] for r in rows])
+    le = np.log([r[4] for r in rows])
+    slope, icpt = np.polyfit(lt, le, 1)
+    print("| spp | ours: render s | ours: RMSE | Mitsuba: render s | Mitsuba: RMSE "
+          "| Mitsuba's RMSE at our time | ours / Mitsuba at equal time |")
+    print("|---|---|---|---|---|---|---|")
+    for spp, t_o, e_o, t_m, e_m in rows:
+        at = math.exp(icpt + slope * math.log(t_o))
+        print(f"| {spp} | {t_o:.2f} | {e_o:.4f} | {t_m:.2f} | {e_m:.4f} | {at:.4f} "
+              f"| {e_o / at:.2f} |")
+    return slope
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -240,38 +258,22 @@ def main():
                          f"mirrored {flipped:.4f}): camera conventions differ")
     _, img_f = ours(exe, a.size, a.floor_spp, 1, work, env, a.sampler)
     floor = rmse(img_f, ref)
-    # Mitsuba's log RMSE against log time, a least-squares line.
-    lt = np.log([r[3] for r in rows])
-    le = np.log([r[4] for r in rows])
-    slope, icpt = np.polyfit(lt, le, 1)
     # The noise alone: each renderer against its own converged image (ours
     # of the bilinear floor with its shell's walls, Mitsuba's of the mesh),
-    # so the converged difference between the two surfaces, which the table
-    # above counts in our error, is in neither.
+    # so the converged difference between the two surfaces, which the first
+    # table counts in our error, is in neither.
     noise = [(spp, t_o, rmse(img, img_f), t_m, e_m)
              for (spp, t_o, _, t_m, e_m), img in zip(rows, own)]
-    n_slope, n_icpt = np.polyfit(lt, np.log([r[4] for r in noise]), 1)
     print(f"\nsamplers: ours {a.sampler}, Mitsuba {a.mitsuba_sampler}")
     print(f"\n{a.size}x{a.size}, max_depth {MAX_DEPTH} (Mitsuba {MAX_DEPTH + 1}), "
           f"{os.cpu_count()} threads; reference {a.ref_spp} spp Mitsuba ({ref_s:.1f} s); "
           f"means: reference {ref.mean():.4f}, ours at {a.floor_spp} spp {img_f.mean():.4f}\n")
-    print("| spp | ours: render s | ours: RMSE | Mitsuba: render s | Mitsuba: RMSE "
-          "| Mitsuba's RMSE at our time | ours / Mitsuba at equal time |")
-    print("|---|---|---|---|---|---|---|")
-    for spp, t_o, e_o, t_m, e_m in rows:
-        at = math.exp(icpt + slope * math.log(t_o))
-        print(f"| {spp} | {t_o:.2f} | {e_o:.4f} | {t_m:.2f} | {e_m:.4f} | {at:.4f} "
-              f"| {e_o / at:.2f} |")
+    slope = equal_time_table(rows)
     print(f"\nconverged difference (our {a.floor_spp} spp against the reference): "
           f"RMSE {floor:.4f}; Mitsuba's RMSE falls as time^{slope:.2f}")
     print(f"\nthe noise alone, each against its own converged image (ours at {a.floor_spp} "
-          f"spp, Mitsuba's reference); Mitsuba's falls as time^{n_slope:.2f}:\n")
-    print("| spp | ours: RMSE | Mitsuba: RMSE | Mitsuba's RMSE at our time "
-          "| ours / Mitsuba at equal time |")
-    print("|---|---|---|---|---|")
-    for spp, t_o, e_o, _, e_m in noise:
-        at = math.exp(n_icpt + n_slope * math.log(t_o))
-        print(f"| {spp} | {e_o:.4f} | {e_m:.4f} | {at:.4f} | {e_o / at:.2f} |")
+          f"spp, Mitsuba's reference):\n")
+    equal_time_table(noise)
     print(f"images and the mesh: {work}")
 
 

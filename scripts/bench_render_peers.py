@@ -158,8 +158,9 @@ def map_spec(m):
     return (name, os.path.abspath(m), w, (1.0, 1.0, FILE_DEPTH), FILE_MAP_SIZE)
 
 
-def scene_toml(m, size, spp):
-    _, src, texels, (sx, sy, sz), msize = map_spec(m)
+def scene_toml(spec, size, spp):
+    """The benchmark's scene of one face, `spec` as `map_spec` gives it."""
+    _, src, texels, (sx, sy, sz), msize = spec
     view = (*camera(), VFOV)
     light = (LIGHT_POS, LIGHT_INTENSITY)
     v = toml_vec
@@ -434,10 +435,11 @@ def main():
 
         entries += real_height_maps.write_all(work)
     for entry in entries:
-        m, src, texels, ext, _ = map_spec(entry)
+        spec = map_spec(entry)
+        m, src, texels, ext, _ = spec
         toml = os.path.join(work, f"{m}.toml")
         with open(toml, "w") as f:
-            f.write(scene_toml(entry, a.size, a.spp))
+            f.write(scene_toml(spec, a.size, a.spp))
         # Ours: whole render (bake included, no disk cache) and first-hit rays.
         ours_img = os.path.join(work, f"{m}.ours.exr")
         _, err, wall, rss = run_measured(

@@ -62,7 +62,7 @@ def photo():
     return np.clip(np.round(luma), 0, 255).astype(np.uint8)
 
 
-def write_png(path, a):
+def write_image(path, a):
     """`a` as a one-channel PNG or TIFF (by `path`'s suffix), written under a
     temporary name and renamed."""
     from PIL import Image
@@ -80,11 +80,11 @@ def write_all(out):
     paths = []
     for name, heights in (("terrain", terrain()), ("photo", photo())):
         path = os.path.join(out, f"{name}.png")
-        write_png(path, heights)
+        write_image(path, heights)
         print(f"{path}: {heights.shape[1]}x{heights.shape[0]} {heights.dtype}")
         paths.append(path)
     z = elevations()
-    write_png(os.path.join(out, "terrain.tif"), z)
+    write_image(os.path.join(out, "terrain.tif"), z)
     print(f"{os.path.join(out, 'terrain.tif')}: {z.shape[1]}x{z.shape[0]} float32 metres")
     return paths
 

@@ -310,16 +310,16 @@ mod tests {
         let (mut proven, mut blocked) = (0, 0);
         for case in 0..40 {
             let (w, h) = (8 + case * 3, 5 + case * 2);
-            // Smooth and rough maps: a few octaves of random values.
+            // Rough maps (a random value a texel) and smooth ones (rolling
+            // hills), in turn.
             let rough = case % 2 == 0;
             let data = (0..w * h)
                 .map(|k| {
-                    let (x, y) = ((k % w) as f32, (k / w) as f32);
-                    let smooth = 0.5 + 0.4 * (0.7 * x).sin() * (0.5 * y).cos();
                     if rough {
                         0.8 * rng.next_f32() + 0.1
                     } else {
-                        smooth
+                        let (x, y) = ((k % w) as f32, (k / w) as f32);
+                        0.5 + 0.4 * (0.7 * x).sin() * (0.5 * y).cos()
                     }
                 })
                 .collect();

@@ -337,12 +337,20 @@ fn path_camera_sample(scene: &Scene, x: u32, y: u32, s: u32) -> (Ray, SampleStre
             (ray, SampleStream::independent(rng))
         }
         SamplerKind::Sobol => {
-            let mut st = SampleStream::sobol(scene.seed, x, y, s);
-            let jitter = st.next_2d();
-            let lens = st.next_2d();
+            let (st, jitter, lens) = sobol_camera_stream(scene, x, y, s);
             (camera_ray(scene, x, y, jitter, lens), st)
         }
     }
+}
+
+/// Sample `s` of pixel `(x, y)`'s Sobol stream with its film offset and
+/// lens point drawn, its first two dimensions (the order both the one-sample
+/// and the eight-sample camera rays keep).
+fn sobol_camera_stream(scene: &Scene, x: u32, y: u32, s: u32) -> (SampleStream, Vec2, Vec2) {
+    let mut st = SampleStream::sobol(scene.seed, x, y, s);
+    let jitter = st.next_2d();
+    let lens = st.next_2d();
+    (st, jitter, lens)
 }
 
 /// [`path_camera_sample`] of eight samples `(x, y, s)` at once, the rays
@@ -362,9 +370,8 @@ fn path_camera_samples8(
             let mut lens = [Vec2::ZERO; PACKET];
             let streams = std::array::from_fn(|l| {
                 let (x, y, s) = samples[l];
-                let mut st = SampleStream::sobol(scene.seed, x, y, s);
-                jitter[l] = st.next_2d();
-                lens[l] = st.next_2d();
+                let st;
+                (st, jitter[l], lens[l]) = sobol_camera_stream(scene, x, y, s);
                 st
             });
             let pixels = samples.map(|(x, y, _)| (x, y));
