@@ -109,14 +109,16 @@ impl DisplacementMap {
     }
 
     /// Bytes this map holds in memory: heights, normals, the distance
-    /// values and their 8-bit codes (what a scene's displaced surfaces cost
-    /// beside the triangles a tessellation would need).
+    /// values and their 8-bit codes, and the horizon bounds where they are
+    /// built (what a scene's displaced surfaces cost beside the triangles a
+    /// tessellation would need).
     pub fn memory_bytes(&self) -> usize {
         let texels = self.height.width() * self.height.height();
         let voxels: usize = self.distance.size().iter().product();
         texels * std::mem::size_of::<f32>()
             + self.normals.data.len() * std::mem::size_of::<Vec3>()
             + voxels * (std::mem::size_of::<f32>() + 1)
+            + self.height.horizon().map_or(0, |h| h.bytes())
     }
 
     /// Shading normal at texture coordinate `uv` (tiles), map space.

@@ -4,9 +4,10 @@
 //! of the shell).
 
 use crate::convention::{check_allocation, texel_lerp, Address};
+use crate::horizon::HorizonMap;
 use crate::{Error, Result};
 use rayon::prelude::*;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 /// A displacement map: heights in `[0, 1]` (0 on the base surface, 1 at
 /// the top of the shell) on a texel grid, read as a continuous surface of
@@ -20,6 +21,8 @@ pub struct HeightMap {
     address: Address,
     /// [`Self::max_steps`], found on first use.
     steps: OnceLock<[f32; 2]>,
+    /// [`Self::horizon`], built by [`Self::prepare_horizon`].
+    horizon: OnceLock<Option<Arc<HorizonMap>>>,
 }
 
 /// Maps are equal when their texels and addressing are.
@@ -67,6 +70,7 @@ impl HeightMap {
             data,
             address,
             steps: OnceLock::new(),
+            horizon: OnceLock::new(),
         })
     }
 
@@ -105,7 +109,32 @@ impl HeightMap {
     pub fn with_address(mut self, address: Address) -> Self {
         self.address = address;
         self.steps = OnceLock::new();
+        self.horizon = OnceLock::new();
         self
+    }
+
+    /// Builds the map's horizon bounds ([`crate::horizon`]) unless they are
+    /// built already, so that any-hit queries from then on may answer rays
+    /// that leave the surface without tracing them, and keeps them where
+    /// they pay: where at least [`crate::horizon::MIN_SHARE`] of the cells
+    /// and sectors clear a ray rising `rise` heights per cell (a 45-degree
+    /// ray of the face the map is traced on: one shell depth per map unit).
+    /// A scene calls it once while it loads; the queries never build them
+    /// (a build in the middle of a parallel batch would hold every other
+    /// thread). Maps over [`crate::horizon::MAX_HORIZON_CELLS`] get none.
+    pub fn prepare_horizon(&self, rise: f32) -> Option<&HorizonMap> {
+        self.horizon
+            .get_or_init(|| {
+                HorizonMap::build(self)
+                    .filter(|h| h.pays_at(rise))
+                    .map(Arc::new)
+            })
+            .as_deref()
+    }
+
+    /// The horizon bounds, where [`Self::prepare_horizon`] has built them.
+    pub fn horizon(&self) -> Option<&HorizonMap> {
+        self.horizon.get().and_then(|h| h.as_deref())
     }
 
     /// The largest difference in height between neighbouring texels along

@@ -36,6 +36,7 @@ pub mod error;
 pub mod exact;
 pub mod generators;
 pub mod heightmap;
+pub mod horizon;
 pub mod io;
 pub mod memory;
 pub mod names;

@@ -25,6 +25,7 @@
 
 use crate::convention::{floor_i64, TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
 use crate::exact::{patch_hit, SurfaceHit, Walk};
+use crate::horizon::HorizonMap;
 use crate::sphere_trace::{clip, leaves_through_floor, surface_hit, wall_hit, MapHit, MapRay};
 use crate::sphere_trace::{Method, TraceOptions};
 use crate::{DistanceMap, HeightMap};
@@ -159,16 +160,19 @@ enum Outcome {
 
 /// What every ray traced through one map shares: its tile box, the
 /// early-out threshold of the steps and the exact band walked below it.
-pub(crate) struct Constants {
+pub(crate) struct Constants<'a> {
     aspect: [f32; 2],
     tau: f32,
     band: f32,
     /// Height cells per map unit across and down ([`Grid`]).
     cells: [f64; 2],
+    /// The height map's horizon bounds, where they are built: any-hit
+    /// queries that leave the surface more steeply end at once.
+    horizon: Option<&'a HorizonMap>,
 }
 
-impl Constants {
-    fn new(height: &HeightMap, distance: &DistanceMap) -> Self {
+impl<'a> Constants<'a> {
+    fn new(height: &'a HeightMap, distance: &DistanceMap) -> Self {
         let voxel = distance.voxel_size();
         let tau = TRACE_STOP_VOXELS * voxel.min_element();
         let aspect = distance.aspect();
@@ -182,6 +186,12 @@ impl Constants {
             // The values read are unrounded: their bound is the data's,
             // without the 8-bit codes' quantum.
             band: TRACE_BAND_FACTOR * distance.data_underestimate() + tau,
+            // Rays rising at 45 degrees in the world rise one depth per map
+            // unit: where few cells' horizons are under that, the test
+            // would cost every ray and answer almost none.
+            horizon: height
+                .horizon()
+                .filter(|h| h.pays_at((aspect[0] as f64 / height.width() as f64) as f32)),
         }
     }
 }
@@ -230,6 +240,19 @@ impl Lane {
             } else {
                 Outcome::Hit(wall_hit(ray, aspect, &clip, clip.t_in, 0))
             });
+        }
+        // A shadow ray leaving the surface more steeply than the horizon
+        // around its start meets nothing on the map (`crate::horizon`);
+        // a ray entering through the top descends, so it never is one.
+        if any && !through_top && opts.tiles == [1.0, 1.0] {
+            if let Some(horizon) = c.horizon {
+                let [sx, sy] = c.cells;
+                let (x, y) = (entry.x as f64 * sx - 0.5, entry.y as f64 * sy - 0.5);
+                let (dx, dy) = (ray.dir.x as f64 * sx, ray.dir.y as f64 * sy);
+                if horizon.clears(x as f32, y as f32, dx as f32, dy as f32, ray.dir.z) {
+                    return Err(Outcome::Miss);
+                }
+            }
         }
         Ok(Lane {
             ray: *ray,

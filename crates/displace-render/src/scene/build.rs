@@ -19,6 +19,21 @@ fn primitive(p: PlacedShape) -> Primitive {
     p.map_shape(|s| s.map_faces(|f| DisplacedFace::from(&f), |c| CurvedFace::from(&c)))
 }
 
+/// Builds the horizon bounds of every flat displaced face's height map
+/// (once per shared map), so that its shadow rays that climb clear of the
+/// surface end without a trace ([`displace_core::horizon`]); they are kept
+/// where they pay (smooth fields).
+fn prepare_horizons(prims: &[Primitive]) {
+    for p in prims {
+        if let crate::scene::world::Shape::Displaced(d) = &p.shape {
+            let map = d.map();
+            // A 45-degree ray rises one shell depth per map unit.
+            let rise = map.aspect()[0] / map.height.width() as f32;
+            map.height.prepare_horizon(rise);
+        }
+    }
+}
+
 /// The CPU scene of `world`.
 pub fn build(world: World) -> Scene {
     let World {
@@ -40,6 +55,7 @@ pub fn build(world: World) -> Scene {
         warnings,
     } = world;
     let prims: Vec<Primitive> = shapes.into_iter().map(primitive).collect();
+    prepare_horizons(&prims);
     let bounds: Vec<Aabb> = prims.iter().map(bounds).collect();
     let costs: Vec<f32> = prims.iter().map(test_cost).collect();
     let bvh = Bvh::build_weighted(&bounds, &costs);
