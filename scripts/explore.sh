@@ -34,7 +34,7 @@ export DISPLACE_FUZZ_SEED="$fuzz_seed" DISPLACE_FUZZ_CASES="$fuzz_cases"
 run() { echo "explore: cargo test --release $*"; cargo test --release "$@"; }
 for g in "${groups[@]}"; do
   case "$g" in
-    tracers) run -p displace-core --test trace --test packet --test techniques --test pyramid ;;
+    tracers) run -p displace-core --test trace --test packet --test techniques --test pyramid --test horizon ;;
     bake) run -p displace-core --test conservative --lib -- edt normal_map ;;
     curved) run -p displace-render --test curved -- rays_never_cross_the_surface_before_their_hit ;;
     parsers) run -p displace-core --lib -- npy

@@ -125,7 +125,9 @@ impl HeightMap {
     pub fn prepare_horizon(&self, rise: f32) -> Option<&HorizonMap> {
         self.horizon
             .get_or_init(|| {
-                HorizonMap::build(self)
+                HorizonMap::could_pay(self, rise)
+                    .then(|| HorizonMap::build(self))
+                    .flatten()
                     .filter(|h| h.pays_at(rise))
                     .map(Arc::new)
             })

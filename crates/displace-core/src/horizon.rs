@@ -209,6 +209,37 @@ impl HorizonMap {
         self.share_cleared_at(rise) >= MIN_SHARE
     }
 
+    /// Whether bounds of `height` could pay for rays rising `rise` heights
+    /// per cell, judged before building them from a sample of its cells
+    /// (every 31st): a cell's bound is at least the derivative on each cell
+    /// of its 3x3 neighbourhood, so where under half of [`MIN_SHARE`] of
+    /// the sampled cells and sectors have those under `rise`, the built
+    /// bounds would not pay either. A busy map (a photograph, steps, noise)
+    /// is then spared the build; a wrong guess costs speed, never an
+    /// answer.
+    pub fn could_pay(height: &HeightMap, rise: f32) -> bool {
+        let (w, h) = (height.width() + 1, height.height() + 1);
+        let ends: [[[f64; 2]; 2]; SECTORS] = std::array::from_fn(sector_ends);
+        let (mut under, mut sampled) = (0usize, 0usize);
+        for c in (0..w * h).step_by(31) {
+            let (i, j) = ((c % w) as i64 - 1, (c / w) as i64 - 1);
+            let mut steepest_near = [f64::NEG_INFINITY; SECTORS];
+            for (di, dj) in (-1..=1).flat_map(|dj| (-1..=1).map(move |di| (di, dj))) {
+                let (ni, nj) = (i + di, j + dj);
+                if ni < -1 || nj < -1 || ni >= w as i64 - 1 || nj >= h as i64 - 1 {
+                    continue;
+                }
+                let corners = height.cell_fast(ni, nj);
+                for (k, end) in ends.iter().enumerate() {
+                    steepest_near[k] = steepest_near[k].max(steepest(corners, *end));
+                }
+            }
+            under += steepest_near.iter().filter(|&&s| s < rise as f64).count();
+            sampled += SECTORS;
+        }
+        under as f64 >= 0.5 * MIN_SHARE * sampled as f64
+    }
+
     /// The bounds of every cell of `height` (its addressing read at the
     /// border cells), or `None` for maps of more than
     /// [`MAX_HORIZON_CELLS`] cells and where the build's memory
@@ -222,7 +253,14 @@ impl HorizonMap {
             return None;
         }
         let mut codes = vec![0u8; w * h * SECTORS];
-        {
+        if rayon::current_thread_index().is_some() {
+            // Inside a parallel job (a scene built by one), where waiting
+            // on sectors in parallel could steal another job that asks for
+            // these same bounds while they are being built.
+            for (k, out) in codes.chunks_mut(w * h).enumerate() {
+                sector_codes(height, w, h, k, out);
+            }
+        } else {
             use rayon::prelude::*;
             codes
                 .par_chunks_mut(w * h)

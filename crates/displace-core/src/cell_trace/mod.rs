@@ -158,6 +158,12 @@ enum Outcome {
     Miss,
 }
 
+/// How far over the surface (shell depths) an any-hit ray must start for
+/// the horizon bounds to answer it: well over the rounding of the height
+/// sampled there, so that a ray the first-hit query finds touching the
+/// surface at its start is traced and answered alike.
+const HORIZON_CLEARANCE: f32 = 1e-6;
+
 /// What every ray traced through one map shares: its tile box, the
 /// early-out threshold of the steps and the exact band walked below it.
 pub(crate) struct Constants<'a> {
@@ -234,23 +240,29 @@ impl Lane {
         // at most 1: most camera rays skip the look-up.
         let entry = ray.origin + ray.dir * clip.t_in;
         let through_top = clip.entry_normal == Vec3::Z;
-        if !through_top && entry.z < height.sample(entry.x / aspect[0], entry.y / aspect[1]) {
-            return Err(if any {
-                Outcome::Blocked
-            } else {
-                Outcome::Hit(wall_hit(ray, aspect, &clip, clip.t_in, 0))
-            });
-        }
-        // A shadow ray leaving the surface more steeply than the horizon
-        // around its start meets nothing on the map (`crate::horizon`);
-        // a ray entering through the top descends, so it never is one.
-        if any && !through_top && opts.tiles == [1.0, 1.0] {
-            if let Some(horizon) = c.horizon {
-                let [sx, sy] = c.cells;
-                let (x, y) = (entry.x as f64 * sx - 0.5, entry.y as f64 * sy - 0.5);
-                let (dx, dy) = (ray.dir.x as f64 * sx, ray.dir.y as f64 * sy);
-                if horizon.clears(x as f32, y as f32, dx as f32, dy as f32, ray.dir.z) {
-                    return Err(Outcome::Miss);
+        if !through_top {
+            let ground = height.sample(entry.x / aspect[0], entry.y / aspect[1]);
+            if entry.z < ground {
+                return Err(if any {
+                    Outcome::Blocked
+                } else {
+                    Outcome::Hit(wall_hit(ray, aspect, &clip, clip.t_in, 0))
+                });
+            }
+            // A shadow ray leaving the surface more steeply than the
+            // horizon around its start meets nothing on the map
+            // (`crate::horizon`; a ray entering through the top descends,
+            // so it never is one). Only from strictly over the surface: a
+            // ray that starts on it (or enters the shell through the floor
+            // where the surface lies on it) has its first hit at its start.
+            if any && entry.z > ground + HORIZON_CLEARANCE && opts.tiles == [1.0, 1.0] {
+                if let Some(horizon) = c.horizon {
+                    let [sx, sy] = c.cells;
+                    let (x, y) = (entry.x as f64 * sx - 0.5, entry.y as f64 * sy - 0.5);
+                    let (dx, dy) = (ray.dir.x as f64 * sx, ray.dir.y as f64 * sy);
+                    if horizon.clears(x as f32, y as f32, dx as f32, dy as f32, ray.dir.z) {
+                        return Err(Outcome::Miss);
+                    }
                 }
             }
         }
