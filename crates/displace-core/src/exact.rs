@@ -117,7 +117,7 @@ pub fn walk(height: &HeightMap, aspect: [f32; 2], o: Vec3, d: Vec3, t0: f32, t1:
 
 /// `floor` without a libm call (see [`crate::convention::floor_i64`]).
 #[inline]
-fn floor_f64(x: f64) -> i64 {
+pub(crate) fn floor_f64(x: f64) -> i64 {
     let i = x as i64;
     if (i as f64) > x {
         i - 1

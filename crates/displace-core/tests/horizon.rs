@@ -114,14 +114,16 @@ proptest! {
         seed in any::<u64>(),
     ) {
         let height = heights(kind, w, h, seed, Address::Clamp);
-        let without = bake_map(&height, [16, 16, 8], [2.0, 1.5, 0.1]);
+        let without = bake_map(&height, [16, 16, 8], [2.0, 1.5, 0.03]);
         let with = without.clone();
         // The tracer keeps and tests the bounds where rays rising at 45
-        // degrees clear a quarter of them at least (the face is shallow, so
-        // they do).
+        // degrees clear a quarter of them at least: on this shallow face
+        // they do, but for the steepest waves on the fewest texels.
         let per_cell = with.aspect()[0] / w as f32;
-        let bounds = with.height.prepare_horizon(per_cell).expect("bounds that pay on a shallow face");
-        prop_assert!(bounds.share_cleared_at(per_cell) >= 0.25, "share {}", bounds.share_cleared_at(per_cell));
+        let bounds = with.height.prepare_horizon(per_cell);
+        prop_assume!(bounds.is_some(), "waves too steep for bounds that pay");
+        let share = bounds.map_or(0.0, |b| b.share_cleared_at(per_cell));
+        prop_assert!(share >= 0.25, "share {}", share);
         prop_assert!(without.height.horizon().is_none());
         let mut rng = Rng(seed ^ 0x2545_f491);
         let aspect = with.aspect();
@@ -261,4 +263,27 @@ fn rays_entering_where_the_surface_lies_on_the_floor_are_blocked() {
         blocked > checked / 10,
         "only {blocked} of {checked} blocked"
     );
+}
+
+/// A ray the exploration found (kind 2 waves, 28 x 21 texels, on a face 2
+/// wide and 0.03 deep): it starts where the patch solve has it on the
+/// surface, and the single-precision height sample, off by its
+/// coordinates' rounding times the steep slope, had it 5e-6 over it. The
+/// bounds must leave it to the trace, which finds it blocked at its start.
+#[test]
+fn a_ray_on_a_steep_surface_by_the_solve_is_left_to_the_trace() {
+    let height = heights(2, 28, 21, 17981517361609617048, Address::Clamp);
+    let without = bake_map(&height, [16, 16, 8], [2.0, 1.5, 0.03]);
+    let with = without.clone();
+    assert!(with
+        .height
+        .prepare_horizon(with.aspect()[0] / 28.0)
+        .is_some());
+    let ray = MapRay::new(
+        Vec3::new(64.35247, 22.91942, 0.5059476),
+        Vec3::new(-0.8508552, 0.32465336, 0.4130928),
+    );
+    let opts = TraceOptions::default();
+    assert!(without.occluded(&ray, &opts));
+    assert_eq!(with.occluded(&ray, &opts), without.occluded(&ray, &opts));
 }

@@ -24,7 +24,7 @@
 //! passed, and every hit comes from the exact patch solve.
 
 use crate::convention::{floor_i64, TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
-use crate::exact::{patch_hit, SurfaceHit, Walk};
+use crate::exact::{floor_f64, patch_hit, SurfaceHit, Walk};
 use crate::horizon::HorizonMap;
 use crate::sphere_trace::{clip, leaves_through_floor, surface_hit, wall_hit, MapHit, MapRay};
 use crate::sphere_trace::{Method, TraceOptions};
@@ -158,11 +158,26 @@ enum Outcome {
     Miss,
 }
 
-/// How far over the surface (shell depths) an any-hit ray must start for
-/// the horizon bounds to answer it: well over the rounding of the height
-/// sampled there, so that a ray the first-hit query finds touching the
-/// surface at its start is traced and answered alike.
-const HORIZON_CLEARANCE: f32 = 1e-6;
+/// How far over the surface (shell depths, the patch evaluated in double
+/// precision as the solve does) an any-hit ray must start for the horizon
+/// bounds to answer it: far over that evaluation's rounding, so that a ray
+/// the first-hit query finds touching the surface at its start is traced
+/// and answered alike.
+const HORIZON_CLEARANCE: f64 = 1e-6;
+
+/// Whether height `z` stands more than [`HORIZON_CLEARANCE`] over the
+/// surface at cell coordinates `(x, y)`, the patch evaluated as the solve
+/// has it (`exact::patch_hit`: double precision at the cell's own
+/// coordinates). The single-precision sample is off by its coordinates'
+/// rounding times the slope, more than the clearance on a steep, wide map.
+#[inline]
+fn over_surface(height: &HeightMap, x: f64, y: f64, z: f32) -> bool {
+    let (ci, cj) = (floor_f64(x), floor_f64(y));
+    let [h00, h10, h01, h11] = height.cell_fast(ci, cj).map(f64::from);
+    let (fx, fy) = (x - ci as f64, y - cj as f64);
+    let under = h00 + (h10 - h00) * fx + (h01 - h00) * fy + (h00 - h10 - h01 + h11) * fx * fy;
+    z as f64 > under + HORIZON_CLEARANCE
+}
 
 /// What every ray traced through one map shares: its tile box, the
 /// early-out threshold of the steps and the exact band walked below it.
@@ -255,12 +270,14 @@ impl Lane {
             // so it never is one). Only from strictly over the surface: a
             // ray that starts on it (or enters the shell through the floor
             // where the surface lies on it) has its first hit at its start.
-            if any && entry.z > ground + HORIZON_CLEARANCE && opts.tiles == [1.0, 1.0] {
+            if any && opts.tiles == [1.0, 1.0] {
                 if let Some(horizon) = c.horizon {
                     let [sx, sy] = c.cells;
                     let (x, y) = (entry.x as f64 * sx - 0.5, entry.y as f64 * sy - 0.5);
                     let (dx, dy) = (ray.dir.x as f64 * sx, ray.dir.y as f64 * sy);
-                    if horizon.clears(x as f32, y as f32, dx as f32, dy as f32, ray.dir.z) {
+                    if horizon.clears(x as f32, y as f32, dx as f32, dy as f32, ray.dir.z)
+                        && over_surface(height, x, y, entry.z)
+                    {
                         return Err(Outcome::Miss);
                     }
                 }
