@@ -252,7 +252,9 @@ impl HorizonMap {
         {
             return None;
         }
-        let mut codes = vec![0u8; w * h * SECTORS];
+        // A refused allocation leaves the map without bounds, as the
+        // estimate above does.
+        let mut codes: Vec<u8> = crate::memory::zeroed("horizon bounds", w * h * SECTORS).ok()?;
         if rayon::current_thread_index().is_some() {
             // Inside a parallel job (a scene built by one), where waiting
             // on sectors in parallel could steal another job that asks for
