@@ -8,7 +8,7 @@ use std::sync::Arc;
 /// Called with `(slices done, slices in all)` as the bake progresses.
 pub type Progress = Arc<dyn Fn(usize, usize) + Send + Sync>;
 
-/// What [`bake`] builds: the distance map's resolution, the tile's
+/// What [`bake`](fn@crate::bake) builds: the distance map's resolution, the tile's
 /// proportions, and the caller's hooks for progress and cancellation.
 #[derive(Clone)]
 pub struct BakeOptions {
@@ -18,7 +18,7 @@ pub struct BakeOptions {
     pub extent: Extent,
     /// Told after each depth slice; `None` for silence.
     pub progress: Option<Progress>,
-    /// Set to stop a bake early; [`bake`] then returns [`Error::Cancelled`].
+    /// Set to stop a bake early; [`bake`](fn@crate::bake) then returns [`Error::Cancelled`](crate::Error::Cancelled).
     pub cancel: Option<Arc<AtomicBool>>,
 }
 

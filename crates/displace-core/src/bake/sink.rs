@@ -6,12 +6,12 @@ use crate::distance_map::R8Encoder;
 use crate::{Address, Error, Extent, Result};
 
 /// One slab of consecutive depth slices of a streamed bake, handed to the
-/// sink of [`bake_streamed`] in order of depth.
+/// sink of [`bake_streamed`](crate::bake_streamed) in order of depth.
 #[derive(Debug)]
 pub struct Slab<'a> {
     /// Depth index of the slab's first slice.
     pub first: usize,
-    /// The slices' values (`[k][j][i]`, depth units), exactly as [`bake`]
+    /// The slices' values (`[k][j][i]`, depth units), exactly as [`bake`](fn@crate::bake)
     /// computes them.
     pub values: &'a [f32],
     /// The lowest of `values` (found as they were computed, so a sink need
@@ -35,7 +35,7 @@ pub struct BakeLayout {
     pub address: Address,
     /// Physical size of one tile.
     pub extent: Extent,
-    /// The bound [`DistanceMap::from_raw`] takes, before any rounding.
+    /// The bound [`DistanceMap::from_raw`](crate::DistanceMap::from_raw) takes, before any rounding.
     pub underestimate: f32,
 }
 

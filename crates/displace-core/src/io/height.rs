@@ -9,7 +9,7 @@
 //! Colour images reduce to one value by Rec. 709 luma weights on the stored
 //! values, unless a channel is chosen. Float heights (EXR, and TIFF
 //! rasters of floats or signed or 32-bit integers, as elevation models are
-//! stored: [`super::data_tiff`]) must already lie in `[0, 1]`: the shell
+//! stored: `io::data_tiff`) must already lie in `[0, 1]`: the shell
 //! depth is given by the extent, not by the data, so an out-of-range map is
 //! refused rather than silently rescaled, unless a [`HeightRange`] says
 //! which values are the shell's bottom and top.

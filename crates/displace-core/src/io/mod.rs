@@ -237,7 +237,7 @@ fn check_same_proportions(path: &Path, stored: Extent, wanted: Extent) -> Result
     }
 }
 
-/// The bound on `true distance - stored value` that [`crate::bake`] proves
+/// The bound on `true distance - stored value` that [`crate::bake`](fn@crate::bake) proves
 /// for a map of `size` voxels over a tile of `aspect` (the two margins of
 /// [`crate::distance_map`]'s proof: the column radius `|(hx, hy)| / 2` and the
 /// trilinear half diagonal `|(hx, hy, hz)| / 2`, each counted on both sides),
