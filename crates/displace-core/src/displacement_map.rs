@@ -121,6 +121,18 @@ impl DisplacementMap {
             + self.height.horizon().map_or(0, |h| h.bytes())
     }
 
+    /// Builds the height map's horizon bounds ([`crate::horizon`]) for
+    /// this map's proportions, keeping them where they pay
+    /// ([`HeightMap::prepare_horizon`] with the rise of a 45-degree ray,
+    /// one shell depth per map unit: `aspect / width` heights per cell).
+    /// Any-hit queries from then on answer the shadow rays that climb
+    /// clear of the surface without tracing them. A scene calls it once
+    /// while it loads.
+    pub fn prepare_horizon(&self) -> Option<&crate::horizon::HorizonMap> {
+        let rise = self.aspect()[0] / self.height.width() as f32;
+        self.height.prepare_horizon(rise)
+    }
+
     /// Shading normal at texture coordinate `uv` (tiles), map space.
     pub fn shading_normal(&self, uv: Vec2) -> Vec3 {
         self.normals.sample(uv.x, uv.y)

@@ -154,7 +154,7 @@ pub(crate) fn patch_hit(
     let qx = d.x * sx;
     let qy = d.y * sy;
     // f(s) = k0 + k1 s + k2 s^2, s = t - ta.
-    let k0 = p.z - h00 - a * px - b * py - c * px * py;
+    let k0 = over_patch([h00, h10, h01, h11], px, py, p.z);
     let k1 = d.z - a * qx - b * qy - c * (px * qy + qx * py);
     let k2 = -c * qx * qy;
     let len = tb - ta;
@@ -173,6 +173,17 @@ pub(crate) fn patch_hit(
     // than the rest of a hit's solve).
     let n = Vec3::new(-dhdx as f32, -dhdy as f32, 1.0).normalize();
     Some((ta + s, n))
+}
+
+/// How far height `z` stands over the bilinear patch with corners `h00,
+/// h10, h01, h11` at `(px, py)` in the cell's own coordinates (`[0, 1]`
+/// across it): the constant term of [`patch_hit`]'s quadratic, in the
+/// precision and order the solve has it, so that a caller asking whether a
+/// point is over the surface gets the solve's own answer.
+#[inline(always)]
+pub(crate) fn over_patch([h00, h10, h01, h11]: [f64; 4], px: f64, py: f64, z: f64) -> f64 {
+    let (a, b, c) = (h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
+    z - h00 - a * px - b * py - c * px * py
 }
 
 /// Smallest root of `k0 + k1 s + k2 s^2` in `[lo, hi]`, where the function

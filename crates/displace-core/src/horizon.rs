@@ -46,9 +46,9 @@ use std::sync::LazyLock;
 /// of its components is larger, without an arc tangent).
 pub const SECTORS: usize = 8;
 
-/// Cells per side up to which a height map gets horizon bounds: larger maps
-/// cost more to bound than their shadow rays would save in a render, and
-/// their memory ([`HorizonMap::bytes_for`]) grows with the cells.
+/// Cells up to which a height map gets horizon bounds (2048 x 2048): larger
+/// maps cost more to bound than their shadow rays would save in a render,
+/// and the bounds' memory grows with the cells (8 bytes each).
 pub const MAX_HORIZON_CELLS: usize = 1 << 22;
 
 /// The share of a map's cells and sectors whose horizon a ray rising at 45
@@ -114,8 +114,8 @@ fn encode(s: f64) -> u8 {
         return 255;
     }
     let slopes = &*CODE_SLOPES;
-    // The code from the slope's exponent and leading mantissa bits, then
-    // corrected against the table (the logarithm is only a first guess).
+    // The code from the slope's logarithm, then corrected against the
+    // table (the logarithm rounds, so it is only a first guess).
     let guess = ((s.log2() - LOWEST_OCTAVE) * CODES_PER_OCTAVE + 1.0).floor();
     let mut q = guess.clamp(1.0, 255.0) as u8;
     while q < 255 && slopes[q as usize] < s {
@@ -168,11 +168,6 @@ fn steepest(corners: [f32; 4], ends: [[f64; 2]; 2]) -> f64 {
 }
 
 impl HorizonMap {
-    /// Bytes a horizon map of `height` holds.
-    pub fn bytes_for(height: &HeightMap) -> usize {
-        (height.width() + 1) * (height.height() + 1) * SECTORS
-    }
-
     /// Bytes this map holds.
     pub fn bytes(&self) -> usize {
         self.codes.len()

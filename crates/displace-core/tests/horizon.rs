@@ -120,7 +120,7 @@ proptest! {
         // degrees clear a quarter of them at least: on this shallow face
         // they do, but for the steepest waves on the fewest texels.
         let per_cell = with.aspect()[0] / w as f32;
-        let bounds = with.height.prepare_horizon(per_cell);
+        let bounds = with.prepare_horizon();
         prop_assume!(bounds.is_some(), "waves too steep for bounds that pay");
         let share = bounds.map_or(0.0, |b| b.share_cleared_at(per_cell));
         prop_assert!(share >= 0.25, "share {}", share);
@@ -220,8 +220,7 @@ fn rays_entering_where_the_surface_lies_on_the_floor_are_blocked() {
     let height = HeightMap::new(w, h, data, Address::Clamp).unwrap();
     let map = bake_map(&height, [24, 20, 8], [2.0, 1.5, 0.1]);
     let aspect = map.aspect();
-    let rise = aspect[0] / w as f32;
-    assert!(map.height.prepare_horizon(rise).is_some());
+    assert!(map.prepare_horizon().is_some());
     let mut rng = Rng(11);
     let (mut blocked, mut checked) = (0, 0);
     for k in 0..4000 {
@@ -275,10 +274,7 @@ fn a_ray_on_a_steep_surface_by_the_solve_is_left_to_the_trace() {
     let height = heights(2, 28, 21, 17981517361609617048, Address::Clamp);
     let without = bake_map(&height, [16, 16, 8], [2.0, 1.5, 0.03]);
     let with = without.clone();
-    assert!(with
-        .height
-        .prepare_horizon(with.aspect()[0] / 28.0)
-        .is_some());
+    assert!(with.prepare_horizon().is_some());
     let ray = MapRay::new(
         Vec3::new(64.35247, 22.91942, 0.5059476),
         Vec3::new(-0.8508552, 0.32465336, 0.4130928),

@@ -24,7 +24,7 @@
 //! passed, and every hit comes from the exact patch solve.
 
 use crate::convention::{floor_i64, TRACE_BAND_FACTOR, TRACE_STOP_VOXELS};
-use crate::exact::{floor_f64, patch_hit, SurfaceHit, Walk};
+use crate::exact::{floor_f64, over_patch, patch_hit, SurfaceHit, Walk};
 use crate::horizon::HorizonMap;
 use crate::sphere_trace::{clip, leaves_through_floor, surface_hit, wall_hit, MapHit, MapRay};
 use crate::sphere_trace::{Method, TraceOptions};
@@ -166,17 +166,15 @@ enum Outcome {
 const HORIZON_CLEARANCE: f64 = 1e-6;
 
 /// Whether height `z` stands more than [`HORIZON_CLEARANCE`] over the
-/// surface at cell coordinates `(x, y)`, the patch evaluated as the solve
-/// has it (`exact::patch_hit`: double precision at the cell's own
-/// coordinates). The single-precision sample is off by its coordinates'
-/// rounding times the slope, more than the clearance on a steep, wide map.
+/// surface at cell coordinates `(x, y)`, as the patch solve has it
+/// ([`over_patch`]: double precision at the cell's own coordinates). The
+/// single-precision sample is off by its coordinates' rounding times the
+/// slope, more than the clearance on a steep, wide map.
 #[inline]
 fn over_surface(height: &HeightMap, x: f64, y: f64, z: f32) -> bool {
     let (ci, cj) = (floor_f64(x), floor_f64(y));
-    let [h00, h10, h01, h11] = height.cell_fast(ci, cj).map(f64::from);
-    let (fx, fy) = (x - ci as f64, y - cj as f64);
-    let under = h00 + (h10 - h00) * fx + (h01 - h00) * fy + (h00 - h10 - h01 + h11) * fx * fy;
-    z as f64 > under + HORIZON_CLEARANCE
+    let corners = height.cell_fast(ci, cj).map(f64::from);
+    over_patch(corners, x - ci as f64, y - cj as f64, z as f64) > HORIZON_CLEARANCE
 }
 
 /// What every ray traced through one map shares: its tile box, the
@@ -187,8 +185,9 @@ pub(crate) struct Constants<'a> {
     band: f32,
     /// Height cells per map unit across and down ([`Grid`]).
     cells: [f64; 2],
-    /// The height map's horizon bounds, where they are built: any-hit
-    /// queries that leave the surface more steeply end at once.
+    /// The height map's horizon bounds, where they were built and kept
+    /// ([`crate::DisplacementMap::prepare_horizon`]): any-hit queries that
+    /// leave the surface more steeply end at once.
     horizon: Option<&'a HorizonMap>,
 }
 
@@ -207,12 +206,7 @@ impl<'a> Constants<'a> {
             // The values read are unrounded: their bound is the data's,
             // without the 8-bit codes' quantum.
             band: TRACE_BAND_FACTOR * distance.data_underestimate() + tau,
-            // Rays rising at 45 degrees in the world rise one depth per map
-            // unit: where few cells' horizons are under that, the test
-            // would cost every ray and answer almost none.
-            horizon: height
-                .horizon()
-                .filter(|h| h.pays_at((aspect[0] as f64 / height.width() as f64) as f32)),
+            horizon: height.horizon(),
         }
     }
 }

@@ -26,10 +26,7 @@ fn primitive(p: PlacedShape) -> Primitive {
 fn prepare_horizons(prims: &[Primitive]) {
     for p in prims {
         if let crate::scene::world::Shape::Displaced(d) = &p.shape {
-            let map = d.map();
-            // A 45-degree ray rises one shell depth per map unit.
-            let rise = map.aspect()[0] / map.height.width() as f32;
-            map.height.prepare_horizon(rise);
+            d.map().prepare_horizon();
         }
     }
 }
