@@ -92,6 +92,14 @@ impl Distribution1D {
         (i, p, rest)
     }
 
+    /// [`Distribution1D::sample_discrete`] without the rescaled `u`: the
+    /// piece and its probability, for callers that draw afresh (a light
+    /// chosen per vertex, many vertices at once).
+    pub fn choose(&self, u: f32) -> (usize, f32) {
+        let i = self.find(u);
+        (i, self.cdf[i + 1] - self.cdf[i])
+    }
+
     /// Probability of piece `i` in [`Distribution1D::sample_discrete`].
     pub fn pmf(&self, i: usize) -> f32 {
         self.cdf[i + 1] - self.cdf[i]

@@ -43,6 +43,8 @@ use crate::shading::sampler::SampleStream;
 use crate::shading::sampler::SamplerKind;
 use glam::{Vec2, Vec3};
 
+mod lanes;
+
 /// Bounces before Russian roulette may end a path (pbrt-v3's choice; pbrt-v4
 /// starts after the first).
 pub const RR_DEPTH: u32 = 3;
@@ -124,21 +126,68 @@ pub fn radiance(scene: &Scene, ray: &Ray, rng: &mut SampleStream) -> Vec3 {
 /// distance, the one-ray walk's answer would hang on the order it visits
 /// them in).
 fn trace(scene: &Scene, ray: Ray, rng: &mut SampleStream) -> Vec3 {
-    let mut path = Path::new(ray);
+    let mut paths = [(Path::new(ray), rng.clone())];
+    let mut lanes = lanes::Diffuse::default();
     let (mut batch, mut hits, mut blocked) = (Batch::default(), Vec::new(), Vec::new());
     loop {
-        scene.intersect_many(&[path.ray], 0.0, &[f32::INFINITY], &mut batch, &mut hits);
-        let step = path.step(scene, hits[0], rng);
+        scene.intersect_many(
+            &[paths[0].0.ray],
+            0.0,
+            &[f32::INFINITY],
+            &mut batch,
+            &mut hits,
+        );
+        let mut step = Step::ENDS;
+        vertices(scene, &mut paths, &[0], &hits, &mut lanes, &mut |_, s| {
+            step = s
+        });
         if let Some(light) = step.light {
             scene.occluded_many(&[light.ray], 0.0, &[light.t_max], &mut batch, &mut blocked);
             if !blocked[0] {
-                path.l += light.contribution;
+                paths[0].0.l += light.contribution;
             }
         }
         if !step.goes_on {
-            return path.l;
+            *rng = paths[0].1.clone();
+            return paths[0].0.l;
         }
     }
+}
+
+/// The vertices of the paths `alive` (indices into `paths`) at their
+/// nearest hits `hits`: the light each finds there, then its light sample
+/// and bounce, eight at a time in vector lanes where the surface is diffuse
+/// ([`lanes`]) and one at a time elsewhere; `done(i, step)` for each, in no
+/// fixed order. The one-path estimator and the wavefront both come through
+/// here, so a vertex is shaded by the same code in both.
+fn vertices(
+    scene: &Scene,
+    paths: &mut [(Path, SampleStream)],
+    alive: &[u32],
+    hits: &[Option<(u32, Interaction)>],
+    lanes: &mut lanes::Diffuse,
+    done: &mut impl FnMut(u32, Step),
+) {
+    for (&i, &hit) in alive.iter().zip(hits) {
+        let (path, rng) = &mut paths[i as usize];
+        let Some(hit) = path.arrive(scene, hit) else {
+            done(i, Step::ENDS);
+            continue;
+        };
+        match lanes::lambert_albedo(scene, &hit) {
+            Some(albedo) => {
+                lanes.push(scene, i, path, rng, &hit, albedo);
+                if lanes.is_full() {
+                    lanes.flush(scene, paths, done);
+                }
+            }
+            None => {
+                let step = path.scatter(scene, &hit, rng);
+                done(i, step);
+            }
+        }
+    }
+    lanes.flush(scene, paths, done);
 }
 
 /// One path between two traces: the ray it is about to trace and what it
@@ -165,11 +214,20 @@ struct LightSample {
 }
 
 /// What one vertex of a path did.
+#[derive(Clone, Copy, Debug)]
 struct Step {
     /// The light it sampled, waiting for its shadow ray.
     light: Option<LightSample>,
     /// Whether the path goes on along its new `ray`.
     goes_on: bool,
+}
+
+impl Step {
+    /// The path ends here, with no light sample waiting.
+    const ENDS: Step = Step {
+        light: None,
+        goes_on: false,
+    };
 }
 
 impl Path {
@@ -183,28 +241,19 @@ impl Path {
         }
     }
 
-    /// The vertex at `hit` (the nearest hit of `self.ray`, `None` for a
-    /// ray that escapes): its emitted light, its light sample (the shadow
-    /// ray left to the caller) and its bounce, drawing from `rng` in the
-    /// order of [`BOUNCE_DIMENSIONS`].
-    fn step(
-        &mut self,
-        scene: &Scene,
-        hit: Option<(u32, Interaction)>,
-        rng: &mut SampleStream,
-    ) -> Step {
+    /// The light the path finds at `hit` (an emitter it hits, or the
+    /// environment it escapes to), weighted against light sampling; the
+    /// hit, where the path goes on to scatter there (it does not after
+    /// `max_depth` bounces or an escape).
+    fn arrive(&mut self, scene: &Scene, hit: Option<(u32, Interaction)>) -> Option<Interaction> {
         let ray = self.ray;
-        let ends = Step {
-            light: None,
-            goes_on: false,
-        };
         let Some((prim, hit)) = hit else {
             let le = scene.environment.radiance(ray.dir);
             if le != Vec3::ZERO {
                 let pdf = scene.emitters.pdf_environment(&scene.environment, ray.dir);
                 self.l += self.beta * le * hit_weight(scene, self.prev, pdf);
             }
-            return ends;
+            return None;
         };
         let le = emitted(scene, &ray, &hit);
         if le != Vec3::ZERO {
@@ -215,22 +264,27 @@ impl Path {
             });
             self.l += self.beta * le * hit_weight(scene, self.prev, pdf);
         }
-        if self.depth == scene.max_depth {
-            return ends;
-        }
+        (self.depth < scene.max_depth).then_some(hit)
+    }
+
+    /// Next-event estimation and the bounce at `hit`, any material, one
+    /// path at a time (the vertices that [`lanes`] does not take).
+    fn scatter(&mut self, scene: &Scene, hit: &Interaction, rng: &mut SampleStream) -> Step {
+        let ray = self.ray;
+        let ends = Step::ENDS;
         let dimensions = CAMERA_DIMENSIONS + self.depth * BOUNCE_DIMENSIONS;
         rng.set_dimension(dimensions);
         self.depth += 1;
 
         let mat = &scene.materials[hit.material as usize];
         let wo = -ray.dir;
-        let (ng, ns, p) = facing(scene, &ray, &hit);
+        let (ng, ns, p) = facing(scene, &ray, hit);
         let bsdf = Bsdf::new(mat, mat.albedo(hit.uv, hit.tint), ng, ns, wo);
         if bsdf.is_black() {
             return ends;
         }
         let light = if bsdf.has_non_delta() {
-            direct(scene, &hit, &bsdf, ng, p, rng).map(|(ray, t_max, d)| LightSample {
+            direct(scene, hit, &bsdf, ng, p, rng).map(|(ray, t_max, d)| LightSample {
                 ray,
                 t_max,
                 contribution: self.beta * d,
@@ -257,20 +311,27 @@ impl Path {
             delta: s.delta,
         });
         self.ray = Ray::new(p, s.wi);
+        Step {
+            light,
+            goes_on: self.survives(rng),
+        }
+    }
+
+    /// Russian roulette after [`RR_DEPTH`] bounces (pbrt-v4 section
+    /// 13.4.3): whether the path goes on, its throughput reweighted by the
+    /// chance it had; drawn last of a bounce's numbers.
+    fn survives(&mut self, rng: &mut SampleStream) -> bool {
         if self.depth >= RR_DEPTH {
             let m = self.beta.max_element();
             if m < 1.0 {
                 let q = (1.0 - m).max(0.0);
                 if rng.next_1d() < q {
-                    return stop;
+                    return false;
                 }
                 self.beta /= 1.0 - q;
             }
         }
-        Step {
-            light,
-            goes_on: true,
-        }
+        true
     }
 }
 
@@ -416,6 +477,8 @@ pub struct WaveScratch {
     blocked: Vec<bool>,
     /// Each sample's radiance, pixel-major.
     samples: Vec<Vec3>,
+    /// Diffuse vertices waiting for their lanes.
+    lanes: lanes::Diffuse,
 }
 
 /// The path-traced estimate of each pixel of `pixels` (in that order, onto
@@ -458,18 +521,29 @@ pub fn tile(scene: &Scene, pixels: &[(u32, u32)], w: &mut WaveScratch, out: &mut
             w.shadow_t_max.clear();
             w.shadow_owner.clear();
             w.next.clear();
-            for (&i, &hit) in w.alive.iter().zip(&w.hits) {
-                let (path, rng) = &mut w.paths[i as usize];
-                let step = path.step(scene, hit, rng);
-                if let Some(light) = step.light {
-                    w.shadow_rays.push(light.ray);
-                    w.shadow_t_max.push(light.t_max);
-                    w.shadow_owner.push((i, light.contribution));
-                }
-                if step.goes_on {
-                    w.next.push(i);
-                }
-            }
+            let (shadow_rays, shadow_t_max, shadow_owner, next) = (
+                &mut w.shadow_rays,
+                &mut w.shadow_t_max,
+                &mut w.shadow_owner,
+                &mut w.next,
+            );
+            vertices(
+                scene,
+                &mut w.paths,
+                &w.alive,
+                &w.hits,
+                &mut w.lanes,
+                &mut |i, step| {
+                    if let Some(light) = step.light {
+                        shadow_rays.push(light.ray);
+                        shadow_t_max.push(light.t_max);
+                        shadow_owner.push((i, light.contribution));
+                    }
+                    if step.goes_on {
+                        next.push(i);
+                    }
+                },
+            );
             scene.occluded_many(
                 &w.shadow_rays,
                 0.0,

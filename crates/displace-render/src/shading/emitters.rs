@@ -90,6 +90,21 @@ pub struct EmitterSample {
     pub hittable: bool,
 }
 
+/// A quad light as [`Emitters::pick_quad`] hands it out: the fields of
+/// [`Emitter::Quad`].
+#[derive(Clone, Copy, Debug)]
+pub struct QuadLight<'a> {
+    /// The emitting parallelogram.
+    pub quad: &'a Quad,
+    /// Emitted radiance.
+    pub radiance: Vec3,
+    /// Emits from both sides.
+    pub two_sided: bool,
+    /// Rays can hit it (BSDF sampling finds it too: multiple importance
+    /// sampling applies).
+    pub visible: bool,
+}
+
 /// The lights of a scene, their selection distribution, and which light
 /// each primitive is.
 #[derive(Clone, Debug)]
@@ -100,6 +115,9 @@ pub struct Emitters {
     of_prim: Vec<u32>,
     /// The environment's index, when it is a light.
     environment: Option<u32>,
+    /// Every light is a quad (and there is one to sample): the case the
+    /// path integrator's diffuse vertices sample in vector lanes.
+    quads_only: bool,
 }
 
 /// Mean of the three channels: the power light selection weighs by.
@@ -208,11 +226,49 @@ impl Emitters {
             env = Some(list.len() as u32 - 1);
         }
         // A light of no power is never chosen (its weight is 0).
+        let select = Distribution1D::new(&power);
+        let quads_only = select.total() > 0.0
+            && !list.is_empty()
+            && list.iter().all(|e| matches!(e, Emitter::Quad { .. }));
         Self {
-            select: Distribution1D::new(&power),
+            select,
             list,
             of_prim,
             environment: env,
+            quads_only,
+        }
+    }
+
+    /// Whether every light is a quad and one can be chosen: then
+    /// [`Emitters::pick_quad`] answers every pick.
+    pub fn quads_only(&self) -> bool {
+        self.quads_only
+    }
+
+    /// The first half of [`Emitters::sample`] where the lights are quads:
+    /// the light that `pick` chooses (by power) and the probability of
+    /// choosing it, for callers that sample the quad themselves, many
+    /// receivers at once (the path integrator's vertices in vector lanes).
+    /// `None` where the chosen light is not a quad or has probability 0
+    /// (then `sample` would give `None` too).
+    pub fn pick_quad(&self, pick: f32) -> Option<(QuadLight<'_>, f32)> {
+        let (k, pmf) = self.select.choose(pick);
+        match &self.list[k] {
+            Emitter::Quad {
+                quad,
+                radiance,
+                two_sided,
+                visible,
+            } if pmf > 0.0 => Some((
+                QuadLight {
+                    quad,
+                    radiance: *radiance,
+                    two_sided: *two_sided,
+                    visible: *visible,
+                },
+                pmf,
+            )),
+            _ => None,
         }
     }
 
