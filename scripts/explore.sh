@@ -39,7 +39,8 @@ for g in "${groups[@]}"; do
     curved) run -p displace-render --test curved -- rays_never_cross_the_surface_before_their_hit ;;
     parsers) run -p displace-core --lib -- npy
              run -p displace-render --test fuzz ;;
-    scenes) run -p displace-render --test extreme_scenes --test batch ;;
+    scenes) run -p displace-render --test extreme_scenes --test batch
+            run -p displace-render --lib -- integrators::path::lanes ;;
     python) for k in $(seq 1 $(( (scale + 3) / 4 ))); do
               echo "explore: DISPLACE_PY_SEED=$((seed + k)) scripts/test-python.sh"
               DISPLACE_PY_SEED=$((seed + k)) bash scripts/test-python.sh

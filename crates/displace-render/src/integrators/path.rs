@@ -39,8 +39,8 @@ use crate::scene::batch::Batch;
 use crate::scene::{Interaction, Scene};
 use crate::settings::Sampling;
 use crate::shading::bsdf::Bsdf;
-use crate::shading::sampler::SampleStream;
 use crate::shading::sampler::SamplerKind;
+use crate::shading::sampler::{draw_2d8, Deferred2d, SampleStream};
 use glam::{Vec2, Vec3};
 
 mod lanes;
@@ -427,14 +427,21 @@ fn path_camera_samples8(
             (rays, rngs.map(SampleStream::independent))
         }
         SamplerKind::Sobol => {
-            let mut jitter = [Vec2::ZERO; PACKET];
-            let mut lens = [Vec2::ZERO; PACKET];
+            // The film and lens draws of the eight streams made together
+            // (`draw_2d8`), each what `sobol_camera_stream` draws.
+            let mut film_draws = [Deferred2d::default(); PACKET];
+            let mut lens_draws = [Deferred2d::default(); PACKET];
             let streams = std::array::from_fn(|l| {
                 let (x, y, s) = samples[l];
-                let st;
-                (st, jitter[l], lens[l]) = sobol_camera_stream(scene, x, y, s);
+                let mut st = SampleStream::sobol(scene.seed, x, y, s);
+                film_draws[l] = st.defer_2d().expect("a Sobol stream");
+                lens_draws[l] = st.defer_2d().expect("a Sobol stream");
                 st
             });
+            let columns =
+                |d: [[f32; PACKET]; 2]| std::array::from_fn(|l| Vec2::new(d[0][l], d[1][l]));
+            let jitter: [Vec2; PACKET] = columns(draw_2d8(&film_draws));
+            let lens: [Vec2; PACKET] = columns(draw_2d8(&lens_draws));
             let pixels = samples.map(|(x, y, _)| (x, y));
             (camera_rays8(scene, &pixels, &jitter, &lens), streams)
         }

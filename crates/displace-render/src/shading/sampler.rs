@@ -64,7 +64,7 @@ impl SampleStream {
     /// the next dimension.
     #[inline]
     fn seed(&mut self, pixel: u64) -> u64 {
-        let s = mix(pixel.wrapping_add((self.dim as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)));
+        let s = dimension_seed(pixel, self.dim);
         self.dim += 1;
         s
     }
@@ -107,9 +107,113 @@ impl SampleStream {
     }
 }
 
+/// A Sobol stream's next 2D draw, put off so that many streams' draws can
+/// be made together ([`draw_2d8`]): the pixel's hash, the sample's index and
+/// the dimension, all that [`SampleStream::next_2d`] reads.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Deferred2d {
+    pixel: u64,
+    index: u32,
+    dim: u32,
+}
+
+impl SampleStream {
+    /// [`SampleStream::next_2d`] put off: the stream moves on to its next
+    /// dimension as if it had drawn, and the draw's inputs are returned for
+    /// [`draw_2d8`]. `None` for independent numbers, which depend on the
+    /// draws before them and are drawn with `next_2d` in their turn.
+    #[inline]
+    pub fn defer_2d(&mut self) -> Option<Deferred2d> {
+        match self.source {
+            Source::Independent(_) => None,
+            Source::Sobol { pixel, index } => {
+                let d = Deferred2d {
+                    pixel,
+                    index,
+                    dim: self.dim,
+                };
+                self.dim += 1;
+                Some(d)
+            }
+        }
+    }
+}
+
+/// Eight put-off draws at once, as columns (`[x, y]`, lane by lane): lane
+/// `l` is what `next_2d` would have returned to the stream that put off
+/// `draws[l]`, bit for bit. The hashes, the Owen scrambles, the bit
+/// reversals and the Sobol table's look-ups are integer work that runs in
+/// vector lanes (with AVX2 where the CPU has it: the same integers either
+/// way), where one stream at a time it is a chain of dependent
+/// multiplications.
+pub fn draw_2d8(draws: &[Deferred2d; 8]) -> [[f32; 8]; 2] {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { draw_2d8_avx2(draws) };
+    }
+    draw_2d8_lanes(draws)
+}
+
+/// [`draw_2d8_lanes`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn draw_2d8_avx2(draws: &[Deferred2d; 8]) -> [[f32; 8]; 2] {
+    draw_2d8_lanes(draws)
+}
+
+/// The lanes of [`draw_2d8`]: [`SampleStream::next_2d`]'s arithmetic,
+/// one loop over eight streams.
+#[inline(always)]
+fn draw_2d8_lanes(draws: &[Deferred2d; 8]) -> [[f32; 8]; 2] {
+    let mut out = [[0.0; 8]; 2];
+    for (l, d) in draws.iter().enumerate() {
+        let seed = dimension_seed(d.pixel, d.dim);
+        let (x, y) = sample_2d(d.index, seed);
+        out[0][l] = to_unit(x);
+        out[1][l] = to_unit(y);
+    }
+    out
+}
+
+/// The seed of dimension `dim` of the stream of pixel hash `pixel`.
+#[inline(always)]
+fn dimension_seed(pixel: u64, dim: u32) -> u64 {
+    mix(pixel.wrapping_add((dim as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn eight_put_off_draws_are_the_streams_own() {
+        let mut draws = [Deferred2d::default(); 8];
+        let mut want = [Vec2::ZERO; 8];
+        for round in 0..50u32 {
+            for l in 0..8u32 {
+                let mut a = SampleStream::sobol(3, l * 7 + round, round, round * 13 + l);
+                let mut b = a.clone();
+                a.set_dimension(l + round % 5);
+                b.set_dimension(l + round % 5);
+                want[l as usize] = a.next_2d();
+                draws[l as usize] = b.defer_2d().expect("a Sobol stream");
+                // Both streams moved on alike.
+                assert_eq!(a.next_2d(), b.next_2d());
+            }
+            let got = draw_2d8(&draws);
+            for l in 0..8 {
+                assert_eq!(
+                    Vec2::new(got[0][l], got[1][l]),
+                    want[l],
+                    "round {round} lane {l}"
+                );
+                assert_eq!(draw_2d8_lanes(&draws)[0][l], got[0][l]);
+            }
+        }
+        let rng = Rng::for_sample(1, 2, 3, 4);
+        assert!(SampleStream::independent(rng).defer_2d().is_none());
+    }
 
     #[test]
     fn same_inputs_same_stream() {
