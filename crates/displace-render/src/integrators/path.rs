@@ -168,21 +168,21 @@ fn vertices(
     lanes: &mut lanes::Diffuse,
     done: &mut impl FnMut(u32, Step),
 ) {
-    for (&i, &hit) in alive.iter().zip(hits) {
+    for (&i, hit) in alive.iter().zip(hits) {
         let (path, rng) = &mut paths[i as usize];
-        let Some(hit) = path.arrive(scene, hit) else {
+        let Some(hit) = path.arrive(scene, hit.as_ref()) else {
             done(i, Step::ENDS);
             continue;
         };
-        match lanes::lambert_albedo(scene, &hit) {
+        match lanes::lambert_albedo(scene, hit) {
             Some(albedo) => {
-                lanes.push(scene, i, path, rng, &hit, albedo);
+                lanes.push(scene, i, path, rng, hit, albedo);
                 if lanes.is_full() {
                     lanes.flush(scene, paths, done);
                 }
             }
             None => {
-                let step = path.scatter(scene, &hit, rng);
+                let step = path.scatter(scene, hit, rng);
                 done(i, step);
             }
         }
@@ -245,7 +245,11 @@ impl Path {
     /// environment it escapes to), weighted against light sampling; the
     /// hit, where the path goes on to scatter there (it does not after
     /// `max_depth` bounces or an escape).
-    fn arrive(&mut self, scene: &Scene, hit: Option<(u32, Interaction)>) -> Option<Interaction> {
+    fn arrive<'h>(
+        &mut self,
+        scene: &Scene,
+        hit: Option<&'h (u32, Interaction)>,
+    ) -> Option<&'h Interaction> {
         let ray = self.ray;
         let Some((prim, hit)) = hit else {
             let le = scene.environment.radiance(ray.dir);
@@ -255,12 +259,12 @@ impl Path {
             }
             return None;
         };
-        let le = emitted(scene, &ray, &hit);
+        let le = emitted(scene, &ray, hit);
         if le != Vec3::ZERO {
             let pdf = self.prev.map_or(0.0, |b| {
                 scene
                     .emitters
-                    .pdf_hit(prim, b.position, hit.position, hit.geometric_normal)
+                    .pdf_hit(*prim, b.position, hit.position, hit.geometric_normal)
             });
             self.l += self.beta * le * hit_weight(scene, self.prev, pdf);
         }
