@@ -14,9 +14,14 @@ pub struct Quad {
     pub edge_v: Vec3,
     /// Unit normal, `edge_u x edge_v` normalised.
     pub normal: Vec3,
-    /// `n / (n . n)` with `n = edge_u x edge_v`: turns cross products into
-    /// parallelogram coordinates (Shirley, "Ray Tracing: The Next Week").
-    w: Vec3,
+    /// The dual basis of the edges in the quad's plane: with `w = n / (n .
+    /// n)`, `n = edge_u x edge_v`, a point `h` from the corner has
+    /// parallelogram coordinates `w . (h x edge_v) = h . (edge_v x w)` and
+    /// `w . (edge_u x h) = h . (w x edge_u)` (Shirley, "Ray Tracing: The Next
+    /// Week", with the triple products turned so that a hit costs two dot
+    /// products instead of two cross products and two dot products).
+    dual_u: Vec3,
+    dual_v: Vec3,
     /// `|edge_u x edge_v|`, kept: light sampling asks for it at every
     /// vertex of every path.
     area: f32,
@@ -35,7 +40,8 @@ impl Quad {
             edge_u,
             edge_v,
             normal: n / nn.sqrt(),
-            w: n / nn,
+            dual_u: edge_v.cross(n / nn),
+            dual_v: (n / nn).cross(edge_u),
             area: nn.sqrt(),
         })
     }
@@ -110,10 +116,7 @@ impl Quad {
     #[inline(always)]
     fn coordinates(&self, o: Vec3, d: Vec3, t: f32) -> Vec2 {
         let hp = (o + d * t) - self.origin;
-        Vec2::new(
-            self.w.dot(hp.cross(self.edge_v)),
-            self.w.dot(self.edge_u.cross(hp)),
-        )
+        Vec2::new(hp.dot(self.dual_u), hp.dot(self.dual_v))
     }
 
     #[inline(always)]
