@@ -118,6 +118,9 @@ pub struct Emitters {
     /// Every light is a quad (and there is one to sample): the case the
     /// path integrator's diffuse vertices sample in vector lanes.
     quads_only: bool,
+    /// Every emitting surface is in `list`: none is left to BSDF sampling
+    /// alone (an emitting displaced or curved face is).
+    complete: bool,
 }
 
 /// Mean of the three channels: the power light selection weighs by.
@@ -219,6 +222,12 @@ impl Emitters {
             list.push(e);
             of_prim[k] = list.len() as u32 - 1;
         }
+        // An emitting face left out of the list above (no uniform sampler).
+        let complete = !prims.iter().any(|p| {
+            matches!(p.shape, Shape::Displaced(_) | Shape::Curved(_))
+                && p.emitter.is_none()
+                && materials[p.material as usize].emission != Vec3::ZERO
+        });
         let mut env = None;
         if !environment.is_black() {
             power.push(power_weight(environment.power(radius)));
@@ -236,7 +245,17 @@ impl Emitters {
             of_prim,
             environment: env,
             quads_only,
+            complete,
         }
+    }
+
+    /// Whether light sampling can reach every emitting surface: no
+    /// emitting displaced or curved face, which only BSDF sampling finds.
+    /// Then light sampling alone is an unbiased estimate of the light a
+    /// vertex receives directly (Veach 1997, section 9.2: each of the
+    /// combined techniques is unbiased by itself).
+    pub fn complete(&self) -> bool {
+        self.complete
     }
 
     /// Whether every light is a quad and one can be chosen: then

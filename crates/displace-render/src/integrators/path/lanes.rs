@@ -17,6 +17,16 @@
 //! run as one loop over the lanes, which the compiler turns into vector
 //! instructions.
 //!
+//! A path's last bounce (its next vertex would be past `max_depth`, where
+//! only the light it hits would count) takes its direct light from light
+//! sampling alone, with weight 1, and the path ends there: where every
+//! emitting surface is in the light list ([`Emitters::complete`]), light
+//! sampling alone is unbiased (Veach 1997, section 9.2), and for a diffuse
+//! surface the power heuristic gave it nearly all the weight anyway, so the
+//! ray that BSDF sampling would trace to look for that light is saved.
+//!
+//! [`Emitters::complete`]: crate::shading::emitters::Emitters::complete
+//!
 //! Which vertices go here ([`lambert_albedo`]): a material that reflects by
 //! its diffuse colour alone, under multiple importance sampling, in a scene
 //! whose lights are all quads. Every other vertex is shaded one at a time by
@@ -86,7 +96,12 @@ pub(super) struct Diffuse {
     area: Col,
     radiance: Col3,
     two_sided: [bool; PACKET],
-    visible: [bool; PACKET],
+    /// Whether the light sample is weighted against BSDF sampling (the
+    /// light is one rays can hit, and the path goes on to look for it).
+    weighed: [bool; PACKET],
+    /// The path's last bounce: its next vertex could only add the light
+    /// it hits, so it takes that light from light sampling alone.
+    last: [bool; PACKET],
     pmf: Col,
     /// The light's point and the bounce's direction, each a 2D sample.
     u_light: [Col; 2],
@@ -144,6 +159,8 @@ impl Diffuse {
         let dimensions = CAMERA_DIMENSIONS + path.depth * BOUNCE_DIMENSIONS;
         rng.set_dimension(dimensions);
         path.depth += 1;
+        let last = path.depth == scene.max_depth && scene.emitters.complete();
+        self.last[l] = last;
         let pick = rng.next_choice(scene.emitters.len() > 1);
         match rng.defer_2d() {
             Some(light) => {
@@ -180,7 +197,7 @@ impl Diffuse {
                 self.area[l] = light.quad.area();
                 set(&mut self.radiance, l, light.radiance);
                 self.two_sided[l] = light.two_sided;
-                self.visible[l] = light.visible;
+                self.weighed[l] = light.visible && !last;
                 self.pmf[l] = pmf;
             }
             None => {
@@ -232,7 +249,7 @@ impl Diffuse {
                 t_max: s.t_max[l],
                 contribution: get(&s.contribution, l),
             });
-            let goes_on = s.bounces[l] && {
+            let goes_on = !self.last[l] && s.bounces[l] && {
                 path.beta = get(&s.beta, l);
                 path.prev = Some(Bounce {
                     position: get(&self.position, l),
@@ -321,7 +338,7 @@ fn shade(d: &Diffuse, epsilon: f32) -> Shaded {
         let ray = point - p;
         let dist = ray.length();
         let to_light = ray / dist;
-        let w = if d.visible[l] {
+        let w = if d.weighed[l] {
             power_heuristic(light_pdf, cos * FRAC_1_PI)
         } else {
             1.0
@@ -465,7 +482,7 @@ mod tests {
                 d.area[l] = n.length();
                 set(&mut d.radiance, l, Vec3::new(3.0, 2.0, 1.0));
                 d.two_sided[l] = rng.next_f32() < 0.5;
-                d.visible[l] = rng.next_f32() < 0.7;
+                d.weighed[l] = rng.next_f32() < 0.7;
                 d.pmf[l] = if rng.next_f32() < 0.1 {
                     0.0
                 } else {
@@ -536,7 +553,7 @@ mod tests {
                 lit += 1;
                 let light_pdf = d.pmf[l] as f64 * r2 / (cos_l * d.area[l] as f64);
                 let bsdf_pdf = cos / std::f64::consts::PI;
-                let w = if d.visible[l] {
+                let w = if d.weighed[l] {
                     light_pdf * light_pdf / (light_pdf * light_pdf + bsdf_pdf * bsdf_pdf)
                 } else {
                     1.0
