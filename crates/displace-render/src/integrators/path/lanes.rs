@@ -521,8 +521,12 @@ mod tests {
                 }
                 if let (true, Some(want)) = (s.bounces[l], want) {
                     bounces += 1;
-                    assert!(close(wi, want.wi, 2e-6), "{wi} {}", want.wi);
-                    assert!((s.pdf[l] - want.pdf).abs() <= 2e-6 * (1.0 + want.pdf));
+                    // Near the disk's rim the lift `sqrt(1 - r^2)` scales
+                    // rounding in `r` by `1 / cos`: both codes' grazing
+                    // directions are that far apart (found at cos 0.0099).
+                    let tol = 2e-6 + 2e-7 / ns.dot(wi).max(1e-6);
+                    assert!(close(wi, want.wi, tol), "{wi} {} u {u}", want.wi);
+                    assert!((s.pdf[l] - want.pdf).abs() <= tol * (1.0 + want.pdf));
                     let beta = get(&d.beta, l) * want.weight;
                     assert!(close(get(&s.beta, l), beta, 2e-6));
                     assert!(close(get(&s.origin, l), p, 1e-6));
