@@ -135,6 +135,58 @@ fn sector_ends(k: usize) -> [[f64; 2]; 2] {
     [[a0.cos(), a0.sin()], [a1.cos(), a1.sin()]]
 }
 
+/// Whether a ray from `start` (cell coordinates: cell `(i, j)` spans
+/// `[i, i + 1) x [j, j + 1)` between texel centres) rising `rise` per cell
+/// in some direction of the sector from `ends[0]` to `ends[1]` is shown to
+/// meet a steeper surface, by marches along the sector's two edges and its
+/// middle until they leave the cells `-1 .. cells - 1`: the surface rising
+/// faster than `rise` on average between two successive points of a march,
+/// or from the start to a point. Either is a lower bound of the wedge's
+/// steepest derivative (the points lie in the wedge). Steps of a cell up to
+/// 32 cells out, then growing by an eighth.
+fn rises_past(
+    height: &HeightMap,
+    start: [f64; 2],
+    ends: [[f64; 2]; 2],
+    rise: f64,
+    cells: [usize; 2],
+) -> bool {
+    let at = |x: f64, y: f64| -> Option<f64> {
+        let (ci, cj) = (floor_i64(x as f32), floor_i64(y as f32));
+        if ci < -1 || cj < -1 || ci >= cells[0] as i64 - 1 || cj >= cells[1] as i64 - 1 {
+            return None;
+        }
+        let [h00, h10, h01, h11] = height.cell_fast(ci, cj).map(f64::from);
+        let (fx, fy) = (
+            (x - ci as f64).clamp(0.0, 1.0),
+            (y - cj as f64).clamp(0.0, 1.0),
+        );
+        let a = h00 + (h10 - h00) * fx;
+        let b = h01 + (h11 - h01) * fx;
+        Some(a + (b - a) * fy)
+    };
+    let Some(h0) = at(start[0], start[1]) else {
+        return false;
+    };
+    let mid = [ends[0][0] + ends[1][0], ends[0][1] + ends[1][1]];
+    let len = (mid[0] * mid[0] + mid[1] * mid[1]).sqrt();
+    [ends[0], [mid[0] / len, mid[1] / len], ends[1]]
+        .iter()
+        .any(|d| {
+            let (mut t, mut h): (f64, f64) = (0.0, h0);
+            loop {
+                let dt = if t < 32.0 { 1.0 } else { t / 8.0 };
+                let Some(next) = at(start[0] + d[0] * (t + dt), start[1] + d[1] * (t + dt)) else {
+                    return false;
+                };
+                if next - h > rise * dt || next - h0 > rise * (t + dt) {
+                    return true;
+                }
+                (t, h) = (t + dt, next);
+            }
+        })
+}
+
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
@@ -206,17 +258,31 @@ impl HorizonMap {
 
     /// Whether bounds of `height` could pay for rays rising `rise` heights
     /// per cell, judged before building them from a sample of its cells
-    /// (every 31st): a cell's bound is at least the derivative on each cell
-    /// of its 3x3 neighbourhood, so where under half of [`MIN_SHARE`] of
-    /// the sampled cells and sectors have those under `rise`, the built
-    /// bounds would not pay either. A busy map (a photograph, steps, noise)
-    /// is then spared the build; a wrong guess costs speed, never an
-    /// answer.
+    /// (every 61st) and all their sectors. Two lower bounds of a cell's
+    /// bound in a sector are read there: the derivative on each cell of its
+    /// 3x3 neighbourhood, and the average rise between points of marches
+    /// from the cell's centre along the sector's edges and middle to the
+    /// map's edge ([`rises_past`]: those points lie in the cell's wedge, and
+    /// between two of them the surface rises on average no faster than its
+    /// derivative somewhere on the way). Where under half of [`MIN_SHARE`] of the
+    /// sampled cells and sectors have both under `rise`, the built bounds
+    /// would not pay either, and a busy map (a photograph, steps, noise, a
+    /// floor between studs that its wedges all reach) is spared the build.
+    /// Maps of at most 4096 cells are built and judged whole. A wrong guess
+    /// costs speed, never an answer.
     pub fn could_pay(height: &HeightMap, rise: f32) -> bool {
         let (w, h) = (height.width() + 1, height.height() + 1);
+        if w * h <= 4096 {
+            // Too few cells to sample, and cheap to build and judge whole.
+            return true;
+        }
         let ends: [[[f64; 2]; 2]; SECTORS] = std::array::from_fn(sector_ends);
-        let (mut under, mut sampled) = (0usize, 0usize);
-        for c in (0..w * h).step_by(31) {
+        let rise = rise as f64;
+        // Enough open cells and sectors settles it before the sample ends
+        // (a smooth map, whose marches run to the edge, stops early).
+        let needed = 0.5 * MIN_SHARE * ((w * h).div_ceil(61) * SECTORS) as f64;
+        let mut open = 0usize;
+        for c in (0..w * h).step_by(61) {
             let (i, j) = ((c % w) as i64 - 1, (c / w) as i64 - 1);
             let mut steepest_near = [f64::NEG_INFINITY; SECTORS];
             for (di, dj) in (-1..=1).flat_map(|dj| (-1..=1).map(move |di| (di, dj))) {
@@ -229,10 +295,17 @@ impl HorizonMap {
                     steepest_near[k] = steepest_near[k].max(steepest(corners, *end));
                 }
             }
-            under += steepest_near.iter().filter(|&&s| s < rise as f64).count();
-            sampled += SECTORS;
+            for (k, end) in ends.iter().enumerate() {
+                let centre = [i as f64 + 0.5, j as f64 + 0.5];
+                if steepest_near[k] < rise && !rises_past(height, centre, *end, rise, [w, h]) {
+                    open += 1;
+                }
+            }
+            if open as f64 >= needed {
+                return true;
+            }
         }
-        under as f64 >= 0.5 * MIN_SHARE * sampled as f64
+        false
     }
 
     /// The bounds of every cell of `height` (its addressing read at the

@@ -178,7 +178,7 @@ fn flat_fields_clear_everything_and_steps_nothing_sloped() {
     );
     // Busy maps keep no bounds (they would cost every ray and answer none),
     // and are judged so before the build.
-    let noise = random_height(0, 32, 32, 5, Address::Clamp);
+    let noise = random_height(0, 96, 96, 5, Address::Clamp);
     assert!(!HorizonMap::could_pay(&noise, 0.01));
     assert!(noise.prepare_horizon(0.01).is_none());
     assert!(HorizonMap::could_pay(&flat, 0.2));
@@ -282,4 +282,63 @@ fn a_ray_on_a_steep_surface_by_the_solve_is_left_to_the_trace() {
     let opts = TraceOptions::default();
     assert!(without.occluded(&ray, &opts));
     assert_eq!(with.occluded(&ray, &opts), without.occluded(&ray, &opts));
+}
+
+/// A flat floor with studs on it (disks one height tall, radius 4, every
+/// 16 cells): most of its cells are flat around them, so their own 3x3
+/// neighbourhood says nothing, yet every wedge reaches a stud and the
+/// built bounds would clear a 45-degree ray in under a fifth of the cells
+/// and sectors. The pre-check's marches across the wedges see the studs and
+/// spare the build; a smooth hill, whose bounds pay, is still built.
+#[test]
+fn a_floor_between_studs_is_judged_busy_before_the_build() {
+    let n = 128;
+    let stud = |x: usize, y: usize| {
+        let (dx, dy) = ((x % 16) as f32 - 8.0, (y % 16) as f32 - 8.0);
+        if dx * dx + dy * dy <= 16.0 {
+            1.0
+        } else {
+            0.0
+        }
+    };
+    let studs = HeightMap::new(
+        n,
+        n,
+        (0..n * n).map(|k| stud(k % n, k / n)).collect(),
+        Address::Clamp,
+    )
+    .unwrap();
+    let rise = 0.05;
+    let flat_around = (1..n - 1)
+        .flat_map(|y| (1..n - 1).map(move |x| (x, y)))
+        .filter(|&(x, y)| (0..3).all(|j| (0..3).all(|i| stud(x + i - 1, y + j - 1) == stud(x, y))))
+        .count();
+    assert!(flat_around > n * n / 2, "{flat_around} locally flat cells");
+    let built = HorizonMap::build(&studs).unwrap();
+    assert!(
+        built.share_cleared_at(rise) < 0.2,
+        "{}",
+        built.share_cleared_at(rise)
+    );
+    assert!(!HorizonMap::could_pay(&studs, rise));
+    assert!(studs.prepare_horizon(rise).is_none());
+
+    let hill = HeightMap::new(
+        n,
+        n,
+        (0..n * n)
+            .map(|k| {
+                let (x, y) = (
+                    (k % n) as f32 / n as f32 - 0.5,
+                    (k / n) as f32 / n as f32 - 0.5,
+                );
+                (-(x * x + y * y) * 8.0).exp()
+            })
+            .collect(),
+        Address::Clamp,
+    )
+    .unwrap();
+    assert!(HorizonMap::build(&hill).unwrap().pays_at(rise));
+    assert!(HorizonMap::could_pay(&hill, rise));
+    assert!(hill.prepare_horizon(rise).is_some());
 }
