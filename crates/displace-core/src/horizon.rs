@@ -262,7 +262,7 @@ impl HorizonMap {
     /// bound in a sector are read there: the derivative on each cell of its
     /// 3x3 neighbourhood, and the average rise between points of marches
     /// from the cell's centre along the sector's edges and middle to the
-    /// map's edge ([`rises_past`]: those points lie in the cell's wedge, and
+    /// map's edge (`rises_past`: those points lie in the cell's wedge, and
     /// between two of them the surface rises on average no faster than its
     /// derivative somewhere on the way). Where under half of [`MIN_SHARE`] of the
     /// sampled cells and sectors have both under `rise`, the built bounds

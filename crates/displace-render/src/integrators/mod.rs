@@ -4,7 +4,7 @@
 //! ([`whitted`], the default) and path tracing with next-event estimation
 //! and multiple importance sampling ([`path`], pbrt-v4 section 13.4). Each
 //! estimates the pixels of a tile from their samples; the render loop
-//! ([`crate::render()`]) asks [`tile`] and knows no technique.
+//! ([`crate::render()`]) asks `tile` and knows no technique.
 
 pub mod path;
 pub mod whitted;

@@ -453,7 +453,7 @@ fn path_camera_samples8(
 }
 
 /// The mean of the pixel's samples under the path integrator, each
-/// sample's path traced on its own from its [`path_camera_sample`]: the
+/// sample's path traced on its own from its `path_camera_sample`: the
 /// one-sample estimator, which [`tile`] equals bit for bit.
 pub fn pixel(scene: &Scene, x: u32, y: u32) -> Vec3 {
     let mut sum = Vec3::ZERO;

@@ -44,7 +44,7 @@ pub struct PixelSample {
 /// ray), bounded by the scene's `max_depth`; `sample` is `Some` only for a
 /// camera ray, whose shadow rays it stratifies over the pixel (reflection
 /// rays pass `None`). The one-ray reference that the render loop's batched
-/// pixels (the wavefront of [`tile`]) must match bit for bit.
+/// pixels (the wavefront of `tile`) must match bit for bit.
 pub fn radiance(
     scene: &Scene,
     ray: &Ray,

@@ -2,7 +2,7 @@
 //! ([`displace_scene::World`], read, checked and built from its TOML file
 //! there) turned into primitives under one BVH, with the path tracer's
 //! emitters (`build`), and the queries the integrators ask of them
-//! ([`world`]).
+//! (`world`).
 
 pub mod batch;
 mod build;
