@@ -151,19 +151,16 @@ fn rises_past(
     rise: f64,
     cells: [usize; 2],
 ) -> bool {
+    // The surface at cell coordinates `(x, y)`: texel centre `i` is cell
+    // coordinate `i`, texture coordinate `(i + 0.5) / width`.
     let at = |x: f64, y: f64| -> Option<f64> {
         let (ci, cj) = (floor_i64(x as f32), floor_i64(y as f32));
         if ci < -1 || cj < -1 || ci >= cells[0] as i64 - 1 || cj >= cells[1] as i64 - 1 {
             return None;
         }
-        let [h00, h10, h01, h11] = height.cell_fast(ci, cj).map(f64::from);
-        let (fx, fy) = (
-            (x - ci as f64).clamp(0.0, 1.0),
-            (y - cj as f64).clamp(0.0, 1.0),
-        );
-        let a = h00 + (h10 - h00) * fx;
-        let b = h01 + (h11 - h01) * fx;
-        Some(a + (b - a) * fy)
+        let u = (x + 0.5) / height.width() as f64;
+        let v = (y + 0.5) / height.height() as f64;
+        Some(height.sample(u as f32, v as f32) as f64)
     };
     let Some(h0) = at(start[0], start[1]) else {
         return false;
@@ -295,8 +292,8 @@ impl HorizonMap {
                     steepest_near[k] = steepest_near[k].max(steepest(corners, *end));
                 }
             }
+            let centre = [i as f64 + 0.5, j as f64 + 0.5];
             for (k, end) in ends.iter().enumerate() {
-                let centre = [i as f64 + 0.5, j as f64 + 0.5];
                 if steepest_near[k] < rise && !rises_past(height, centre, *end, rise, [w, h]) {
                     open += 1;
                 }

@@ -161,23 +161,21 @@ impl Diffuse {
         path.depth += 1;
         let last = path.depth == scene.max_depth && scene.emitters.complete();
         self.last[l] = last;
+        // Sobol draws are put off for the lanes to make together; a stream
+        // of independent numbers draws in its turn.
         let pick = rng.next_choice(scene.emitters.len() > 1);
-        match rng.defer_2d() {
-            Some(light) => {
-                rng.set_dimension(dimensions + 2);
-                rng.next_choice(false);
-                let bounce = rng.defer_2d().expect("the same stream, Sobol");
-                (self.light_draw[l], self.bounce_draw[l]) = (light, bounce);
-                self.sobol[l] = true;
-            }
-            None => {
-                let u = rng.next_2d();
-                rng.set_dimension(dimensions + 2);
-                rng.next_choice(false);
-                let v = rng.next_2d();
-                [self.u_light[0][l], self.u_light[1][l]] = [u.x, u.y];
-                [self.u_bounce[0][l], self.u_bounce[1][l]] = [v.x, v.y];
-                self.sobol[l] = false;
+        let light = rng.defer_2d().ok_or_else(|| rng.next_2d());
+        rng.set_dimension(dimensions + 2);
+        rng.next_choice(false);
+        let bounce = rng.defer_2d().ok_or_else(|| rng.next_2d());
+        self.sobol[l] = light.is_ok();
+        for (draw, put_off, u) in [
+            (light, &mut self.light_draw, &mut self.u_light),
+            (bounce, &mut self.bounce_draw, &mut self.u_bounce),
+        ] {
+            match draw {
+                Ok(d) => put_off[l] = d,
+                Err(v) => [u[0][l], u[1][l]] = [v.x, v.y],
             }
         }
 
