@@ -23,7 +23,6 @@ Mitsuba's, after its JIT compile), with the ratios.
 import argparse
 import json
 import os
-import re
 import sys
 
 import numpy as np
@@ -74,7 +73,7 @@ def main():
     ap.add_argument("--ply", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker == "mitsuba":
-        return peers.worker_mitsuba(a.ply, a.size, a.spp, VIEW, LIGHT, ALBEDO)
+        return peers.worker_mitsuba(a.ply, a.size, a.spp, VIEW, LIGHT, ALBEDO, a.repeat)
 
     env, exe, work = peers.setup(a.displace, a.workdir, "displace-curved-")
     toml = os.path.join(work, "sphere.toml")
@@ -84,9 +83,7 @@ def main():
     embree = [sys.executable, peers.__file__]
 
     ours_img = os.path.join(work, "sphere.ours.exr")
-    _, err, wall, rss_render = peers.run_measured(
-        [exe, "render", toml, "-o", ours_img, "--no-cache", "-q"], env)
-    mt = re.search(r"setup ([\d.]+) s.*render ([\d.]+) s", err)
+    render_s, _, rss_render = peers.render_ours(exe, toml, ours_img, a.repeat, env)
     img_ours = peers.read_linear(ours_img)
     rays_path = os.path.join(work, "rays.npy")
     np.save(rays_path, np.concatenate(peers.camera_rays(a.rays, VIEW), axis=1))
@@ -100,7 +97,7 @@ def main():
     sn = peers.trace_ours(exe, toml, shadow_path, blocked_path, a.threads, a.repeat, env, True)
     ours = {"setup_s": fn["load_s"], "memory_mb": fn["maps_mb"], "rss": max(fn["rss"], rss_render),
             "first": (f1["mrays"], fn["mrays"]), "shadow": (s1["mrays"], sn["mrays"]),
-            "render_s": float(mt.group(2)), "hits": fn["found"], "blocked": sn["found"]}
+            "render_s": render_s, "hits": fn["found"], "blocked": sn["found"]}
 
     meshes = []
     for e in [float(x) for x in a.edges.split(",")]:
@@ -114,7 +111,7 @@ def main():
         em = json.loads(out.strip().splitlines()[-1])
         out, _, _, rss_m = peers.run_measured(
             me + ["--worker", "mitsuba", "--ply", ply, "--size", str(a.size),
-                  "--spp", str(a.spp)], env)
+                  "--spp", str(a.spp), "--repeat", str(a.repeat)], env)
         mi = json.loads(out.strip().splitlines()[-1])
         img_m = np.load(mi["image"])
         meshes.append({"edge": e, "tris": em["triangles"], "export_s": mesh_s,

@@ -246,6 +246,72 @@ fn any_hit_agrees_with_the_first_hit() {
     );
 }
 
+/// `--repeat N` times N passes after the first and reports the best, with
+/// the answers the one pass writes (the tool itself fails a pass that
+/// answers otherwise); without `--scene` it is refused by name.
+#[test]
+fn repeated_passes_report_the_best_and_answer_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_scene(
+        d,
+        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8]) + &sphere("[0.5, 0.5, 0.6]", 0.1)),
+    );
+    let mut rng = displace_core::random::SplitMix64::new(12);
+    let rays: Vec<Vec<f32>> = (0..2000)
+        .map(|_| {
+            let o = [rng.next_f32(), rng.next_f32(), 1.0 + rng.next_f32()];
+            let t = [rng.next_f32(), rng.next_f32(), 0.0];
+            vec![o[0], o[1], o[2], t[0] - o[0], t[1] - o[1], t[2] - o[2]]
+        })
+        .collect();
+    write_rays(&d.join("rays.npy"), &rays);
+    for any in [false, true] {
+        let flag: &[&str] = if any { &["--any-hit"] } else { &[] };
+        trace_scene(d, "rays.npy", "one.npy", flag);
+        let mut args = vec![
+            "trace", "--scene", "s.toml", "--rays", "rays.npy", "-o", "rep.npy",
+        ];
+        args.extend_from_slice(flag);
+        args.extend_from_slice(&["--repeat", "3"]);
+        let o = displace(&args, d);
+        assert!(o.status.success(), "{args:?} failed: {}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            out.contains("the best of 3 passes after the first"),
+            "{out}"
+        );
+        assert_eq!(
+            std::fs::read(d.join("one.npy")).unwrap(),
+            std::fs::read(d.join("rep.npy")).unwrap(),
+            "any-hit {any}"
+        );
+    }
+    let o = displace(
+        &[
+            "trace",
+            "--height",
+            "gen:gaussian",
+            "--extent",
+            "1,1,0.1",
+            "--rays",
+            "rays.npy",
+            "-o",
+            "x.npy",
+            "--repeat",
+            "2",
+        ],
+        d,
+    );
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("--repeat applies to whole-scene queries"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("x.npy").exists());
+}
+
 #[test]
 fn bad_rays_are_refused_with_nothing_written() {
     let dir = tempfile::tempdir().unwrap();

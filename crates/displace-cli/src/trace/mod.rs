@@ -34,6 +34,12 @@ pub struct TraceArgs {
     /// With --scene: do not read or write the on-disk bake cache
     #[arg(long)]
     pub no_cache: bool,
+    /// With --scene: after the first pass over the rays, run the queries N
+    /// more times and report the best of those passes' rates (the first
+    /// warms the caches and the thread pool, as a benchmark's untimed
+    /// first call does); every pass must give the same answers
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub repeat: u32,
     /// Height map: gen:NAME[?...], a PNG, JPEG, TIFF or EXR file
     #[arg(long, value_name = "HEIGHT", required_unless_present = "scene")]
     pub height: Option<String>,
@@ -125,13 +131,18 @@ pub fn run(args: TraceArgs) -> Result<()> {
             &args.output,
             args.any_hit,
             !args.no_cache,
+            args.repeat,
         );
     }
-    if args.any_hit || args.no_cache {
-        bail!(
-            "--{} applies to whole-scene queries: add --scene SCENE.toml",
-            if args.any_hit { "any-hit" } else { "no-cache" }
-        );
+    if args.any_hit || args.no_cache || args.repeat > 0 {
+        let flag = if args.any_hit {
+            "any-hit"
+        } else if args.no_cache {
+            "no-cache"
+        } else {
+            "repeat"
+        };
+        bail!("--{flag} applies to whole-scene queries: add --scene SCENE.toml");
     }
     let (Some(height_source), Some(extent)) = (args.height.as_deref(), args.face.extent) else {
         bail!("--height and --extent are needed to trace one face (or trace a whole --scene)");
