@@ -5,14 +5,17 @@ area light and its displaced floor, rendered by `displace render
 --integrator path` (the displaced quad, sphere traced) and by Mitsuba 3
 (`llvm_ad_rgb`, `path`, the same bounce limit) on the floor tessellated at
 the height map's resolution by `displace export-mesh`, at 16, 64 and 256
-spp. A Mitsuba render at 4096 spp is the reference: the script prints each
-render's time and RMSE against it, and our RMSE over Mitsuba's at equal
-render time (Mitsuba's RMSE at our time interpolated on its log-log
-RMSE-time line; below 1 we are ahead). Since the two converged images
-differ a little (see below), a second table gives the noise alone: each
-render against its own renderer's converged image (ours at --floor-spp,
-Mitsuba's reference), and the same ratio at equal time. RMSE is over linear RGB clamped to
-[0, 1] (see `rmse`).
+spp. The mean of two Mitsuba renders at 4096 spp (`independent`, on seeds no
+timed render uses) is the reference: the script prints each render's time
+and RMSE against it, and our RMSE over Mitsuba's at equal render time
+(Mitsuba's RMSE at our time interpolated on its log-log RMSE-time line;
+below 1 we are ahead). Since the two converged images differ a little (see
+below), a second table gives the noise alone: each render against its own
+renderer's converged image (ours: the mean of two renders at --floor-spp on
+seeds of their own; Mitsuba's: the reference), less that image's own noise
+(half the RMSE between its two renders, subtracted in quadrature), and the
+same ratio at equal time. RMSE is over linear RGB clamped to [0, 1] (see
+`rmse`).
 
 Conventions matched: the camera (pinhole, vertical fov), one-sided area light
 (Mitsuba `rectangle` + `area`), two-sided Lambertian walls (`twosided` +
@@ -156,13 +159,13 @@ def read_exr(path):
     return np.array(mi.Bitmap(path))[..., :3].astype(np.float32)
 
 
-def ours(exe, size, spp, repeat, work, env, sampler):
+def ours(exe, size, spp, repeat, work, env, sampler, scene=SCENE, tag=""):
     """Best render time of `repeat` runs (the bake is cached after the
     first) and the image."""
     best, img = math.inf, None
-    out = os.path.join(work, f"ours{spp}.exr")
+    out = os.path.join(work, f"ours{spp}{tag}.exr")
     for _ in range(repeat):
-        _, err = run([exe, "render", SCENE, "--integrator", "path", "--spp", str(spp),
+        _, err = run([exe, "render", scene, "--integrator", "path", "--spp", str(spp),
                       "--size", f"{size}x{size}", "--sampler", sampler, "-q", "-o", out], env)
         m = re.search(r"render ([\d.]+) s", err)
         best = min(best, float(m.group(1)))
@@ -242,8 +245,14 @@ def main():
         r = json.loads(out.strip().splitlines()[-1])
         return r["render_s"], np.load(r["image"])
 
-    print(f"reference: Mitsuba at {a.ref_spp} spp, {a.size}x{a.size} ...", flush=True)
-    ref_s, ref = mitsuba(a.ref_spp, 1, 1000, "independent")
+    print(f"reference: Mitsuba at {a.ref_spp} spp, {a.size}x{a.size}, twice ...", flush=True)
+    ref_s, ref_a = mitsuba(a.ref_spp, 1, 1000, "independent")
+    _, ref_b = mitsuba(a.ref_spp, 1, 5000, "independent")
+    # Two references on other seeds than the timed renders: their mean is
+    # the reference, and how far they differ gives its own noise (each
+    # one's RMSE is their difference over sqrt 2, the mean's over 2).
+    ref = 0.5 * (ref_a + ref_b)
+    ref_noise = rmse(ref_a, ref_b) / 2
     spps = [int(s) for s in a.spp.split(",")]
     rows, own = [], []
     for spp in spps:
@@ -256,23 +265,48 @@ def main():
             if flipped < 0.7 * rows[-1][2]:
                 sys.exit(f"our image is mirrored against Mitsuba's (RMSE {rows[-1][2]:.4f}, "
                          f"mirrored {flipped:.4f}): camera conventions differ")
-    _, img_f = ours(exe, a.size, a.floor_spp, 1, work, env, a.sampler)
+    # Our converged images likewise: two, on seeds the timed renders do not
+    # use (a timed render's Sobol points are the first of the same seed's
+    # longer render, so against that one its error would read low).
+    with open(SCENE) as f:
+        text = f.read()
+    floors = []
+    for seed in (1001, 1002):
+        scene = os.path.join(work, f"seed{seed}.toml")
+        with open(scene, "w") as f:
+            f.write(re.sub(r"(?m)^seed = \d+$", f"seed = {seed}", text))
+        floors.append(ours(exe, a.size, a.floor_spp, 1, work, env, a.sampler, scene,
+                           f"_seed{seed}")[1])
+    img_f = 0.5 * (floors[0] + floors[1])
+    floor_noise = rmse(*floors) / 2
     floor = rmse(img_f, ref)
+
+    def alone(e, ref_e):
+        """An RMSE against a converged image without that image's own noise
+        (independent of the render's, so their squares add)."""
+        return math.sqrt(max(e * e - ref_e * ref_e, 0.0))
+
     # The noise alone: each renderer against its own converged image (ours
     # of the bilinear floor with its shell's walls, Mitsuba's of the mesh),
-    # so the converged difference between the two surfaces, which the first
-    # table counts in our error, is in neither.
-    noise = [(spp, t_o, rmse(img, img_f), t_m, e_m)
+    # less that image's own noise, so neither the converged difference
+    # between the two surfaces, which the first table counts in our error,
+    # nor either reference's noise is in it.
+    noise = [(spp, t_o, alone(rmse(img, img_f), floor_noise), t_m, alone(e_m, ref_noise))
              for (spp, t_o, _, t_m, e_m), img in zip(rows, own)]
     print(f"\nsamplers: ours {a.sampler}, Mitsuba {a.mitsuba_sampler}")
     print(f"\n{a.size}x{a.size}, max_depth {MAX_DEPTH} (Mitsuba {MAX_DEPTH + 1}), "
-          f"{os.cpu_count()} threads; reference {a.ref_spp} spp Mitsuba ({ref_s:.1f} s); "
+          f"{os.cpu_count()} threads; reference: the mean of two {a.ref_spp}-spp Mitsuba "
+          f"renders ({ref_s:.1f} s each), its own noise {ref_noise:.5f}; "
           f"means: reference {ref.mean():.4f}, ours at {a.floor_spp} spp {img_f.mean():.4f}\n")
     slope = equal_time_table(rows)
-    print(f"\nconverged difference (our {a.floor_spp} spp against the reference): "
-          f"RMSE {floor:.4f}; Mitsuba's RMSE falls as time^{slope:.2f}")
-    print(f"\nthe noise alone, each against its own converged image (ours at {a.floor_spp} "
-          f"spp, Mitsuba's reference):\n")
+    print(f"\nconverged difference (the mean of two of ours at {a.floor_spp} spp against the "
+          f"reference): RMSE {floor:.4f}, of which the two images' own noise "
+          f"{math.hypot(floor_noise, ref_noise):.4f}, so the surfaces differ by about "
+          f"{alone(floor, math.hypot(floor_noise, ref_noise)):.4f}; "
+          f"Mitsuba's RMSE falls as time^{slope:.2f}")
+    print(f"\nthe noise alone, each against its own converged image less that image's noise "
+          f"(ours: the mean of two at {a.floor_spp} spp, its noise {floor_noise:.5f}; "
+          f"Mitsuba's: the reference):\n")
     equal_time_table(noise)
     print(f"images and the mesh: {work}")
 
