@@ -310,6 +310,29 @@ fn repeated_passes_report_the_best_and_answer_as_one() {
         stderr(&o)
     );
     assert!(!d.join("x.npy").exists());
+    // The queries' memory (2000 rays of 24 bytes: the file, its floats,
+    // the rays and two passes' answers, about 0.3 MB) is estimated from the
+    // file's size and refused past the limit before anything is read.
+    for (limit, ok) in [("200K", false), ("2M", true)] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_displace"))
+            .args([
+                "trace", "--scene", "s.toml", "--rays", "rays.npy", "-o", "lim.npy", "--repeat",
+                "1",
+            ])
+            .env("DISPLACE_MEMORY_LIMIT", limit)
+            .current_dir(d)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.success(), ok, "{limit}: {}", stderr(&o));
+        assert_eq!(d.join("lim.npy").exists(), ok);
+        if !ok {
+            let msg = stderr(&o);
+            assert!(
+                msg.contains("needs about") && msg.contains("rays.npy"),
+                "{msg}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -21,6 +21,28 @@ use displace_render::{Scene, SceneOptions};
 use std::path::Path;
 use std::time::Instant;
 
+/// Refuses a ray file whose queries would not fit in memory
+/// ([`displace_core::memory`]), from its size alone, before it is read: the
+/// file's bytes and their floats, the rays as the tracer takes them (seven
+/// floats each), and the answers (one pass's, and a second buffer that
+/// repeated passes are checked against), at six floats a row, the
+/// narrowest rays. (The scene's own bakes are checked as it loads.)
+fn check_memory(rays: &Path, any_hit: bool, repeat: u32) -> Result<()> {
+    let Ok(meta) = std::fs::metadata(rays) else {
+        // Reading it names the problem.
+        return Ok(());
+    };
+    let bytes = meta.len() as u128;
+    let rows = bytes / 24;
+    let columns: u128 = if any_hit { 1 } else { 8 };
+    let answers = if repeat > 0 { 2 } else { 1 };
+    displace_core::memory::check(
+        &format!("trace --scene of {} (up to {rows} rays)", rays.display()),
+        2 * bytes + rows * 28 + answers * rows * columns * 4,
+    )?;
+    Ok(())
+}
+
 /// Loads `scene`, traces every ray of `rays` and writes `output`. With
 /// `repeat` above 0 the queries run that many more times after the first
 /// pass, and the rate printed is the best of those passes: a peer timed
@@ -38,6 +60,7 @@ pub fn run(
 ) -> Result<()> {
     crate::outputs::check_npy_output(output)?;
     crate::outputs::check_not_inputs(&[("-o", output)], &[("--rays", rays), ("--scene", scene)])?;
+    check_memory(rays, any_hit, repeat)?;
     let rays = read_rays_with_length(rays)?;
     let opts = SceneOptions {
         cache_dir: if cache {
