@@ -274,7 +274,10 @@ def main():
     for seed in (1001, 1002):
         scene = os.path.join(work, f"seed{seed}.toml")
         with open(scene, "w") as f:
-            f.write(re.sub(r"(?m)^seed = \d+$", f"seed = {seed}", text))
+            seeded, n = re.subn(r"(?m)^seed = \d+$", f"seed = {seed}", text)
+            if n != 1:
+                sys.exit(f"{SCENE}: expected one `seed = N` line to vary, found {n}")
+            f.write(seeded)
         floors.append(ours(exe, a.size, a.floor_spp, 1, work, env, a.sampler, scene,
                            f"_seed{seed}")[1])
     img_f = 0.5 * (floors[0] + floors[1])

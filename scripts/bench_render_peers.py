@@ -76,14 +76,21 @@ def camera_rays(n, view=None):
     displace_render::camera::Camera::ray makes them (pinhole); written once
     to a file that both tools read. `view` is (position, look_at, up, vfov),
     this script's camera by default."""
+    f = (np.arange(n) + 0.5) / n
+    fx, fy = np.meshgrid(f, f)
+    return film_rays(fx, fy, view)
+
+
+def film_rays(fx, fy, view=None):
+    """Pinhole rays through film points `(fx, fy)` (arrays of one shape, in
+    [0, 1] from the image's top left), in their order flattened: float32
+    origins and unit directions, as `camera_rays`."""
     pos, look, up, vfov = view or (*camera(), VFOV)
     fwd = (look - pos) / np.linalg.norm(look - pos)
     right = np.cross(fwd, up)
     right /= np.linalg.norm(right)
     upv = np.cross(right, fwd)
     t = math.tan(math.radians(vfov) / 2)
-    f = (np.arange(n) + 0.5) / n
-    fx, fy = np.meshgrid(f, f)
     sx = ((2 * fx - 1) * t).reshape(-1, 1)
     sy = ((1 - 2 * fy) * t).reshape(-1, 1)
     d = fwd + sx * right + sy * upv

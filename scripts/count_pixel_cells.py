@@ -26,7 +26,6 @@ are left out. Usage, from the repository's root:
 """
 
 import argparse
-import math
 import os
 import subprocess
 import sys
@@ -42,19 +41,11 @@ SIZE, SPP = 512, 16
 
 def pixel_rays(n, rng):
     """`n` random pixels' 16 jittered rays, (n * 16, 6)."""
-    pos, look, up = peers.camera()
-    fwd = (look - pos) / np.linalg.norm(look - pos)
-    right = np.cross(fwd, up)
-    right /= np.linalg.norm(right)
-    upv = np.cross(right, fwd)
-    t = math.tan(math.radians(peers.VFOV) / 2)
     px, py = rng.integers(0, SIZE, n), rng.integers(0, SIZE, n)
     gx, gy = np.meshgrid(np.arange(4), np.arange(4))
     fx = (px[:, None] + (gx.ravel()[None, :] + rng.random((n, SPP))) / 4) / SIZE
     fy = (py[:, None] + (gy.ravel()[None, :] + rng.random((n, SPP))) / 4) / SIZE
-    d = fwd + ((2 * fx - 1) * t)[..., None] * right + ((1 - 2 * fy) * t)[..., None] * upv
-    d = (d / np.linalg.norm(d, axis=-1, keepdims=True)).reshape(-1, 3)
-    return np.concatenate([np.broadcast_to(pos, d.shape), d], axis=1).astype(np.float32)
+    return np.concatenate(peers.film_rays(fx, fy), axis=1)
 
 
 def cells_crossed(a, e, texels):

@@ -6,7 +6,7 @@
 
 mod cli_common;
 
-use cli_common::{displace, lambert, point_light, stderr};
+use cli_common::{displace, displace_env, failed, lambert, point_light, stderr};
 use displace_core::io::npy;
 use std::path::Path;
 
@@ -185,16 +185,22 @@ fn displaced_faces_agree_with_the_face_query() {
     assert!(hits > 1900, "only {hits} hits");
 }
 
+/// Writes `s.toml` in `dir`: a displaced gaussian face with a sphere over
+/// it, the scene of the any-hit and repeated-pass tests.
+fn write_bumps_under_a_ball(dir: &Path) {
+    write_scene(
+        dir,
+        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8]) + &sphere("[0.5, 0.5, 0.6]", 0.1)),
+    );
+}
+
 /// Any-hit queries over random segments agree with the first hits: blocked
 /// exactly when the first hit lies before `t_max` (away from the ends).
 #[test]
 fn any_hit_agrees_with_the_first_hit() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_scene(
-        d,
-        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8]) + &sphere("[0.5, 0.5, 0.6]", 0.1)),
-    );
+    write_bumps_under_a_ball(d);
     let mut rng = displace_core::random::SplitMix64::new(11);
     let rays: Vec<Vec<f32>> = (0..3000)
         .map(|_| {
@@ -253,10 +259,7 @@ fn any_hit_agrees_with_the_first_hit() {
 fn repeated_passes_report_the_best_and_answer_as_one() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write_scene(
-        d,
-        &(displaced_unit_quad("gen:gaussian", 0.3, [16, 16, 8]) + &sphere("[0.5, 0.5, 0.6]", 0.1)),
-    );
+    write_bumps_under_a_ball(d);
     let mut rng = displace_core::random::SplitMix64::new(12);
     let rays: Vec<Vec<f32>> = (0..2000)
         .map(|_| {
@@ -314,24 +317,20 @@ fn repeated_passes_report_the_best_and_answer_as_one() {
     // the rays and two passes' answers, about 0.3 MB) is estimated from the
     // file's size and refused past the limit before anything is read.
     for (limit, ok) in [("200K", false), ("2M", true)] {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_displace"))
-            .args([
+        let o = displace_env(
+            &[
                 "trace", "--scene", "s.toml", "--rays", "rays.npy", "-o", "lim.npy", "--repeat",
                 "1",
-            ])
-            .env("DISPLACE_MEMORY_LIMIT", limit)
-            .current_dir(d)
-            .output()
-            .unwrap();
-        assert_eq!(o.status.success(), ok, "{limit}: {}", stderr(&o));
-        assert_eq!(d.join("lim.npy").exists(), ok);
-        if !ok {
-            let msg = stderr(&o);
-            assert!(
-                msg.contains("needs about") && msg.contains("rays.npy"),
-                "{msg}"
-            );
+            ],
+            d,
+            &[("DISPLACE_MEMORY_LIMIT", limit)],
+        );
+        if ok {
+            assert!(o.status.success(), "{limit}: {}", stderr(&o));
+        } else {
+            failed(&o, &["needs about", "rays.npy"], &[]);
         }
+        assert_eq!(d.join("lim.npy").exists(), ok);
     }
 }
 
