@@ -134,9 +134,10 @@ pub fn shell_folds(p: &[Vec3; 3], n: &[Vec3; 3], top: f64) -> bool {
 /// The corners `p` and unit normals `n` in double precision, the edges
 /// `e` and normal differences `f` from corner 0, and the coefficients `c`
 /// of a level's triangle normal `c0 + l c1 + l^2 c2` (`(e0 + l f0) x (e1 +
-/// l f1)`): what [`CurvedShell::new`] keeps and [`shell_folds`] checks.
+/// l f1)`): what [`CurvedShell::new`] keeps and [`shell_folds`] checks, and
+/// what a tracer that locates points in vector lanes reads.
 #[allow(clippy::type_complexity)]
-fn frame(
+pub fn frame(
     p: &[Vec3; 3],
     n: &[Vec3; 3],
 ) -> ([DVec3; 3], [DVec3; 3], [DVec3; 2], [DVec3; 2], [DVec3; 3]) {
