@@ -83,7 +83,7 @@ def main():
     embree = [sys.executable, peers.__file__]
 
     ours_img = os.path.join(work, "sphere.ours.exr")
-    render_s, _, rss_render = peers.render_ours(exe, toml, ours_img, a.repeat, env)
+    render_s, rss_render = peers.render_ours(exe, toml, ours_img, a.repeat, env)
     img_ours = peers.read_linear(ours_img)
     rays_path = os.path.join(work, "rays.npy")
     np.save(rays_path, np.concatenate(peers.camera_rays(a.rays, VIEW), axis=1))

@@ -353,17 +353,15 @@ def read_linear(path):
 
 def render_ours(exe, toml, out, repeat, env):
     """`displace render` of `toml` to `out`, `repeat` times, each in its own
-    process: the best render time (after the scene load, as it prints it),
-    the setup time of that run, and the peak MB of any run. Every run
-    renders the same image (the renders are deterministic)."""
-    best, setup, peak = math.inf, math.inf, 0.0
+    process: the best render time (after the scene load, as it prints it)
+    and the peak MB of any run. Every run renders the same image (the
+    renders are deterministic)."""
+    best, peak = math.inf, 0.0
     for _ in range(max(1, repeat)):
         _, err, _, rss = run_measured([exe, "render", toml, "-o", out, "--no-cache", "-q"], env)
-        mt = re.search(r"setup ([\d.]+) s.*render ([\d.]+) s", err)
-        if float(mt.group(2)) < best:
-            best, setup = float(mt.group(2)), float(mt.group(1))
+        best = min(best, float(re.search(r"render ([\d.]+) s", err).group(1)))
         peak = max(peak, rss)
-    return best, setup, peak
+    return best, peak
 
 
 def trace_ours(exe, toml, rays, out, threads, repeat, env, any_hit=False):
@@ -469,7 +467,7 @@ def main():
             f.write(scene_toml(spec, a.size, a.spp))
         # Ours: whole render (bake included, no disk cache) and first-hit rays.
         ours_img = os.path.join(work, f"{m}.ours.exr")
-        render_s, _, rss = render_ours(exe, toml, ours_img, a.repeat, env)
+        render_s, rss = render_ours(exe, toml, ours_img, a.repeat, env)
         img_ours = read_linear(ours_img)
         # First hits and the shadow rays from them: the same files go to
         # `displace trace --scene` and to Embree.
@@ -556,9 +554,10 @@ def main():
           ", ".join(f"{r['map']} {r['tool']} {r['mesh_s']:.2f} s" for r in rows if "mesh_s" in r))
     print("memory: ours = the displacement maps (heights, normals, distance values and codes); "
           "mesh = Embree's resident growth at build plus the vertex and index arrays")
+    loads = ", ".join(f"{r['map']} {r['tool']} {r['mitsuba_load_s']:.2f} s"
+                      for r in rows if "mitsuba_load_s" in r)
     print(f"render: whole render after scene load, the best of {a.repeat} runs each (Mitsuba: "
-          f"of {a.repeat} renders after its first, which compiles its kernels; loads: " + ", ".join(f"{r['map']} {r['tool']} {r['mitsuba_load_s']:.2f} s"
-                                          for r in rows if "mitsuba_load_s" in r) + ")")
+          f"of {a.repeat} renders after its first, which compiles its kernels; loads: {loads})")
     print(f"Mitsuba's LLVM: {env.get('DRJIT_LIBLLVM_PATH', 'Dr.Jit default')}")
     print(f"\nratios ({t} threads; first hits and shadow rays: ours / Embree, at least 1 wanted; "
           "memory and setup against the x4 mesh: at most 0.5 and 0.25 wanted; render: ours / "
