@@ -27,9 +27,17 @@ use displace_render::scene::Shape;
 use std::path::Path;
 use std::time::Instant;
 
+/// Every `every`th ray of `path`, `(N, 6)` or `(N, 7)` as `displace trace
+/// --scene` reads them (a missing `t_max` is infinite).
 fn read_rays(path: &str, every: usize) -> Vec<[f32; 7]> {
-    let arr = npy::read_file(Path::new(path)).expect("a ray file");
-    let columns = arr.shape[1];
+    let arr = npy::read_file(Path::new(path)).unwrap_or_else(|e| usage(&format!("{path}: {e}")));
+    let columns = match arr.shape[..] {
+        [_, c @ (6 | 7)] => c,
+        _ => usage(&format!(
+            "{path}: shape {:?}, not (N, 6) or (N, 7)",
+            arr.shape
+        )),
+    };
     arr.data
         .chunks_exact(columns)
         .step_by(every)
@@ -38,6 +46,15 @@ fn read_rays(path: &str, every: usize) -> Vec<[f32; 7]> {
             [r[0], r[1], r[2], r[3], r[4], r[5], t_max]
         })
         .collect()
+}
+
+/// Says what is wrong and how the example is run, and exits with status 2.
+fn usage(problem: &str) -> ! {
+    eprintln!(
+        "curved_walk_ceiling: {problem}\n\
+         usage: curved_walk_ceiling SCENE.toml RAYS.npy [SHADOW_RAYS.npy] [--every N]"
+    );
+    std::process::exit(2)
 }
 
 /// Seconds one run of `f` takes.
@@ -79,7 +96,12 @@ fn main() {
     let every = args
         .iter()
         .position(|a| a == "--every")
-        .map(|i| args[i + 1].parse().expect("--every N"))
+        .map(
+            |i| match args.get(i + 1).and_then(|n| n.parse::<usize>().ok()) {
+                Some(n) if n > 0 => n,
+                _ => usage("--every takes a whole number of rays, 1 or more"),
+            },
+        )
         .unwrap_or(1);
     let files: Vec<&String> = args
         .iter()
@@ -87,11 +109,15 @@ fn main() {
         .filter(|(i, a)| !a.starts_with("--") && (*i == 0 || args[i - 1] != "--every"))
         .map(|(_, a)| a)
         .collect();
+    if files.len() < 2 {
+        usage("a scene and at least one ray file are needed");
+    }
     let opts = SceneOptions {
         no_image: true,
         ..Default::default()
     };
-    let scene = Scene::load(Path::new(files[0]), &opts).expect("a scene");
+    let scene =
+        Scene::load(Path::new(files[0]), &opts).unwrap_or_else(|e| usage(&format!("{e:#}")));
     let faces: Vec<&CurvedFace> = scene
         .primitives()
         .iter()
